@@ -1,0 +1,17 @@
+"""closure_nlp: force-closure grasp and fixture planning on surface elements."""
+
+from .contacts import Contact, ContactSet, ContactType, load_contact_set
+from .errors import MethodError
+from .tolerances import DEFAULT_TOLERANCES, Tolerances
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "Contact",
+    "ContactSet",
+    "ContactType",
+    "DEFAULT_TOLERANCES",
+    "MethodError",
+    "Tolerances",
+    "load_contact_set",
+]

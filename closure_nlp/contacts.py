@@ -1,0 +1,247 @@
+"""Contact models (FPC, PCwF, SFCl, SFCe), the local frame and the grasp matrix (paper eqs 1-6).
+
+A contact's allowable forces are ``f = (f_n, f_o, f_t, f_s)`` in its local frame ``{n, o, t}``
+(``n = o x t``, ``n`` the unit inward normal) with ``0 <= f_n <= f_max`` and the friction cone of
+its type. Every cone used here has the form ``max_k sqrt(sum_j w_kj f_j^2 / w_kj^2) <= f_n``;
+its support function is written once, in :mod:`closure_nlp.wrenches`, from the weights
+returned by :func:`friction_pieces`.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from enum import Enum
+from pathlib import Path
+
+import numpy as np
+
+from .validation import as_number, as_unit_vector, as_vector, check_keys
+
+DEFAULT_MU = 0.2
+DEFAULT_MU_S = 0.2
+DEFAULT_F_MAX = 1.0
+
+
+class ContactType(str, Enum):
+    """Contact model: frictionless, with friction, soft finger (linear or elliptic)."""
+
+    FPC = "fpc"
+    PCWF = "pcwf"
+    SFCL = "sfcl"
+    SFCE = "sfce"
+
+    @classmethod
+    def parse(cls, value, field: str = "type") -> ContactType:
+        if isinstance(value, cls):
+            return value
+        if isinstance(value, str):
+            try:
+                return cls(value.strip().lower())
+            except ValueError:
+                pass
+        names = ", ".join(t.value for t in cls)
+        raise ValueError(f"{field}: unknown contact type {value!r} (expected one of {names})")
+
+
+def friction_pieces(kind: ContactType, mu: float, mu_s: float) -> np.ndarray:
+    """Weights of the friction term of the support function (eqs 29-32).
+
+    The support function of one contact is ``f_max * (d_n + max_k sqrt(sum_j W[k, j] d_j^2))``
+    with ``d = G^T u = (d_n, d_o, d_t, d_s)``.
+
+    Returns
+    -------
+    W : (k, 4) float
+        One row per piece: none for FPC, one for PCwF and SFCe, two for SFCl.
+    """
+    mu2, mus2 = mu * mu, mu_s * mu_s
+    return {
+        ContactType.FPC: np.zeros((0, 4)),
+        ContactType.PCWF: np.array([[0.0, mu2, mu2, 0.0]]),
+        ContactType.SFCL: np.array([[0.0, mu2, mu2, 0.0], [0.0, 0.0, 0.0, mus2]]),
+        ContactType.SFCE: np.array([[0.0, mu2, mu2, mus2]]),
+    }[kind]
+
+
+def local_frame(normal: np.ndarray) -> np.ndarray:
+    """Unit tangents completing the inward normal to a right-handed frame.
+
+    Parameters
+    ----------
+    normal : (3,) float
+        Unit inward normal ``n``.
+
+    Returns
+    -------
+    frame : (3, 3) float
+        Columns ``n, o, t`` with ``n = o x t``.
+    """
+    n = np.asarray(normal, dtype=float)
+    helper = np.zeros(3)
+    helper[int(np.argmin(np.abs(n)))] = 1.0  # the axis least aligned with n: never parallel
+    o = np.cross(n, helper)
+    o /= np.linalg.norm(o)
+    t = np.cross(n, o)  # o x (n x o) = n for unit, orthogonal n and o
+    return np.column_stack([n, o, t])
+
+
+def grasp_matrices(positions: np.ndarray, normal: np.ndarray, torque_scale: float = 1.0):
+    """Grasp matrices ``G`` (eq 6) of contacts sharing one inward normal.
+
+    Used for one contact (``positions`` of shape (3,)) and for the vertex grasp matrices of an
+    element (eq 19, one row per vertex). Torque rows, the spin column included, are multiplied by
+    ``torque_scale``.
+
+    Returns
+    -------
+    G : (6, 4) float, or (k, 6, 4) float for ``positions`` of shape (k, 3)
+    """
+    r = np.asarray(positions, dtype=float)
+    single = r.ndim == 1
+    r = np.atleast_2d(r)
+    frame = local_frame(normal)  # (3, 3): n, o, t
+    G = np.zeros((r.shape[0], 6, 4))
+    G[:, :3, :3] = frame
+    G[:, 3:, :3] = torque_scale * np.cross(r[:, None, :], frame.T[None, :, :]).transpose(0, 2, 1)
+    G[:, 3:, 3] = torque_scale * frame[:, 0]
+    return G[0] if single else G
+
+
+@dataclass(frozen=True, eq=False)
+class Contact:
+    """One contact: where, which way it pushes, and what it can carry.
+
+    Attributes
+    ----------
+    position : (3,) float
+    inward_normal : (3,) float
+        Normalised on creation; zero or non-finite is rejected.
+    type : ContactType
+    mu, mu_s, f_max : float
+        Coulomb coefficient, spin coefficient (soft fingers, a length), normal-force bound.
+    """
+
+    position: np.ndarray
+    inward_normal: np.ndarray
+    type: ContactType = ContactType.PCWF
+    mu: float = DEFAULT_MU
+    mu_s: float = DEFAULT_MU_S
+    f_max: float = DEFAULT_F_MAX
+    name: str = field(default="contact")
+
+    def __post_init__(self) -> None:
+        set_ = object.__setattr__
+        set_(self, "position", as_vector(self.position, f"{self.name}.position", 3))
+        set_(self, "inward_normal", as_unit_vector(self.inward_normal, f"{self.name}.inward_normal"))
+        set_(self, "type", ContactType.parse(self.type, f"{self.name}.type"))
+        set_(self, "mu", as_number(self.mu, f"{self.name}.mu", minimum=0.0))
+        set_(self, "mu_s", as_number(self.mu_s, f"{self.name}.mu_s", minimum=0.0))
+        set_(self, "f_max", as_number(self.f_max, f"{self.name}.f_max", minimum=0.0, strict=True))
+
+    def to_dict(self) -> dict:
+        return {
+            "position": self.position.tolist(),
+            "inward_normal": self.inward_normal.tolist(),
+            "type": self.type.value,
+            "mu": self.mu,
+            "mu_s": self.mu_s,
+            "f_max": self.f_max,
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class ContactSet:
+    """Contacts acting together on one object, with the torque scale of their grasp matrices."""
+
+    contacts: tuple[Contact, ...]
+    torque_scale: float = 1.0
+
+    def __post_init__(self) -> None:
+        contacts = tuple(self.contacts)
+        if not contacts:
+            raise ValueError("contacts: at least one contact is needed, got an empty list")
+        for i, c in enumerate(contacts):
+            if not isinstance(c, Contact):
+                raise TypeError(f"contacts[{i}]: expected a Contact, got {type(c).__name__}")
+        object.__setattr__(self, "contacts", contacts)
+        object.__setattr__(
+            self, "torque_scale", as_number(self.torque_scale, "torque_scale", minimum=0.0, strict=True)
+        )
+
+    def __len__(self) -> int:
+        return len(self.contacts)
+
+    @property
+    def types(self) -> tuple[ContactType, ...]:
+        return tuple(c.type for c in self.contacts)
+
+    def grasp_matrices(self) -> np.ndarray:
+        """(m, 6, 4) float: ``G_i`` of every contact (eq 6)."""
+        return np.stack(
+            [grasp_matrices(c.position, c.inward_normal, self.torque_scale) for c in self.contacts]
+        )
+
+    def to_dict(self) -> dict:
+        return {"torque_scale": self.torque_scale, "contacts": [c.to_dict() for c in self.contacts]}
+
+
+CONTACT_KEYS = {"position", "inward_normal", "type", "mu", "mu_s", "f_max", "element", "weights", "name"}
+DEFAULT_KEYS = {"type", "mu", "mu_s", "f_max"}
+FILE_KEYS = {"torque_scale", "defaults", "contacts", "name", "description", "units", "comment"}
+
+
+def contact_set_from_dict(data) -> ContactSet:
+    """Build a :class:`ContactSet` from the contact-set file layout of INTERFACE.md."""
+    check_keys(data, "file", FILE_KEYS, required={"contacts"})
+    defaults = data.get("defaults", {})
+    check_keys(defaults, "defaults", DEFAULT_KEYS)
+    entries = data["contacts"]
+    if not isinstance(entries, list):
+        raise TypeError(f"contacts: expected a list, got {type(entries).__name__}")
+    if not entries:
+        raise ValueError("contacts: at least one contact is needed, got an empty list")
+    contacts = []
+    for i, entry in enumerate(entries):
+        name = f"contacts[{i}]"
+        check_keys(entry, name, CONTACT_KEYS, required={"position", "inward_normal"})
+        merged = {
+            "type": ContactType.PCWF.value,
+            "mu": DEFAULT_MU,
+            "mu_s": DEFAULT_MU_S,
+            "f_max": DEFAULT_F_MAX,
+            **defaults,
+            **entry,
+        }
+        contacts.append(
+            Contact(
+                position=merged["position"],
+                inward_normal=merged["inward_normal"],
+                type=merged["type"],
+                mu=merged["mu"],
+                mu_s=merged["mu_s"],
+                f_max=merged["f_max"],
+                name=name,
+            )
+        )
+    return ContactSet(tuple(contacts), data.get("torque_scale", 1.0))
+
+
+def load_json(path) -> object:
+    """Read a JSON file; a missing, unreadable or malformed file is a ``ValueError``."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ValueError("file not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ValueError(f"cannot read file: {exc.__class__.__name__}: {exc}") from None
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"malformed JSON at line {exc.lineno} column {exc.colno}: {exc.msg}") from None
+
+
+def load_contact_set(path) -> ContactSet:
+    """Read a ``*.contacts.json`` file (INTERFACE.md)."""
+    return contact_set_from_dict(load_json(path))

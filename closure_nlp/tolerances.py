@@ -1,0 +1,42 @@
+"""The one tolerance object of the package: every numeric threshold lives here."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+
+@dataclass(frozen=True)
+class Tolerances:
+    """Numeric thresholds.
+
+    Attributes
+    ----------
+    ipopt : float
+        IPOPT's ``tol`` (and ``constr_viol_tol``) for every NLP of the package.
+    zero_rho : float
+        ``|rho|`` at or below this (relative to ``max(1, scale)``) is reported as exactly 0
+        and is not force closure: the set has no interior or the origin is on its boundary.
+    certify : float
+        Relative gap ``hi - lo <= certify * max(1, |rho|)`` at which certified bounds stop.
+    geometry : float
+        Relative tolerance for planarity, perpendicular normals and distinct vertices,
+        measured against an element's size.
+    distinct_start : float
+        Two candidate start directions closer than this (Euclidean, on the unit sphere)
+        are the same basin.
+    """
+
+    ipopt: float = 1e-10
+    zero_rho: float = 1e-9
+    certify: float = 1e-6
+    geometry: float = 1e-6
+    distinct_start: float = 0.2
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if not isinstance(value, (int, float)) or not value > 0 or value != value:
+                raise ValueError(f"tolerances.{f.name}: must be a positive number, got {value!r}")
+
+
+DEFAULT_TOLERANCES = Tolerances()
