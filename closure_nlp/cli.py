@@ -11,7 +11,9 @@ import argparse
 import json
 import sys
 
+from .contacts import load_contact_set
 from .errors import MethodError
+from .quality import rho
 
 
 class InputError(ValueError):
@@ -29,6 +31,36 @@ def _emit(args, payload: dict, text: str) -> None:
 
 
 # --- commands -------------------------------------------------------------------------------
+
+
+def _load_each(paths, loader):
+    """Load and validate every input before any work, so bad input prints no partial output."""
+    loaded = []
+    for path in paths:
+        try:
+            loaded.append((path, loader(path)))
+        except (ValueError, TypeError) as exc:
+            raise InputError(path, str(exc)) from None
+    return loaded
+
+
+def _add_rho(sub, common) -> None:
+    p = sub.add_parser("rho", parents=[common], help="rho(0, W_c^M) of contact-set files")
+    p.add_argument("files", nargs="+", metavar="FILE", help="*.contacts.json")
+    p.set_defaults(run=_cmd_rho)
+
+
+def _cmd_rho(args) -> None:
+    for path, contact_set in _load_each(args.files, load_contact_set):
+        result = rho(contact_set)
+        payload = {"file": path, **result.to_dict()}
+        verdict = "force closure" if result.force_closure else "not force closure"
+        direction = " ".join(f"{x:+.4f}" for x in result.direction)
+        _emit(
+            args,
+            payload,
+            f"{path}: rho = {result.rho:.9g} ({verdict}); weakest direction u* = [{direction}]",
+        )
 
 
 # --- parser ---------------------------------------------------------------------------------
@@ -53,7 +85,8 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-COMMANDS: list = []  # functions (subparsers, common_parent) -> None, each registering one command
+# Functions (subparsers, common_parent) -> None, each registering one command.
+COMMANDS: list = [_add_rho]
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -133,7 +133,9 @@ class Contact:
     def __post_init__(self) -> None:
         set_ = object.__setattr__
         set_(self, "position", as_vector(self.position, f"{self.name}.position", 3))
-        set_(self, "inward_normal", as_unit_vector(self.inward_normal, f"{self.name}.inward_normal"))
+        set_(
+            self, "inward_normal", as_unit_vector(self.inward_normal, f"{self.name}.inward_normal")
+        )
         set_(self, "type", ContactType.parse(self.type, f"{self.name}.type"))
         set_(self, "mu", as_number(self.mu, f"{self.name}.mu", minimum=0.0))
         set_(self, "mu_s", as_number(self.mu_s, f"{self.name}.mu_s", minimum=0.0))
@@ -166,7 +168,9 @@ class ContactSet:
                 raise TypeError(f"contacts[{i}]: expected a Contact, got {type(c).__name__}")
         object.__setattr__(self, "contacts", contacts)
         object.__setattr__(
-            self, "torque_scale", as_number(self.torque_scale, "torque_scale", minimum=0.0, strict=True)
+            self,
+            "torque_scale",
+            as_number(self.torque_scale, "torque_scale", minimum=0.0, strict=True),
         )
 
     def __len__(self) -> int:
@@ -186,7 +190,17 @@ class ContactSet:
         return {"torque_scale": self.torque_scale, "contacts": [c.to_dict() for c in self.contacts]}
 
 
-CONTACT_KEYS = {"position", "inward_normal", "type", "mu", "mu_s", "f_max", "element", "weights", "name"}
+CONTACT_KEYS = {
+    "position",
+    "inward_normal",
+    "type",
+    "mu",
+    "mu_s",
+    "f_max",
+    "element",
+    "weights",
+    "name",
+}
 DEFAULT_KEYS = {"type", "mu", "mu_s", "f_max"}
 FILE_KEYS = {"torque_scale", "defaults", "contacts", "name", "description", "units", "comment"}
 
@@ -239,7 +253,9 @@ def load_json(path) -> object:
     try:
         return json.loads(text)
     except json.JSONDecodeError as exc:
-        raise ValueError(f"malformed JSON at line {exc.lineno} column {exc.colno}: {exc.msg}") from None
+        raise ValueError(
+            f"malformed JSON at line {exc.lineno} column {exc.colno}: {exc.msg}"
+        ) from None
 
 
 def load_contact_set(path) -> ContactSet:

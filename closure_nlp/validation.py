@@ -60,7 +60,9 @@ def check_keys(mapping: dict, field: str, allowed: set[str], required: set[str] 
         raise TypeError(f"{field}: expected an object, got {type(mapping).__name__}")
     unknown = sorted(set(mapping) - allowed)
     if unknown:
-        raise ValueError(f"{field}: unknown key {unknown[0]!r} (allowed: {', '.join(sorted(allowed))})")
+        raise ValueError(
+            f"{field}: unknown key {unknown[0]!r} (allowed: {', '.join(sorted(allowed))})"
+        )
     missing = sorted(required - set(mapping))
     if missing:
         raise ValueError(f"{field}: missing key {missing[0]!r}")

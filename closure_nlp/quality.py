@@ -1,0 +1,347 @@
+"""The quality criteria: rho(0, W_c^M) of contacts and rho(0, What_c^M) of elements (eqs 24, 33).
+
+``rho = -min_{|u| = 1} p(u)`` with ``p`` the support function of :mod:`closure_nlp.wrenches`.
+The minimum is a CasADi NLP solved by IPOPT, smooth through an epigraph:
+
+    min t  over u, s, P, z, t   subject to
+        u.u = 1
+        s_r >= 0,  s_r**2 >= q_k(G_r^T u)          friction term of row r, every piece k
+        P_i >= f_r * ((G_r^T u)_n + s_r)           every row r of slot i (max over vertices)
+        z_i >= P_i,  z_i >= 0                      z_i = max(P_i, 0) at the optimum
+        t >= P_i + sum_{j != i} z_j                every slot i
+
+The last line is the max over non-empty subsets in O(m) constraints, including the branch where
+every ``P_i`` is negative (the contacts are then not force closure and ``rho > 0`` is the distance
+that the selection algorithms steer by). The NLP is built once per shape (slot types and rows per
+slot) with the grasp matrices and contact data as parameters, and re-called. The reported value is
+the support function at the returned unit direction, never the epigraph variable.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+
+from .contacts import ContactSet, ContactType
+from .sphere_search import descend, distinct_lowest, sphere_samples
+from .tolerances import DEFAULT_TOLERANCES, Tolerances
+from .validation import as_vector
+from .wrenches import WrenchSlots, piece_square
+
+
+@dataclass(frozen=True)
+class SearchOptions:
+    """How the global minimum over the sphere is sought.
+
+    Attributes
+    ----------
+    samples : int
+        Pseudo-random directions (besides ``+-e_k``) that the batched descent starts from.
+    descent_iterations : int
+        Steps of the batched descent.
+    ipopt_starts : int
+        IPOPT runs, from the lowest distinct descent end points.
+    max_iter : int
+        IPOPT iteration cap per run.
+    """
+
+    samples: int = 128
+    descent_iterations: int = 30
+    ipopt_starts: int = 2
+    max_iter: int = 300
+
+    def __post_init__(self) -> None:
+        for name in ("samples", "descent_iterations", "ipopt_starts", "max_iter"):
+            value = getattr(self, name)
+            if (
+                isinstance(value, bool)
+                or not isinstance(value, int)
+                or value < (0 if name in ("samples", "descent_iterations") else 1)
+            ):
+                raise ValueError(f"search.{name}: must be a non-negative integer, got {value!r}")
+
+
+@dataclass(frozen=True)
+class SolverStats:
+    """What the solves cost. ``status``/``success`` are those of the run that gave the answer."""
+
+    ipopt_runs: int
+    iterations: int
+    status: str
+    success: bool
+    seconds: float
+
+
+@dataclass(frozen=True, eq=False)
+class SupportMinimum:
+    """``min_{|u|=1} p(u)``: the value, where, and the wrench that attains it.
+
+    Attributes
+    ----------
+    value : float
+        ``p(direction)``, evaluated by the support function, not taken from the solver.
+    direction : (6,) float
+        Unit direction ``u*``.
+    support_point : (6,) float
+        A wrench of the set with ``u* . w = value``.
+    stats : SolverStats
+    """
+
+    value: float
+    direction: np.ndarray
+    support_point: np.ndarray
+    stats: SolverStats
+
+
+@dataclass(frozen=True, eq=False)
+class RhoResult:
+    """rho(0, W_c^M) of a contact set.
+
+    Attributes
+    ----------
+    rho : float
+        Negative: force closure, ``-rho`` is the radius of the largest origin-centred ball inside
+        ``W_c^M``. Non-negative: not force closure, the distance from the origin (0 when the set
+        has no interior).
+    force_closure : bool
+    direction : (6,) float
+        Unit ``u*`` with ``p(u*) = -rho``: the weakest wrench direction.
+    support_point : (6,) float
+    stats : SolverStats
+    """
+
+    rho: float
+    force_closure: bool
+    direction: np.ndarray
+    support_point: np.ndarray
+    stats: SolverStats = field(repr=False)
+
+    def to_dict(self) -> dict:
+        return {
+            "rho": self.rho,
+            "force_closure": self.force_closure,
+            "direction": self.direction.tolist(),
+            "support_point": self.support_point.tolist(),
+            "ipopt_runs": self.stats.ipopt_runs,
+            "iterations": self.stats.iterations,
+            "seconds": self.stats.seconds,
+        }
+
+
+class SupportMinProblem:
+    """The NLP ``min_{|u|=1} p(u)`` for one shape, built once, called many times.
+
+    Parameters
+    ----------
+    n_pieces : tuple of int
+        Friction pieces of each slot's contact type (0 FPC, 1 PCwF/SFCe, 2 SFCl).
+    rows_per_slot : tuple of int
+        Grasp matrices in each slot (1 for contacts, the vertex count for elements).
+    """
+
+    def __init__(
+        self,
+        n_pieces,
+        rows_per_slot,
+        tolerances: Tolerances = DEFAULT_TOLERANCES,
+        max_iter: int = 300,
+        ipopt_options: dict | None = None,
+    ):
+        self.n_pieces = tuple(n_pieces)
+        self.rows_per_slot = tuple(rows_per_slot)
+        m = len(self.n_pieces)
+        u = ca.SX.sym("u", 6)
+        z, t = ca.SX.sym("z", m), ca.SX.sym("t")
+        s_vars, P_vars, params, g = [], [], [], []
+        for i, (pieces, rows) in enumerate(zip(self.n_pieces, self.rows_per_slot)):
+            values = []
+            for _ in range(rows):
+                G = ca.SX.sym("G", 6, 4)
+                f_max = ca.SX.sym("f")
+                weights = [ca.SX.sym("w", 4) for _ in range(pieces)]
+                params += [ca.vec(G), f_max, *weights]
+                d = G.T @ u
+                if pieces:
+                    s = ca.SX.sym("s")
+                    s_vars.append(s)
+                    g += [s**2 - piece_square(w, d) for w in weights]
+                    values.append(f_max * (d[0] + s))
+                else:
+                    values.append(f_max * d[0])
+            if rows == 1:
+                P_i = values[0]  # a contact: no max over vertices, no extra variable
+            else:
+                P_i = ca.SX.sym("P")
+                P_vars.append(P_i)
+                g += [P_i - v for v in values]
+            g.append(z[i] - P_i)
+            g.append(t - P_i - (ca.sum1(z) - z[i]))
+        n_ineq = len(g)
+        g.append(ca.dot(u, u))
+        x = ca.vertcat(u, *s_vars, *P_vars, z, t)
+        self._n_s, self._n_P = len(s_vars), len(P_vars)
+        nlp = {"x": x, "p": ca.vertcat(*params), "f": t, "g": ca.vertcat(*g)}
+        opts = {
+            "print_time": False,
+            "error_on_fail": False,
+            "ipopt": {
+                "print_level": 0,
+                "sb": "yes",
+                "tol": tolerances.ipopt,
+                "constr_viol_tol": tolerances.ipopt,
+                "acceptable_tol": 1e-8,
+                "max_iter": max_iter,
+                **(ipopt_options or {}),
+            },
+        }
+        self._solver = ca.nlpsol("support_min", "ipopt", nlp, opts)
+        inf = np.inf
+        self._lbg = np.concatenate([np.zeros(n_ineq), [1.0]])
+        self._ubg = np.concatenate([np.full(n_ineq, inf), [1.0]])
+        self._lbx = np.concatenate(
+            [np.full(6, -2.0), np.zeros(self._n_s), np.full(self._n_P, -inf), np.zeros(m), [-inf]]
+        )
+        self._ubx = np.concatenate([np.full(6, 2.0), np.full(self._n_s + self._n_P + m + 1, inf)])
+
+    @staticmethod
+    def key(slots: WrenchSlots) -> tuple:
+        return (slots.n_pieces, slots.rows_per_slot)
+
+    def parameters(self, slots: WrenchSlots) -> np.ndarray:
+        """Pack grasp matrices, force bounds and friction weights in the NLP's order."""
+        parts = []
+        for i, start in enumerate(slots.starts):
+            for r in range(start, start + self.rows_per_slot[i]):
+                parts += [slots.G[r].T.ravel(), [slots.f_max[r]]]
+                parts += list(slots.pieces[r, : self.n_pieces[i]])
+        return np.concatenate(parts)
+
+    def initial_guess(self, slots: WrenchSlots, u: np.ndarray) -> np.ndarray:
+        """A feasible point of the epigraph at direction ``u``."""
+        d = slots.local(u)[0]
+        q = piece_square(slots.pieces, d[:, None, :]).max(axis=1)
+        has_s = np.repeat(np.array(self.n_pieces) > 0, self.rows_per_slot)
+        s = np.sqrt(np.maximum(q, 0.0))[has_s] + 1e-8
+        P = slots.slot_values(u)[0] + 1e-8
+        z = np.maximum(P, 0.0) + 1e-8
+        t = np.max(P + z.sum() - z) + 1e-8
+        return np.concatenate([u, s, P[np.array(self.rows_per_slot) > 1], z, [t]])
+
+    def solve(self, slots: WrenchSlots, u0: np.ndarray, params: np.ndarray | None = None):
+        """One IPOPT run from ``u0``; returns (unit u, iterations, return status, success)."""
+        if params is None:
+            params = self.parameters(slots)
+        sol = self._solver(
+            x0=self.initial_guess(slots, u0),
+            p=params,
+            lbx=self._lbx,
+            ubx=self._ubx,
+            lbg=self._lbg,
+            ubg=self._ubg,
+        )
+        stats = self._solver.stats()
+        u = np.asarray(sol["x"][:6]).ravel()
+        norm = np.linalg.norm(u)
+        u = u / norm if norm > 0 else u0
+        return (
+            u,
+            int(stats.get("iter_count", 0)),
+            str(stats.get("return_status")),
+            bool(stats.get("success", False)),
+        )
+
+
+class SupportMinimizer:
+    """Global ``min_{|u|=1} p(u)`` for any :class:`WrenchSlots`, one cached NLP per shape.
+
+    Starts: a batched numpy descent from ``+-e_k`` and pseudo-random directions (and the warm
+    start, when given), then IPOPT from the lowest distinct end points; the best IPOPT answer, by
+    the support function evaluated at its unit direction, wins.
+    """
+
+    def __init__(
+        self, tolerances: Tolerances = DEFAULT_TOLERANCES, search: SearchOptions = SearchOptions()
+    ):
+        self.tolerances = tolerances
+        self.search = search
+        self._problems: dict[tuple, SupportMinProblem] = {}
+
+    def problem(self, slots: WrenchSlots) -> SupportMinProblem:
+        key = SupportMinProblem.key(slots)
+        if key not in self._problems:
+            self._problems[key] = SupportMinProblem(*key, self.tolerances, self.search.max_iter)
+        return self._problems[key]
+
+    def __call__(self, slots: WrenchSlots, warm_start=None) -> SupportMinimum:
+        start_time = time.perf_counter()
+        problem = self.problem(slots)
+        U = sphere_samples(self.search.samples)
+        if warm_start is not None:
+            u0 = as_vector(warm_start, "warm_start", 6)
+            U = np.vstack([u0 / max(np.linalg.norm(u0), 1e-300), U])
+        U, values = descend(slots, U, self.search.descent_iterations)
+        picks = distinct_lowest(U, values, self.search.ipopt_starts, self.tolerances.distinct_start)
+        params = problem.parameters(slots)
+        best = (values[picks[0]], U[picks[0]], "descent", False)
+        iterations = 0
+        for i in picks:
+            u, nit, status, success = problem.solve(slots, U[i], params)
+            iterations += nit
+            value = float(slots.support(u)[0])
+            if value < best[0]:
+                best = (value, u, status, success)
+        value, u, status, success = best
+        stats = SolverStats(
+            len(picks), iterations, status, success, time.perf_counter() - start_time
+        )
+        return SupportMinimum(float(value), u, slots.support_point(u), stats)
+
+
+_DEFAULT_MINIMIZER = SupportMinimizer()
+
+
+def rho(
+    contact_set: ContactSet, *, minimizer: SupportMinimizer | None = None, warm_start=None
+) -> RhoResult:
+    """rho(0, W_c^M) of a contact set (eq 24).
+
+    Parameters
+    ----------
+    contact_set : ContactSet
+    minimizer : SupportMinimizer, optional
+        Holds the cached NLPs and the options; a shared default is used when omitted.
+    warm_start : (6,) float, optional
+        A direction to add to the starts (e.g. the previous ``u*`` in a loop).
+
+    Returns
+    -------
+    RhoResult
+    """
+    if not isinstance(contact_set, ContactSet):
+        raise TypeError(f"contact_set: expected a ContactSet, got {type(contact_set).__name__}")
+    minimizer = minimizer or _DEFAULT_MINIMIZER
+    found = minimizer(WrenchSlots.from_contacts(contact_set), warm_start)
+    return _as_rho(found, minimizer.tolerances)
+
+
+def _as_rho(found: SupportMinimum, tolerances: Tolerances) -> RhoResult:
+    value = -found.value
+    scale = max(1.0, float(np.linalg.norm(found.support_point)))
+    if abs(value) <= tolerances.zero_rho * scale:
+        value = 0.0  # no interior, or the origin on the boundary: not force closure
+    return RhoResult(value, value < 0.0, found.direction, found.support_point, found.stats)
+
+
+__all__ = [
+    "ContactType",
+    "RhoResult",
+    "SearchOptions",
+    "SolverStats",
+    "SupportMinProblem",
+    "SupportMinimizer",
+    "SupportMinimum",
+    "rho",
+]

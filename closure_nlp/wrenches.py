@@ -1,0 +1,171 @@
+"""Wrench sets and their support functions (paper eqs 26-32, 35-36), vectorised over directions.
+
+A :class:`WrenchSlots` holds ``m`` slots. Slot ``i`` is the union of the extreme wrench sets of
+its rows (one row per grasp matrix): one row for a contact (``W_i``, eq 14), one row per vertex
+for an element (``What_i``, eq 22). The support function of the union of all Minkowski sums of
+the slots (eqs 26 and 35) is, with ``P_i`` the slot values,
+
+    p(u) = max over non-empty subsets S of sum_{i in S} P_i = sum_i max(P_i, 0) + min(max_i P_i, 0)
+
+(the sum of the positive ``P_i`` if any is positive, otherwise the largest): O(m), not O(2^m).
+The friction term is the same formula everywhere: ``f_max * (d_n + max_k sqrt(q_k(d)))`` with
+``q_k(d) = sum_j W[k, j] * d_j**2`` from :func:`closure_nlp.contacts.friction_pieces`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .contacts import ContactSet, ContactType, friction_pieces
+
+MAX_PIECES = 2  # SFCl has two friction pieces, the others fewer
+
+
+def piece_square(weights, d):
+    """``q(d) = sum_j weights[j] * d[j]**2``: numpy arrays (last axis 4) or CasADi 4-vectors."""
+    if isinstance(d, np.ndarray):
+        return np.sum(weights * d**2, axis=-1)
+    return sum(weights[j] * d[j] ** 2 for j in range(4))
+
+
+@dataclass(frozen=True, eq=False)
+class WrenchSlots:
+    """Grasp matrices grouped in slots, with each row's force bound and friction pieces.
+
+    Attributes
+    ----------
+    G : (K, 6, 4) float
+        Grasp matrices, rows of one slot consecutive.
+    starts : (m,) int
+        Index of each slot's first row.
+    f_max : (K,) float
+    pieces : (K, MAX_PIECES, 4) float
+        Friction weights of each row, zero rows where a type has fewer pieces.
+    types : tuple of ContactType, length m
+    n_pieces : tuple of int, length m
+        Number of real friction pieces of each slot's type.
+    """
+
+    G: np.ndarray
+    starts: np.ndarray
+    f_max: np.ndarray
+    pieces: np.ndarray
+    types: tuple[ContactType, ...]
+    n_pieces: tuple[int, ...]
+
+    @classmethod
+    def build(cls, slots) -> WrenchSlots:
+        """From ``[(G_i (k_i, 6, 4), type, mu, mu_s, f_max), ...]``, one tuple per slot."""
+        G, starts, f_max, pieces, types, n_pieces = [], [], [], [], [], []
+        row = 0
+        for Gi, kind, mu, mu_s, fmax in slots:
+            Gi = np.asarray(Gi, dtype=float).reshape(-1, 6, 4)
+            w = friction_pieces(kind, mu, mu_s)
+            padded = np.zeros((MAX_PIECES, 4))
+            padded[: len(w)] = w
+            starts.append(row)
+            row += len(Gi)
+            G.append(Gi)
+            f_max.append(np.full(len(Gi), fmax))
+            pieces.append(np.broadcast_to(padded, (len(Gi), MAX_PIECES, 4)))
+            types.append(kind)
+            n_pieces.append(len(w))
+        return cls(
+            np.concatenate(G),
+            np.asarray(starts),
+            np.concatenate(f_max),
+            np.concatenate(pieces),
+            tuple(types),
+            tuple(n_pieces),
+        )
+
+    @classmethod
+    def from_contacts(cls, contact_set: ContactSet) -> WrenchSlots:
+        """One slot, one row per contact: the sets ``W_i`` of ``W_c^M``."""
+        G = contact_set.grasp_matrices()
+        return cls.build(
+            (G[i], c.type, c.mu, c.mu_s, c.f_max) for i, c in enumerate(contact_set.contacts)
+        )
+
+    @property
+    def m(self) -> int:
+        return len(self.starts)
+
+    @property
+    def rows_per_slot(self) -> tuple[int, ...]:
+        return tuple(np.diff(np.append(self.starts, len(self.G))).tolist())
+
+    # --- evaluation ---------------------------------------------------------------------------
+
+    def local(self, U: np.ndarray) -> np.ndarray:
+        """``d = G^T u`` of every row: (N, 6) -> (N, K, 4)."""
+        U = np.atleast_2d(U)
+        if "_G_flat" not in self.__dict__:  # one (6, 4K) matrix: a single BLAS call per batch
+            object.__setattr__(self, "_G_flat", self.G.transpose(1, 0, 2).reshape(6, -1))
+        return (U @ self._G_flat).reshape(len(U), -1, 4)
+
+    def _rows(self, d: np.ndarray):
+        """Row values ``p_{W_ij}`` (N, K) and each row's largest friction piece (index, square)."""
+        q = np.einsum("nkc,kpc->nkp", d * d, self.pieces)
+        k = np.argmax(q, axis=2)
+        qk = np.take_along_axis(q, k[..., None], axis=2)[..., 0]
+        return self.f_max * (d[..., 0] + np.sqrt(np.maximum(qk, 0.0))), k, qk
+
+    def row_values(self, U: np.ndarray) -> np.ndarray:
+        """Support function of every row's extreme wrench set ``W_ij``: (N, 6) -> (N, K)."""
+        return self._rows(self.local(U))[0]
+
+    def slot_values(self, U: np.ndarray) -> np.ndarray:
+        """``P_i(u)``, the support function of each slot (eq 36): (N, 6) -> (N, m)."""
+        rows = self.row_values(U)
+        return (
+            rows
+            if len(self.starts) == rows.shape[1]
+            else np.maximum.reduceat(rows, self.starts, axis=1)
+        )
+
+    def support(self, U: np.ndarray) -> np.ndarray:
+        """Support function ``p(u)`` of the whole set (eqs 26, 35): (N, 6) -> (N,)."""
+        return combine_slots(self.slot_values(U))
+
+    def evaluate(self, U: np.ndarray):
+        """``p(u)`` and a wrench attaining it (its gradient where unique): (N, 6) -> (N,), (N, 6)."""
+        U = np.atleast_2d(U)
+        d = self.local(U)
+        rows, k, qk = self._rows(d)
+        w = self.pieces[np.arange(len(self.G))[None, :], k]  # (N, K, 4)
+        # The argmax force (eqs 9-12): full normal force, tangential part on the cone's rim, which
+        # is the gradient of sqrt(q_k) at d (no tangential force when q_k = 0).
+        rim = w * d / np.sqrt(np.where(qk > 0, qk, np.inf))[..., None]
+        rim[..., 0] += 1.0
+        force = self.f_max[None, :, None] * rim
+        if len(self.starts) == rows.shape[1]:
+            best_row = np.broadcast_to(np.arange(rows.shape[1]), rows.shape)
+        else:
+            ends = np.append(self.starts[1:], rows.shape[1])
+            best_row = np.stack(
+                [s + np.argmax(rows[:, s:e], axis=1) for s, e in zip(self.starts, ends)], axis=1
+            )
+        P = np.take_along_axis(rows, best_row, axis=1)  # (N, m)
+        chosen = P > 0
+        none = ~chosen.any(axis=1)
+        chosen[none, np.argmax(P[none], axis=1)] = True  # no positive slot: the largest alone
+        slot_force = np.take_along_axis(force, best_row[..., None], axis=1)  # (N, m, 4)
+        slot_G = self.G[best_row]  # (N, m, 6, 4)
+        points = np.einsum("nm,nmrc,nmc->nr", chosen, slot_G, slot_force)
+        return combine_slots(P), points
+
+    def support_points(self, U: np.ndarray) -> np.ndarray:
+        """Wrenches of the set attaining ``p(u)``: (N, 6) -> (N, 6)."""
+        return self.evaluate(U)[1]
+
+    def support_point(self, u: np.ndarray) -> np.ndarray:
+        """A wrench of the set attaining ``p(u)``: (6,) -> (6,)."""
+        return self.evaluate(np.asarray(u, dtype=float)[None])[1][0]
+
+
+def combine_slots(P: np.ndarray) -> np.ndarray:
+    """Max over non-empty subsets of the sum of slot values: (N, m) -> (N,)."""
+    return np.maximum(P, 0.0).sum(axis=-1) + np.minimum(P.max(axis=-1), 0.0)
