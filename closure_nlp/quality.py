@@ -50,7 +50,7 @@ class SearchOptions:
 
     samples: int = 128
     descent_iterations: int = 30
-    ipopt_starts: int = 2
+    ipopt_starts: int = 3
     max_iter: int = 300
 
     def __post_init__(self) -> None:
@@ -193,6 +193,12 @@ class SupportMinProblem:
                 "tol": tolerances.ipopt,
                 "constr_viol_tol": tolerances.ipopt,
                 "acceptable_tol": 1e-8,
+                # IPOPT relaxes bounds by 1e-8 by default; on s**2 >= q at a cone's apex that lets
+                # the friction term fall sqrt(1e-8) = 1e-4 short. No relaxation: s >= sqrt(q).
+                "bound_relax_factor": 0.0,
+                # Starts come from the descent, near a local minimum: a small initial barrier
+                # keeps IPOPT in that basin instead of drifting to a worse one through the interior.
+                "mu_init": 1e-3,
                 "max_iter": max_iter,
                 **(ipopt_options or {}),
             },
@@ -263,16 +269,22 @@ class SupportMinimizer:
     """
 
     def __init__(
-        self, tolerances: Tolerances = DEFAULT_TOLERANCES, search: SearchOptions = SearchOptions()
+        self,
+        tolerances: Tolerances = DEFAULT_TOLERANCES,
+        search: SearchOptions = SearchOptions(),
+        ipopt_options: dict | None = None,
     ):
         self.tolerances = tolerances
         self.search = search
+        self.ipopt_options = dict(ipopt_options or {})
         self._problems: dict[tuple, SupportMinProblem] = {}
 
     def problem(self, slots: WrenchSlots) -> SupportMinProblem:
         key = SupportMinProblem.key(slots)
         if key not in self._problems:
-            self._problems[key] = SupportMinProblem(*key, self.tolerances, self.search.max_iter)
+            self._problems[key] = SupportMinProblem(
+                *key, self.tolerances, self.search.max_iter, self.ipopt_options
+            )
         return self._problems[key]
 
     def __call__(self, slots: WrenchSlots, warm_start=None) -> SupportMinimum:

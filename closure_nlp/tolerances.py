@@ -26,7 +26,7 @@ class Tolerances:
         are the same basin.
     """
 
-    ipopt: float = 1e-10
+    ipopt: float = 1e-12
     zero_rho: float = 1e-9
     certify: float = 1e-6
     geometry: float = 1e-6

@@ -1,0 +1,121 @@
+"""An independent reference for rho, written from the paper's formulas and nothing of the package.
+
+Support function: eqs 29-32 per contact and the literal max over all 2^m - 1 subsets (eq 26).
+Minimum over the sphere: dense sampling, then SLSQP on the smooth epigraph with one constraint
+per subset from the best distinct samples. Slow and simple on purpose.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+from scipy.optimize import minimize
+
+
+def frame(n):
+    n = np.asarray(n, float) / np.linalg.norm(n)
+    a = np.array([1.0, 0, 0]) if abs(n[0]) < 0.9 else np.array([0, 1.0, 0])
+    o = a - (a @ n) * n
+    o /= np.linalg.norm(o)
+    return n, o, np.cross(n, o)
+
+
+def grasp(r, n, torque_scale=1.0):
+    """Eq 6 with torque rows scaled."""
+    n, o, t = frame(n)
+    top = np.column_stack([n, o, t, np.zeros(3)])
+    bottom = torque_scale * np.column_stack([np.cross(r, n), np.cross(r, o), np.cross(r, t), n])
+    return np.vstack([top, bottom])
+
+
+def contact_support(d, kind, mu, mu_s, f):
+    dn, do, dt, ds = d
+    tangential = np.hypot(do, dt)
+    return {
+        "fpc": f * dn,
+        "pcwf": f * dn + mu * f * tangential,
+        "sfcl": f * dn + f * max(mu * tangential, mu_s * abs(ds)),
+        "sfce": f * dn + f * np.sqrt(mu**2 * tangential**2 + mu_s**2 * ds**2),
+    }[kind]
+
+
+def subset_matrix(m):
+    """(2^m - 1, m) 0/1 rows: every non-empty subset of the m contacts (eq 26, literally)."""
+    rows = [
+        [1.0 if i in subset else 0.0 for i in range(m)]
+        for size in range(1, m + 1)
+        for subset in itertools.combinations(range(m), size)
+    ]
+    return np.array(rows)
+
+
+def support(u, contacts):
+    """``contacts``: list of (G (6, 4), kind, mu, mu_s, f_max)."""
+    values = np.array([contact_support(G.T @ u, k, mu, ms, f) for G, k, mu, ms, f in contacts])
+    return float(np.max(subset_matrix(len(contacts)) @ values))
+
+
+def reference_min(contacts, samples=3000, starts=12, seed=0):
+    """min over the unit sphere of ``support``; returns (value, u)."""
+    rng = np.random.default_rng(seed)
+    U = rng.standard_normal((samples, 6))
+    U /= np.linalg.norm(U, axis=1, keepdims=True)
+    U = np.vstack([np.eye(6), -np.eye(6), U])
+    vals = np.array([support(u, contacts) for u in U])
+    m = len(contacts)
+    subsets = subset_matrix(m)
+
+    def unpack(x):
+        return x[:6], x[6 : 6 + m], x[6 + m]
+
+    def row_value(x, i):
+        u, s, _ = unpack(x)
+        G, kind, mu, mu_s, f = contacts[i]
+        d = G.T @ u
+        return f * (d[0] + (s[i] if kind != "fpc" else 0.0))
+
+    cons = [{"type": "eq", "fun": lambda x: unpack(x)[0] @ unpack(x)[0] - 1.0}]
+    for i, (G, kind, mu, mu_s, _f) in enumerate(contacts):
+        if kind in ("pcwf", "sfcl"):
+            cons.append({"type": "ineq", "fun": lambda x, i=i, G=G, mu=mu: unpack(x)[1][i] ** 2
+                         - mu**2 * ((G.T @ unpack(x)[0])[1] ** 2 + (G.T @ unpack(x)[0])[2] ** 2)})
+        if kind == "sfcl":
+            cons.append({"type": "ineq", "fun": lambda x, i=i, G=G, ms=mu_s: unpack(x)[1][i] ** 2
+                         - ms**2 * (G.T @ unpack(x)[0])[3] ** 2})
+        if kind == "sfce":
+            cons.append({"type": "ineq", "fun": lambda x, i=i, G=G, mu=mu, ms=mu_s: unpack(x)[1][i]
+                         ** 2 - mu**2 * ((G.T @ unpack(x)[0])[1] ** 2 + (G.T @ unpack(x)[0])[2] ** 2)
+                         - ms**2 * (G.T @ unpack(x)[0])[3] ** 2})
+    cons.append({"type": "ineq", "fun": lambda x: unpack(x)[2]
+                 - subsets @ np.array([row_value(x, i) for i in range(m)])})
+    bounds = [(-2, 2)] * 6 + [(0, None)] * m + [(None, None)]
+    best = (np.inf, None)
+    picked = []
+    for idx in np.argsort(vals):
+        if any(np.linalg.norm(U[idx] - U[j]) < 0.3 for j in picked):
+            continue
+        picked.append(idx)
+        u0 = U[idx]
+        s0 = []
+        for G, kind, mu, mu_s, _f in contacts:
+            d = G.T @ u0
+            s0.append(np.sqrt(mu**2 * (d[1] ** 2 + d[2] ** 2) + mu_s**2 * d[3] ** 2) + 1e-6)
+        x0 = np.concatenate([u0, s0, [vals[idx] + 1e-3]])
+        res = minimize(lambda x: x[-1], x0, method="SLSQP", bounds=bounds, constraints=cons,
+                       options={"ftol": 1e-14, "maxiter": 400})
+        u = res.x[:6] / np.linalg.norm(res.x[:6])
+        value = support(u, contacts)
+        if value < best[0]:
+            best = (value, u)
+        if len(picked) == starts:
+            break
+    return best
+
+
+def from_contact_set(cs):
+    """Independent view of a ContactSet: only its raw numbers are read."""
+    return [
+        (grasp(c.position, c.inward_normal, cs.torque_scale), c.type.value, c.mu, c.mu_s, c.f_max)
+        for c in cs.contacts
+    ]

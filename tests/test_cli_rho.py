@@ -1,0 +1,77 @@
+"""`closure-nlp rho` end to end: output keys, several files, the error contract."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from closure_nlp.cli import main
+
+EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "box_7fpc.contacts.json"
+
+
+def run(args, capsys):
+    code = main(args)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_json_keys_and_several_files(tmp_path, capsys):
+    other = tmp_path / "two.contacts.json"
+    other.write_text(json.dumps({"contacts": [
+        {"position": [0, 0, 1], "inward_normal": [0, 0, -1]},
+        {"position": [0, 0, -1], "inward_normal": [0, 0, 1]},
+    ]}))
+    code, out, err = run(["rho", str(EXAMPLE), str(other), "--json"], capsys)
+    assert code == 0 and err == ""
+    lines = [json.loads(line) for line in out.splitlines()]
+    assert [d["file"] for d in lines] == [str(EXAMPLE), str(other)]
+    box, pair = lines
+    assert box["force_closure"] is True and box["rho"] < 0 and len(box["direction"]) == 6
+    assert pair["force_closure"] is False and pair["rho"] == 0.0
+
+
+def test_text_output(capsys):
+    code, out, _ = run(["rho", str(EXAMPLE)], capsys)
+    assert code == 0 and "force closure" in out and "rho = -" in out
+
+
+@pytest.mark.parametrize(
+    "content,needle",
+    [
+        ("{not json", "malformed JSON"),
+        ('{"contacts": []}', "contacts"),
+        ('{"contacts": [{"position": [0, 0, NaN], "inward_normal": [0, 0, 1]}]}', "position"),
+        ('{"contacts": [{"position": [0, 0, 0], "inward_normal": [0, 0, 0]}]}', "inward_normal"),
+        ('{"contacts": [{"position": [0, 0], "inward_normal": [0, 0, 1]}]}', "position"),
+        ('{"contacts": [{"position": [0, 0, 0], "inward_normal": [0, 0, 1], "type": "glue"}]}', "type"),
+        ('{"contacts": [{"position": [0, 0, 0], "inward_normal": [0, 0, 1], "mu": -1}]}', "mu"),
+        ('{"contacts": [{"position": [0, 0, 0], "inward_normal": [0, 0, 1], "mu_s": -1}]}', "mu_s"),
+        ('{"contacts": [{"position": [0, 0, 0], "inward_normal": [0, 0, 1], "f_max": -1}]}', "f_max"),
+        ('{"torque_scale": 0, "contacts": [{"position": [0, 0, 0], "inward_normal": [0, 0, 1]}]}',
+         "torque_scale"),
+    ],
+)
+def test_bad_input_exits_2_with_one_error_line_and_no_output(tmp_path, capsys, content, needle):
+    bad = tmp_path / "bad.contacts.json"
+    bad.write_text(content)
+    # The good file comes first: nothing may be printed for it either.
+    code, out, err = run(["rho", str(EXAMPLE), str(bad), "--json"], capsys)
+    assert code == 2
+    assert out == ""
+    assert err.startswith("error: ") and str(bad) in err and needle in err
+    assert len(err.strip().splitlines()) == 1
+
+
+def test_missing_file(capsys):
+    code, out, err = run(["rho", "/nonexistent/x.json"], capsys)
+    assert code == 2 and out == "" and "not found" in err
+
+
+def test_bad_flag_exits_2_without_traceback():
+    proc = subprocess.run([sys.executable, "-m", "closure_nlp.cli", "rho", "--frobnicate", str(EXAMPLE)],
+                          capture_output=True, text=True)
+    assert proc.returncode == 2
+    assert proc.stderr.startswith("error:") and "Traceback" not in proc.stderr
