@@ -27,8 +27,14 @@ def paper_baseline(slots: WrenchSlots) -> float:
     best = np.inf
     sphere = {"type": "eq", "fun": lambda u: u @ u - 1.0, "jac": lambda u: 2.0 * u}
     for u0 in np.vstack([np.eye(6), -np.eye(6)]):
-        res = minimize(lambda u: slots.evaluate(u)[0][0], u0, jac=lambda u: slots.evaluate(u)[1][0],
-                       constraints=[sphere], method="SLSQP", options={"ftol": 1e-10, "maxiter": 500})
+        res = minimize(
+            lambda u: slots.evaluate(u)[0][0],
+            u0,
+            jac=lambda u: slots.evaluate(u)[1][0],
+            constraints=[sphere],
+            method="SLSQP",
+            options={"ftol": 1e-10, "maxiter": 500},
+        )
         u = res.x / np.linalg.norm(res.x)
         best = min(best, float(slots.support(u)[0]))
     return best
@@ -36,15 +42,20 @@ def paper_baseline(slots: WrenchSlots) -> float:
 
 def _stats(values) -> dict:
     v = np.asarray(values, dtype=float)
-    return {"median": float(np.median(v)), "p25": float(np.percentile(v, 25)),
-            "p75": float(np.percentile(v, 75)), "max": float(v.max())}
+    return {
+        "median": float(np.median(v)),
+        "p25": float(np.percentile(v, 25)),
+        "p75": float(np.percentile(v, 75)),
+        "max": float(v.max()),
+    }
 
 
 def bench_rho(cases: int = 30, repeats: int = 3, seed: int = 0) -> dict:
     """ms per rho evaluation (solver reused) for each case family, ours against the baseline."""
     minimizer = SupportMinimizer()
-    thorough = SupportMinimizer(search=SearchOptions(samples=512, descent_iterations=60,
-                                                     ipopt_starts=6))
+    thorough = SupportMinimizer(
+        search=SearchOptions(samples=512, descent_iterations=60, ipopt_starts=6)
+    )
     report = {"benchmark": "rho", "cases_per_family": cases, "repeats": repeats, "families": {}}
     for name, types in BENCH_CASES.items():
         rng = np.random.default_rng(seed)

@@ -11,8 +11,15 @@ import numpy as np
 from .contacts import Contact, ContactSet, ContactType
 
 
-def random_contact_set(rng: np.random.Generator, types, *, mu: float = 0.5, mu_s: float = 0.2,
-                       tilt: float = 0.3, torque_scale: float = 1.0) -> ContactSet:
+def random_contact_set(
+    rng: np.random.Generator,
+    types,
+    *,
+    mu: float = 0.5,
+    mu_s: float = 0.2,
+    tilt: float = 0.3,
+    torque_scale: float = 1.0,
+) -> ContactSet:
     """One random set with the given contact type sequence (strings or ContactType)."""
     types = [ContactType.parse(t) for t in types]
     m = len(types)

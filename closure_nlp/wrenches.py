@@ -131,7 +131,7 @@ class WrenchSlots:
         return combine_slots(self.slot_values(U))
 
     def evaluate(self, U: np.ndarray):
-        """``p(u)`` and a wrench attaining it (its gradient where unique): (N, 6) -> (N,), (N, 6)."""
+        """``p(u)`` and a wrench attaining it (its gradient where unique): (N,), (N, 6)."""
         U = np.atleast_2d(U)
         d = self.local(U)
         rows, k, qk = self._rows(d)

@@ -78,17 +78,41 @@ def reference_min(contacts, samples=3000, starts=12, seed=0):
     cons = [{"type": "eq", "fun": lambda x: unpack(x)[0] @ unpack(x)[0] - 1.0}]
     for i, (G, kind, mu, mu_s, _f) in enumerate(contacts):
         if kind in ("pcwf", "sfcl"):
-            cons.append({"type": "ineq", "fun": lambda x, i=i, G=G, mu=mu: unpack(x)[1][i] ** 2
-                         - mu**2 * ((G.T @ unpack(x)[0])[1] ** 2 + (G.T @ unpack(x)[0])[2] ** 2)})
+            cons.append(
+                {
+                    "type": "ineq",
+                    "fun": lambda x, i=i, G=G, mu=mu: (
+                        unpack(x)[1][i] ** 2
+                        - mu**2 * ((G.T @ unpack(x)[0])[1] ** 2 + (G.T @ unpack(x)[0])[2] ** 2)
+                    ),
+                }
+            )
         if kind == "sfcl":
-            cons.append({"type": "ineq", "fun": lambda x, i=i, G=G, ms=mu_s: unpack(x)[1][i] ** 2
-                         - ms**2 * (G.T @ unpack(x)[0])[3] ** 2})
+            cons.append(
+                {
+                    "type": "ineq",
+                    "fun": lambda x, i=i, G=G, ms=mu_s: (
+                        unpack(x)[1][i] ** 2 - ms**2 * (G.T @ unpack(x)[0])[3] ** 2
+                    ),
+                }
+            )
         if kind == "sfce":
-            cons.append({"type": "ineq", "fun": lambda x, i=i, G=G, mu=mu, ms=mu_s: unpack(x)[1][i]
-                         ** 2 - mu**2 * ((G.T @ unpack(x)[0])[1] ** 2 + (G.T @ unpack(x)[0])[2] ** 2)
-                         - ms**2 * (G.T @ unpack(x)[0])[3] ** 2})
-    cons.append({"type": "ineq", "fun": lambda x: unpack(x)[2]
-                 - subsets @ np.array([row_value(x, i) for i in range(m)])})
+            cons.append(
+                {
+                    "type": "ineq",
+                    "fun": lambda x, i=i, G=G, mu=mu, ms=mu_s: (
+                        unpack(x)[1][i] ** 2
+                        - mu**2 * ((G.T @ unpack(x)[0])[1] ** 2 + (G.T @ unpack(x)[0])[2] ** 2)
+                        - ms**2 * (G.T @ unpack(x)[0])[3] ** 2
+                    ),
+                }
+            )
+    cons.append(
+        {
+            "type": "ineq",
+            "fun": lambda x: unpack(x)[2] - subsets @ np.array([row_value(x, i) for i in range(m)]),
+        }
+    )
     bounds = [(-2, 2)] * 6 + [(0, None)] * m + [(None, None)]
     best = (np.inf, None)
     picked = []
@@ -98,12 +122,18 @@ def reference_min(contacts, samples=3000, starts=12, seed=0):
         picked.append(idx)
         u0 = U[idx]
         s0 = []
-        for G, kind, mu, mu_s, _f in contacts:
+        for G, _kind, mu, mu_s, _f in contacts:
             d = G.T @ u0
             s0.append(np.sqrt(mu**2 * (d[1] ** 2 + d[2] ** 2) + mu_s**2 * d[3] ** 2) + 1e-6)
         x0 = np.concatenate([u0, s0, [vals[idx] + 1e-3]])
-        res = minimize(lambda x: x[-1], x0, method="SLSQP", bounds=bounds, constraints=cons,
-                       options={"ftol": 1e-14, "maxiter": 400})
+        res = minimize(
+            lambda x: x[-1],
+            x0,
+            method="SLSQP",
+            bounds=bounds,
+            constraints=cons,
+            options={"ftol": 1e-14, "maxiter": 400},
+        )
         u = res.x[:6] / np.linalg.norm(res.x[:6])
         value = support(u, contacts)
         if value < best[0]:

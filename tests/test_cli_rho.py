@@ -20,10 +20,16 @@ def run(args, capsys):
 
 def test_json_keys_and_several_files(tmp_path, capsys):
     other = tmp_path / "two.contacts.json"
-    other.write_text(json.dumps({"contacts": [
-        {"position": [0, 0, 1], "inward_normal": [0, 0, -1]},
-        {"position": [0, 0, -1], "inward_normal": [0, 0, 1]},
-    ]}))
+    other.write_text(
+        json.dumps(
+            {
+                "contacts": [
+                    {"position": [0, 0, 1], "inward_normal": [0, 0, -1]},
+                    {"position": [0, 0, -1], "inward_normal": [0, 0, 1]},
+                ]
+            }
+        )
+    )
     code, out, err = run(["rho", str(EXAMPLE), str(other), "--json"], capsys)
     assert code == 0 and err == ""
     lines = [json.loads(line) for line in out.splitlines()]
@@ -46,12 +52,20 @@ def test_text_output(capsys):
         ('{"contacts": [{"position": [0, 0, NaN], "inward_normal": [0, 0, 1]}]}', "position"),
         ('{"contacts": [{"position": [0, 0, 0], "inward_normal": [0, 0, 0]}]}', "inward_normal"),
         ('{"contacts": [{"position": [0, 0], "inward_normal": [0, 0, 1]}]}', "position"),
-        ('{"contacts": [{"position": [0, 0, 0], "inward_normal": [0, 0, 1], "type": "glue"}]}', "type"),
+        (
+            '{"contacts": [{"position": [0, 0, 0], "inward_normal": [0, 0, 1], "type": "glue"}]}',
+            "type",
+        ),
         ('{"contacts": [{"position": [0, 0, 0], "inward_normal": [0, 0, 1], "mu": -1}]}', "mu"),
         ('{"contacts": [{"position": [0, 0, 0], "inward_normal": [0, 0, 1], "mu_s": -1}]}', "mu_s"),
-        ('{"contacts": [{"position": [0, 0, 0], "inward_normal": [0, 0, 1], "f_max": -1}]}', "f_max"),
-        ('{"torque_scale": 0, "contacts": [{"position": [0, 0, 0], "inward_normal": [0, 0, 1]}]}',
-         "torque_scale"),
+        (
+            '{"contacts": [{"position": [0, 0, 0], "inward_normal": [0, 0, 1], "f_max": -1}]}',
+            "f_max",
+        ),
+        (
+            '{"torque_scale": 0, "contacts": [{"position": [0, 0, 0], "inward_normal": [0, 0, 1]}]}',  # noqa: E501
+            "torque_scale",
+        ),
     ],
 )
 def test_bad_input_exits_2_with_one_error_line_and_no_output(tmp_path, capsys, content, needle):
@@ -71,7 +85,10 @@ def test_missing_file(capsys):
 
 
 def test_bad_flag_exits_2_without_traceback():
-    proc = subprocess.run([sys.executable, "-m", "closure_nlp.cli", "rho", "--frobnicate", str(EXAMPLE)],
-                          capture_output=True, text=True)
+    proc = subprocess.run(
+        [sys.executable, "-m", "closure_nlp.cli", "rho", "--frobnicate", str(EXAMPLE)],
+        capture_output=True,
+        text=True,
+    )
     assert proc.returncode == 2
     assert proc.stderr.startswith("error:") and "Traceback" not in proc.stderr

@@ -61,9 +61,14 @@ def test_box_held_by_seven_fpcs_is_force_closure():
         "contacts": [
             {"position": p, "inward_normal": n}
             for p, n in [
-                ([2, 2, 0], [0, 0, 1]), ([8, 2, 0], [0, 0, 1]), ([5, 8, 0], [0, 0, 1]),
-                ([5, 5, 6], [0, 0, -1]), ([0, 3, 3], [1, 0, 0]), ([10, 7, 3], [-1, 0, 0]),
-                ([3, 0, 3], [0, 1, 0]), ([7, 10, 3], [0, -1, 0]),
+                ([2, 2, 0], [0, 0, 1]),
+                ([8, 2, 0], [0, 0, 1]),
+                ([5, 8, 0], [0, 0, 1]),
+                ([5, 5, 6], [0, 0, -1]),
+                ([0, 3, 3], [1, 0, 0]),
+                ([10, 7, 3], [-1, 0, 0]),
+                ([3, 0, 3], [0, 1, 0]),
+                ([7, 10, 3], [0, -1, 0]),
             ]
         ],
     }
@@ -104,7 +109,8 @@ def test_rho_agrees_with_reference(kind, m, seed):
     tol = 1e-6 * max(1.0, abs(ref_value))
     # -rho is the support function, by the paper's formulas, at the unit direction we return ...
     assert reference.support(got.direction, reference.from_contact_set(cs)) == pytest.approx(
-        -got.rho, abs=1e-12 if got.rho else 1e-8)
+        -got.rho, abs=1e-12 if got.rho else 1e-8
+    )
     # ... so it bounds the minimum from above; the reference's minimum must not be lower.
     assert -got.rho <= ref_value + tol
 
@@ -175,8 +181,13 @@ def test_empty_contact_set():
         ({"contacts": []}, "contacts"),
         ({"contacts": [{"position": [0, 0, 0]}]}, "inward_normal"),
         ({"contacts": [{"position": [0, 0, 0], "inward_normal": [0, 0, 1], "muu": 1}]}, "muu"),
-        ({"contacts": [{"position": [0, 0, 0], "inward_normal": [0, 0, 1]}], "defaults": {"mu": -1}},
-         r"contacts\[0\]\.mu"),
+        (
+            {
+                "contacts": [{"position": [0, 0, 0], "inward_normal": [0, 0, 1]}],
+                "defaults": {"mu": -1},
+            },
+            r"contacts\[0\]\.mu",
+        ),
         ({"contacts": "none"}, "contacts"),
     ],
 )
@@ -186,13 +197,22 @@ def test_bad_file_content(data, match):
 
 
 def test_defaults_and_overrides():
-    cs = contact_set_from_dict({
-        "defaults": {"type": "sfce", "mu": 0.3},
-        "contacts": [
-            {"position": [0, 0, 1], "inward_normal": [0, 0, -2]},
-            {"position": [0, 0, -1], "inward_normal": [0, 0, 1], "type": "fpc", "mu_s": 0.1},
-        ],
-    })
+    cs = contact_set_from_dict(
+        {
+            "defaults": {"type": "sfce", "mu": 0.3},
+            "contacts": [
+                {"position": [0, 0, 1], "inward_normal": [0, 0, -2]},
+                {"position": [0, 0, -1], "inward_normal": [0, 0, 1], "type": "fpc", "mu_s": 0.1},
+            ],
+        }
+    )
     a, b = cs.contacts
-    assert (a.type.value, a.mu, a.mu_s, b.type.value, b.mu, b.mu_s) == ("sfce", 0.3, 0.2, "fpc", 0.3, 0.1)
+    assert (a.type.value, a.mu, a.mu_s, b.type.value, b.mu, b.mu_s) == (
+        "sfce",
+        0.3,
+        0.2,
+        "fpc",
+        0.3,
+        0.1,
+    )
     np.testing.assert_allclose(a.inward_normal, [0, 0, -1])

@@ -1,4 +1,4 @@
-"""Support functions of the four contact types: properties, and agreement with the paper's formulas."""
+"""Support functions of the four contact types: properties, and the paper's formulas."""
 
 import numpy as np
 import pytest
@@ -16,8 +16,13 @@ seeds = st.integers(0, 2**31 - 1)
 
 def slots_for(seed, kind, m=3):
     rng = np.random.default_rng(seed)
-    cs = random_contact_set(rng, [kind] * m, mu=rng.uniform(0.05, 1.0), mu_s=rng.uniform(0.01, 1.0),
-                            torque_scale=rng.uniform(0.1, 3.0))
+    cs = random_contact_set(
+        rng,
+        [kind] * m,
+        mu=rng.uniform(0.05, 1.0),
+        mu_s=rng.uniform(0.01, 1.0),
+        torque_scale=rng.uniform(0.1, 3.0),
+    )
     return cs, WrenchSlots.from_contacts(cs), rng
 
 
@@ -40,7 +45,9 @@ def sample_force(rng, kind, mu, mu_s, f_max):
         return np.array([fn, *(r * fn * mu * direction[:2]), r * fn * mu_s * direction[2]])
     share = rng.uniform(0, 1)  # sfcl: |f_ot| / mu + |f_s| / mu_s <= f_n
     tang = direction[:2] / np.linalg.norm(direction[:2])
-    return np.array([fn, *(r * share * mu * fn * tang), r * (1 - share) * mu_s * fn * np.sign(direction[2])])
+    return np.array(
+        [fn, *(r * share * mu * fn * tang), r * (1 - share) * mu_s * fn * np.sign(direction[2])]
+    )
 
 
 @pytest.mark.parametrize("kind", TYPES)
@@ -49,7 +56,9 @@ def sample_force(rng, kind, mu, mu_s, f_max):
 def test_positive_homogeneity(kind, seed, scale):
     _, slots, rng = slots_for(seed, kind)
     U = unit(rng, 8)
-    np.testing.assert_allclose(slots.support(scale * U), scale * slots.support(U), rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(
+        slots.support(scale * U), scale * slots.support(U), rtol=1e-9, atol=1e-12
+    )
 
 
 @pytest.mark.parametrize("kind", TYPES)
@@ -86,12 +95,19 @@ def test_bounds_every_allowable_wrench_and_is_attained(kind, seed):
 def test_agrees_with_paper_formulas_and_all_subsets(kind, seed, m):
     rng = np.random.default_rng(seed)
     types = list(rng.choice(TYPES, m)) if kind == "mixed" else [kind] * m
-    cs = random_contact_set(rng, types, mu=rng.uniform(0.05, 1.0), mu_s=rng.uniform(0.01, 1.0),
-                            torque_scale=rng.uniform(0.1, 3.0))
+    cs = random_contact_set(
+        rng,
+        types,
+        mu=rng.uniform(0.05, 1.0),
+        mu_s=rng.uniform(0.01, 1.0),
+        torque_scale=rng.uniform(0.1, 3.0),
+    )
     ref = reference.from_contact_set(cs)
     U = unit(rng, 10)
     expected = [reference.support(u, ref) for u in U]
-    np.testing.assert_allclose(WrenchSlots.from_contacts(cs).support(U), expected, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(
+        WrenchSlots.from_contacts(cs).support(U), expected, rtol=1e-10, atol=1e-12
+    )
 
 
 def test_local_frame_is_right_handed():
