@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from .contacts import ContactSet, ContactType
+from .contacts import ContactSet
 from .sphere_search import descend, distinct_lowest, sphere_samples
 from .tolerances import DEFAULT_TOLERANCES, Tolerances
 from .validation import as_vector
@@ -56,12 +56,9 @@ class SearchOptions:
     def __post_init__(self) -> None:
         for name in ("samples", "descent_iterations", "ipopt_starts", "max_iter"):
             value = getattr(self, name)
-            if (
-                isinstance(value, bool)
-                or not isinstance(value, int)
-                or value < (0 if name in ("samples", "descent_iterations") else 1)
-            ):
-                raise ValueError(f"search.{name}: must be a non-negative integer, got {value!r}")
+            least = 0 if name in ("samples", "descent_iterations") else 1
+            if isinstance(value, bool) or not isinstance(value, int) or value < least:
+                raise ValueError(f"search.{name}: must be an integer >= {least}, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -348,7 +345,6 @@ def _as_rho(found: SupportMinimum, tolerances: Tolerances) -> RhoResult:
 
 
 __all__ = [
-    "ContactType",
     "RhoResult",
     "SearchOptions",
     "SolverStats",
