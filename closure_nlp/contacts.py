@@ -9,13 +9,12 @@ returned by :func:`friction_pieces`.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from enum import Enum
-from pathlib import Path
 
 import numpy as np
 
+from .files import load_json
 from .validation import as_number, as_unit_vector, as_vector, check_keys
 
 DEFAULT_MU = 0.2
@@ -239,23 +238,6 @@ def contact_set_from_dict(data) -> ContactSet:
             )
         )
     return ContactSet(tuple(contacts), data.get("torque_scale", 1.0))
-
-
-def load_json(path) -> object:
-    """Read a JSON file; a missing, unreadable or malformed file is a ``ValueError``."""
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ValueError("file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ValueError(f"cannot read file: {exc.__class__.__name__}: {exc}") from None
-    try:
-        return json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise ValueError(
-            f"malformed JSON at line {exc.lineno} column {exc.colno}: {exc.msg}"
-        ) from None
 
 
 def load_contact_set(path) -> ContactSet:

@@ -1,0 +1,356 @@
+"""Surface elements and element models (paper section 2, INTERFACE.md ``*.model.json``).
+
+An element is a convex facet, a line segment or a discrete point with one unit inward normal. A
+contact on it sits at a convex combination of its vertices (eq 7); the vertex grasp matrices
+``G_ij`` (eq 19) span every grasp matrix the element allows, which is what the eligibility
+criterion needs. A :class:`Model` is the elements of one object and which of them are neighbours.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+from pathlib import Path
+
+import numpy as np
+
+from .contacts import grasp_matrices, local_frame
+from .files import load_json, write_json
+from .tolerances import DEFAULT_TOLERANCES, Tolerances
+from .validation import as_unit_vector, as_vector, check_keys
+
+
+class ElementKind(str, Enum):
+    FACET = "facet"
+    SEGMENT = "segment"
+    POINT = "point"
+
+    @classmethod
+    def parse(cls, value, field: str = "kind") -> ElementKind:
+        if isinstance(value, cls):
+            return value
+        if isinstance(value, str):
+            try:
+                return cls(value.strip().lower())
+            except ValueError:
+                pass
+        names = ", ".join(k.value for k in cls)
+        raise ValueError(f"{field}: unknown element kind {value!r} (expected one of {names})")
+
+
+@dataclass(frozen=True, eq=False)
+class Element:
+    """One surface element.
+
+    Attributes
+    ----------
+    kind : ElementKind
+    vertices : (k, 3) float
+        A facet's vertices in order around its boundary (k >= 3), a segment's two ends, a point.
+    inward_normal : (3,) float
+        Unit normal pointing into the object; normalised on creation.
+    label : str
+        Free text (e.g. ``"crown"``), kept through save and load.
+    name : str
+        How errors refer to this element, e.g. ``"elements[12]"``.
+    """
+
+    kind: ElementKind
+    vertices: np.ndarray
+    inward_normal: np.ndarray
+    label: str = ""
+    name: str = field(default="element", compare=False)
+    tolerances: Tolerances = field(default=DEFAULT_TOLERANCES, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        set_ = object.__setattr__
+        kind = ElementKind.parse(self.kind, f"{self.name}.kind")
+        set_(self, "kind", kind)
+        set_(self, "vertices", _as_vertices(self.vertices, f"{self.name}.vertices"))
+        set_(
+            self, "inward_normal", as_unit_vector(self.inward_normal, f"{self.name}.inward_normal")
+        )
+        if not isinstance(self.label, str):
+            raise TypeError(f"{self.name}.label: expected text, got {self.label!r}")
+        {
+            ElementKind.FACET: _check_facet,
+            ElementKind.SEGMENT: _check_segment,
+            ElementKind.POINT: _check_point,
+        }[kind](self.vertices, self.inward_normal, self.name, self.tolerances.geometry)
+        self.vertices.flags.writeable = False
+
+    @property
+    def centroid(self) -> np.ndarray:
+        """(3,) float: the position at equal weights (for a facet, not its area centre)."""
+        return self.vertices.mean(axis=0)
+
+    @property
+    def size(self) -> float:
+        """Largest distance between two vertices (0 for a point)."""
+        return _diameter(self.vertices)
+
+    def position(self, weights) -> np.ndarray:
+        """Contact position ``sum_j c_j v_j`` (eq 7) for barycentric ``weights`` (k,)."""
+        return simplex_weights(weights, len(self.vertices), f"{self.name}.weights") @ self.vertices
+
+    def grasp_matrices(self, torque_scale: float = 1.0) -> np.ndarray:
+        """(k, 6, 4) float: the vertex grasp matrices ``G_ij`` (eq 19)."""
+        return grasp_matrices(self.vertices, self.inward_normal, torque_scale)
+
+    def to_dict(self) -> dict:
+        out = {
+            "kind": self.kind.value,
+            "vertices": self.vertices.tolist(),
+            "inward_normal": self.inward_normal.tolist(),
+        }
+        if self.label:
+            out["label"] = self.label
+        return out
+
+
+def simplex_weights(weights, count: int, field: str, slack: float = 1e-9) -> np.ndarray:
+    """Validate barycentric weights: ``count`` finite numbers ``>= 0`` summing to 1.
+
+    Round-off up to ``slack`` (a solver's ``-1e-12``) is accepted and removed by clipping and
+    renormalising.
+    """
+    c = as_vector(weights, field, count)
+    if c.min() < -slack or abs(c.sum() - 1.0) > slack * count:
+        raise ValueError(f"{field}: weights must be >= 0 and sum to 1, got {c.tolist()!r}")
+    c = np.maximum(c, 0.0)
+    return c / c.sum()
+
+
+def _as_vertices(value, field: str) -> np.ndarray:
+    try:
+        arr = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise TypeError(f"{field}: expected a list of [x, y, z] points, got {value!r}") from None
+    if arr.ndim != 2 or arr.shape[1] != 3 or len(arr) == 0:
+        raise ValueError(f"{field}: expected a list of [x, y, z] points, got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{field}: numbers must be finite")
+    return arr
+
+
+def _diameter(vertices: np.ndarray) -> float:
+    diff = vertices[:, None, :] - vertices[None, :, :]
+    return float(np.sqrt((diff**2).sum(-1)).max())
+
+
+def _check_point(vertices, normal, name, tol) -> None:
+    if len(vertices) != 1:
+        raise ValueError(f"{name}: a point has exactly 1 vertex, got {len(vertices)}")
+
+
+def _check_segment(vertices, normal, name, tol) -> None:
+    if len(vertices) != 2:
+        raise ValueError(f"{name}: a segment has exactly 2 vertices, got {len(vertices)}")
+    span = vertices[1] - vertices[0]
+    length = float(np.linalg.norm(span))
+    if not length > tol * max(1.0, float(np.abs(vertices).max())):
+        raise ValueError(f"{name}: the segment's two vertices coincide ({vertices[0].tolist()})")
+    off = abs(float(normal @ span)) / length
+    if off > tol:
+        raise ValueError(
+            f"{name}.inward_normal: not perpendicular to the segment (|cos| = {off:.3g} > {tol:g})"
+        )
+
+
+def _check_facet(vertices, normal, name, tol) -> None:
+    k = len(vertices)
+    if k < 3:
+        raise ValueError(f"{name}: a facet needs at least 3 vertices, got {k}")
+    size = _diameter(vertices)
+    centred = vertices - vertices.mean(axis=0)
+    _, sing, vt = np.linalg.svd(centred)
+    if not sing[1] > tol * size * np.sqrt(k):
+        raise ValueError(f"{name}: the facet's vertices are collinear (no area)")
+    plane = vt[2]
+    deviation = float(np.abs(centred @ plane).max())
+    if deviation > tol * size:
+        raise ValueError(
+            f"{name}: facet is not planar: a vertex is {deviation:.3g} off its plane "
+            f"(allowed {tol:g} x size {size:.3g})"
+        )
+    off = float(np.linalg.norm(np.cross(normal, plane)))
+    if off > tol:
+        raise ValueError(
+            f"{name}.inward_normal: not perpendicular to the facet (|sin| = {off:.3g} > {tol:g})"
+        )
+    # In the facet's plane: every turn has the same sign and the turns add up to one revolution
+    # (a star polygon turns the same way at every corner too, but twice round).
+    frame = local_frame(plane)[:, 1:]
+    xy = centred @ frame
+    edges = np.roll(xy, -1, axis=0) - xy
+    lengths = np.linalg.norm(edges, axis=1)
+    if lengths.min() <= tol * size:
+        j = int(np.argmin(lengths))
+        raise ValueError(f"{name}: facet vertices {j} and {(j + 1) % k} coincide")
+    nxt = np.roll(edges, -1, axis=0)
+    turns = np.arctan2(edges[:, 0] * nxt[:, 1] - edges[:, 1] * nxt[:, 0], (edges * nxt).sum(1))
+    straight = np.abs(turns) <= tol
+    signs = np.sign(turns[~straight])
+    if len(set(signs.tolist())) > 1 or abs(abs(turns.sum()) - 2 * np.pi) > 1e-6:
+        raise ValueError(f"{name}: facet is not convex, or its vertices are not in boundary order")
+
+
+# --- models ----------------------------------------------------------------------------------
+
+MODEL_KEYS = {"name", "units", "elements", "adjacency", "mesh", "description", "source"}
+ELEMENT_KEYS = {"kind", "vertices", "inward_normal", "label"}
+
+
+@dataclass(frozen=True, eq=False)
+class Model:
+    """The elements of one object and their neighbourhoods.
+
+    Attributes
+    ----------
+    elements : tuple of Element
+        Element ids are positions in this tuple.
+    adjacency : tuple of (int, int)
+        Undirected neighbour pairs, kept as given.
+    name, units : str
+    mesh : str or None
+        Path of a mesh for drawing, relative to ``base_dir``.
+    base_dir : Path or None
+        Directory of the model file, if it came from one.
+    """
+
+    elements: tuple[Element, ...]
+    adjacency: tuple[tuple[int, int], ...] = ()
+    name: str = "model"
+    units: str = ""
+    mesh: str | None = None
+    description: str = ""
+    base_dir: Path | None = field(default=None, compare=False)
+
+    def __post_init__(self) -> None:
+        elements = tuple(self.elements)
+        if not elements:
+            raise ValueError("elements: a model needs at least one element, got none")
+        for i, e in enumerate(elements):
+            if not isinstance(e, Element):
+                raise TypeError(f"elements[{i}]: expected an Element, got {type(e).__name__}")
+        object.__setattr__(self, "elements", elements)
+        pairs = []
+        for k, pair in enumerate(self.adjacency):
+            pairs.append(_as_pair(pair, f"adjacency[{k}]", len(elements)))
+        object.__setattr__(self, "adjacency", tuple(pairs))
+        neighbours: list[set[int]] = [set() for _ in elements]
+        for a, b in pairs:
+            neighbours[a].add(b)
+            neighbours[b].add(a)
+        object.__setattr__(self, "_neighbours", tuple(tuple(sorted(s)) for s in neighbours))
+
+    def __len__(self) -> int:
+        return len(self.elements)
+
+    def neighbours(self, element_id: int) -> tuple[int, ...]:
+        """Ids of the elements adjacent to ``element_id``, ascending."""
+        return self._neighbours[self.check_id(element_id, "element")]
+
+    def check_id(self, element_id, field: str) -> int:
+        """``element_id`` as an int, or a ``ValueError`` naming ``field`` if it is not an id."""
+        if isinstance(element_id, bool) or not isinstance(element_id, (int, np.integer)):
+            raise TypeError(f"{field}: expected an element id, got {element_id!r}")
+        if not 0 <= element_id < len(self.elements):
+            raise ValueError(
+                f"{field}: element id {element_id} out of range 0..{len(self.elements) - 1}"
+            )
+        return int(element_id)
+
+    def counts(self) -> dict[str, int]:
+        """Number of elements of each kind, e.g. ``{"facet": 9, "segment": 16, "point": 224}``."""
+        return {k.value: sum(e.kind is k for e in self.elements) for k in ElementKind}
+
+    @property
+    def mesh_path(self) -> Path | None:
+        if self.mesh is None:
+            return None
+        return (self.base_dir or Path(".")) / self.mesh
+
+    def to_dict(self) -> dict:
+        out = {"name": self.name, "units": self.units}
+        if self.description:
+            out["description"] = self.description
+        out["elements"] = [e.to_dict() for e in self.elements]
+        out["adjacency"] = [list(p) for p in self.adjacency]
+        if self.mesh is not None:
+            out["mesh"] = self.mesh
+        return out
+
+
+def _as_pair(pair, field: str, count: int) -> tuple[int, int]:
+    if not isinstance(pair, (list, tuple)) or len(pair) != 2:
+        raise ValueError(f"{field}: expected a pair of element ids, got {pair!r}")
+    ids = []
+    for v in pair:
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)):
+            raise TypeError(f"{field}: expected a pair of element ids, got {pair!r}")
+        if not 0 <= v < count:
+            raise ValueError(f"{field}: element id {v} out of range 0..{count - 1}")
+        ids.append(int(v))
+    if ids[0] == ids[1]:
+        raise ValueError(f"{field}: an element is not its own neighbour ({ids[0]})")
+    return ids[0], ids[1]
+
+
+def model_from_dict(data, base_dir=None, tolerances: Tolerances = DEFAULT_TOLERANCES) -> Model:
+    """Build a :class:`Model` from the ``*.model.json`` layout of INTERFACE.md."""
+    check_keys(data, "file", MODEL_KEYS, required={"elements"})
+    entries = data["elements"]
+    if not isinstance(entries, list):
+        raise TypeError(f"elements: expected a list, got {type(entries).__name__}")
+    elements = []
+    for i, entry in enumerate(entries):
+        name = f"elements[{i}]"
+        check_keys(entry, name, ELEMENT_KEYS, required={"kind", "vertices", "inward_normal"})
+        elements.append(
+            Element(
+                entry["kind"],
+                entry["vertices"],
+                entry["inward_normal"],
+                entry.get("label", ""),
+                name=name,
+                tolerances=tolerances,
+            )
+        )
+    adjacency = data.get("adjacency", [])
+    if not isinstance(adjacency, list):
+        raise TypeError(f"adjacency: expected a list of pairs, got {type(adjacency).__name__}")
+    for key in ("name", "units", "mesh", "description"):
+        if key in data and not isinstance(data[key], str):
+            raise TypeError(f"{key}: expected text, got {data[key]!r}")
+    return Model(
+        tuple(elements),
+        tuple(adjacency),
+        data.get("name", "model"),
+        data.get("units", ""),
+        data.get("mesh"),
+        data.get("description", ""),
+        Path(base_dir) if base_dir is not None else None,
+    )
+
+
+def load_model(path, tolerances: Tolerances = DEFAULT_TOLERANCES) -> Model:
+    """Read and validate a ``*.model.json`` file."""
+    path = Path(path)
+    return model_from_dict(load_json(path), path.parent, tolerances)
+
+
+def save_model(model: Model, path) -> Path:
+    """Write ``model`` as ``*.model.json``, atomically."""
+    return write_json(path, model.to_dict())
+
+
+__all__ = [
+    "Element",
+    "ElementKind",
+    "Model",
+    "load_model",
+    "model_from_dict",
+    "save_model",
+    "simplex_weights",
+]
