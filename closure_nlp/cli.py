@@ -11,9 +11,12 @@ import argparse
 import json
 import sys
 
-from .contacts import load_contact_set
+from .contacts import contact_specs, load_contact_set
+from .elements import load_model
+from .eligibility import Eligibility
 from .errors import MethodError
 from .quality import rho
+from .selection import run_selection
 
 
 class InputError(ValueError):
@@ -63,6 +66,128 @@ def _cmd_rho(args) -> None:
         )
 
 
+def _values(text: str, flag: str, count: int, convert):
+    """One value, or a comma list of ``count`` values (one per contact)."""
+    parts = [p.strip() for p in str(text).split(",")]
+    if len(parts) not in (1, count):
+        raise ValueError(f"{flag}: expected 1 or {count} values (one per contact), got {text!r}")
+    try:
+        values = [convert(p) for p in parts]
+    except ValueError:
+        raise ValueError(f"{flag}: not a number in {text!r}") from None
+    return values[0] if len(values) == 1 else values
+
+
+def _add_contact_options(parser) -> None:
+    g = parser.add_argument_group("contact options (one value, or a comma list of one per contact)")
+    g.add_argument("--type", default="pcwf", help="fpc, pcwf, sfcl or sfce (default pcwf)")
+    g.add_argument("--mu", default="0.2", help="Coulomb friction coefficient (default 0.2)")
+    g.add_argument("--mu-s", default="0.2", help="spin coefficient, a length (default 0.2)")
+    g.add_argument("--f-max", default="1", help="normal-force bound f^U (default 1)")
+    g.add_argument("--torque-scale", default="1", help="factor on every torque row (default 1)")
+
+
+def _eligibility(args, m: int):
+    """The model of ``args.model`` with ``m`` contacts of the requested specs."""
+    model = _load_each([args.model], load_model)[0][1]
+    if m < 1:
+        raise ValueError(f"--contacts: expected a positive number of contacts, got {m}")
+    torque_scale = _values(args.torque_scale, "--torque-scale", 1, float)
+    try:
+        specs = contact_specs(
+            m,
+            type=_values(args.type, "--type", m, str),
+            mu=_values(args.mu, "--mu", m, float),
+            mu_s=_values(args.mu_s, "--mu-s", m, float),
+            f_max=_values(args.f_max, "--f-max", m, float),
+        )
+    except ValueError as exc:
+        raise ValueError(f"contact options: {exc}") from None
+    return Eligibility(model, specs, torque_scale)
+
+
+def _ids(text: str, flag: str) -> list[int]:
+    try:
+        return [int(p) for p in text.split(",")]
+    except ValueError:
+        raise ValueError(f"{flag}: expected comma-separated element ids, got {text!r}") from None
+
+
+def _progress(args):
+    """A tqdm bar on stderr for long runs, only on a terminal and without ``--quiet``."""
+    if args.quiet or not sys.stderr.isatty():
+        return None, lambda: None
+    from tqdm import tqdm
+
+    bar = tqdm(total=None, unit="step", file=sys.stderr, leave=False)
+
+    def update(algorithm: str, step: int, value: float) -> None:
+        bar.set_description(f"{algorithm} rho_hat={value:.5g}")
+        bar.update(1)
+
+    return update, bar.close
+
+
+def _add_eligibility(sub, common) -> None:
+    p = sub.add_parser("eligibility", parents=[common], help="rho(0, What_c^M) of element sets")
+    p.add_argument("model", metavar="MODEL", help="*.model.json")
+    p.add_argument("--elements", required=True, help="element ids, one per contact: I,J,...")
+    _add_contact_options(p)
+    p.set_defaults(run=_cmd_eligibility)
+
+
+def _cmd_eligibility(args) -> None:
+    ids = _ids(args.elements, "--elements")
+    eligibility = _eligibility(args, len(ids))
+    result = eligibility(eligibility.check_elements(ids, "--elements"))
+    verdict = "eligible" if result.eligible else "not eligible"
+    _emit(
+        args,
+        result.to_dict(),
+        f"{args.model}: elements {_join(result.elements)}: rho_hat = {result.rho_hat:.9g} "
+        f"({verdict})",
+    )
+
+
+def _add_select(sub, common) -> None:
+    p = sub.add_parser("select", parents=[common], help="select eligible elements")
+    p.add_argument("model", metavar="MODEL", help="*.model.json")
+    p.add_argument("--contacts", type=int, required=True, metavar="M", help="number of contacts")
+    p.add_argument("--algorithm", choices=["heuristic", "iterative"], default="heuristic")
+    p.add_argument("--start", help="start elements I,J,... (heuristic: its i0 < M start ids)")
+    p.add_argument("--seed", type=int, default=0, help="random start of the heuristic")
+    _add_contact_options(p)
+    p.set_defaults(run=_cmd_select)
+
+
+def _cmd_select(args) -> None:
+    eligibility = _eligibility(args, args.contacts)
+    start = _ids(args.start, "--start") if args.start else None
+    progress, close = _progress(args)
+    try:
+        result = run_selection(
+            eligibility, args.algorithm, start=start, seed=args.seed, progress=progress
+        )
+    finally:
+        close()
+    verdict = "eligible" if result.eligible else "not eligible"
+    _emit(
+        args,
+        {"algorithm": args.algorithm, **result.to_dict()},
+        f"{args.model}: {args.algorithm}: elements {_join(result.elements)}: "
+        f"rho_hat = {result.rho_hat:.9g} ({verdict}); {result.evaluations} evaluations "
+        f"in {result.seconds:.2f} s",
+    )
+    if not result.eligible:
+        raise MethodError(
+            f"{args.model}: no eligible element set found (best rho_hat = {result.rho_hat:.6g})"
+        )
+
+
+def _join(ids) -> str:
+    return ",".join(str(i) for i in ids)
+
+
 # --- parser ---------------------------------------------------------------------------------
 
 
@@ -86,7 +211,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 # Functions (subparsers, common_parent) -> None, each registering one command.
-COMMANDS: list = [_add_rho]
+COMMANDS: list = [_add_rho, _add_eligibility, _add_select]
 
 
 def main(argv: list[str] | None = None) -> int:

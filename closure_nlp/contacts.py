@@ -107,6 +107,56 @@ def grasp_matrices(positions: np.ndarray, normal: np.ndarray, torque_scale: floa
     return G[0] if single else G
 
 
+def _check_parameters(obj, name: str) -> None:
+    """Validate and normalise the ``type, mu, mu_s, f_max`` fields of a frozen dataclass."""
+    set_ = object.__setattr__
+    set_(obj, "type", ContactType.parse(obj.type, f"{name}.type"))
+    set_(obj, "mu", as_number(obj.mu, f"{name}.mu", minimum=0.0))
+    set_(obj, "mu_s", as_number(obj.mu_s, f"{name}.mu_s", minimum=0.0))
+    set_(obj, "f_max", as_number(obj.f_max, f"{name}.f_max", minimum=0.0, strict=True))
+
+
+@dataclass(frozen=True)
+class ContactSpec:
+    """What a contact can carry, wherever it is put: type, ``mu``, ``mu_s`` and ``f_max``."""
+
+    type: ContactType = ContactType.PCWF
+    mu: float = DEFAULT_MU
+    mu_s: float = DEFAULT_MU_S
+    f_max: float = DEFAULT_F_MAX
+    name: str = field(default="contact", compare=False, repr=False)
+
+    def __post_init__(self) -> None:
+        _check_parameters(self, self.name)
+
+    def at(self, position, inward_normal, name: str | None = None) -> Contact:
+        """A :class:`Contact` with these parameters at ``position``."""
+        return Contact(
+            position, inward_normal, self.type, self.mu, self.mu_s, self.f_max, name or self.name
+        )
+
+
+def contact_specs(
+    count: int, *, type=ContactType.PCWF, mu=DEFAULT_MU, mu_s=DEFAULT_MU_S, f_max=DEFAULT_F_MAX
+) -> tuple[ContactSpec, ...]:
+    """``count`` specs; each parameter is one value for all or a sequence of ``count`` values."""
+    columns = {}
+    for key, value in (("type", type), ("mu", mu), ("mu_s", mu_s), ("f_max", f_max)):
+        if isinstance(value, (list, tuple, np.ndarray)):
+            if len(value) != count:
+                raise ValueError(
+                    f"{key}: expected one value or {count} values (one per contact), "
+                    f"got {len(value)}"
+                )
+            columns[key] = list(value)
+        else:
+            columns[key] = [value] * count
+    return tuple(
+        ContactSpec(**{k: v[i] for k, v in columns.items()}, name=f"contacts[{i}]")
+        for i in range(count)
+    )
+
+
 @dataclass(frozen=True, eq=False)
 class Contact:
     """One contact: where, which way it pushes, and what it can carry.
@@ -135,10 +185,11 @@ class Contact:
         set_(
             self, "inward_normal", as_unit_vector(self.inward_normal, f"{self.name}.inward_normal")
         )
-        set_(self, "type", ContactType.parse(self.type, f"{self.name}.type"))
-        set_(self, "mu", as_number(self.mu, f"{self.name}.mu", minimum=0.0))
-        set_(self, "mu_s", as_number(self.mu_s, f"{self.name}.mu_s", minimum=0.0))
-        set_(self, "f_max", as_number(self.f_max, f"{self.name}.f_max", minimum=0.0, strict=True))
+        _check_parameters(self, self.name)
+
+    @property
+    def spec(self) -> ContactSpec:
+        return ContactSpec(self.type, self.mu, self.mu_s, self.f_max, self.name)
 
     def to_dict(self) -> dict:
         return {

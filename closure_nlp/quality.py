@@ -336,11 +336,15 @@ def rho(
     return _as_rho(found, minimizer.tolerances)
 
 
-def _as_rho(found: SupportMinimum, tolerances: Tolerances) -> RhoResult:
+def signed_distance(found: SupportMinimum, tolerances: Tolerances) -> float:
+    """``-min p(u)``, with round-off around 0 snapped to exactly 0 (no interior: not closure)."""
     value = -found.value
     scale = max(1.0, float(np.linalg.norm(found.support_point)))
-    if abs(value) <= tolerances.zero_rho * scale:
-        value = 0.0  # no interior, or the origin on the boundary: not force closure
+    return 0.0 if abs(value) <= tolerances.zero_rho * scale else value
+
+
+def _as_rho(found: SupportMinimum, tolerances: Tolerances) -> RhoResult:
+    value = signed_distance(found, tolerances)
     return RhoResult(value, value < 0.0, found.direction, found.support_point, found.stats)
 
 
@@ -352,4 +356,5 @@ __all__ = [
     "SupportMinimizer",
     "SupportMinimum",
     "rho",
+    "signed_distance",
 ]

@@ -1,0 +1,157 @@
+"""Eligibility of element sets: rho(0, What_c^M) (paper section 4, eqs 33-36).
+
+One contact per listed element (an element may be listed twice). The wrench set of a contact on
+element ``i`` lies in the convex hull of its vertex sets ``W_ij``, so slot ``i`` of the
+:class:`WrenchSlots` has one row per vertex and the same :class:`SupportMinimizer` as rho
+computes ``rho_hat`` with the max over vertices inside its epigraph.
+
+Vertex rows are padded (by repeating the last vertex, which changes no support value) to a few
+bucket sizes, so a whole selection run needs only a handful of NLP shapes, each built once.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .contacts import ContactSpec
+from .elements import Model
+from .quality import SolverStats, SupportMinimizer, signed_distance
+from .validation import as_number
+from .wrenches import WrenchSlots
+
+ROW_BUCKETS = (1, 2, 4, 8, 16, 32, 64)
+
+
+def padded_rows(count: int) -> int:
+    """The smallest bucket size holding ``count`` vertex rows."""
+    for size in ROW_BUCKETS:
+        if count <= size:
+            return size
+    return count
+
+
+@dataclass(frozen=True)
+class EligibilityResult:
+    """rho_hat of one element set.
+
+    Attributes
+    ----------
+    elements : tuple of int
+        Element ids, one per contact, in contact order.
+    rho_hat : float
+        rho(0, What_c^M): negative iff the set is eligible; then ``-rho_hat`` is the radius of the
+        largest origin-centred ball in What_c^M.
+    eligible : bool
+    direction : (6,) float
+        Unit ``u*`` at which the support function attains ``-rho_hat``.
+    stats : SolverStats
+    """
+
+    elements: tuple[int, ...]
+    rho_hat: float
+    eligible: bool
+    direction: np.ndarray
+    stats: SolverStats
+
+    def to_dict(self) -> dict:
+        return {
+            "elements": list(self.elements),
+            "rho_hat": self.rho_hat,
+            "eligible": self.eligible,
+            "direction": self.direction.tolist(),
+        }
+
+
+class Eligibility:
+    """rho_hat of element sets of one model for one list of contact specs, solvers reused.
+
+    Parameters
+    ----------
+    model : Model
+    specs : sequence of ContactSpec
+        One per contact; ``len(specs)`` is the number of contacts m.
+    torque_scale : float
+    minimizer : SupportMinimizer, optional
+        Holds the cached NLPs (one per shape) and the search options.
+    """
+
+    def __init__(
+        self,
+        model: Model,
+        specs,
+        torque_scale: float = 1.0,
+        minimizer: SupportMinimizer | None = None,
+    ):
+        if not isinstance(model, Model):
+            raise TypeError(f"model: expected a Model, got {type(model).__name__}")
+        specs = tuple(specs)
+        if not specs:
+            raise ValueError("specs: at least one contact is needed, got none")
+        for i, s in enumerate(specs):
+            if not isinstance(s, ContactSpec):
+                raise TypeError(f"specs[{i}]: expected a ContactSpec, got {type(s).__name__}")
+        self.model = model
+        self.specs = specs
+        self.torque_scale = as_number(torque_scale, "torque_scale", minimum=0.0, strict=True)
+        self.minimizer = minimizer or SupportMinimizer()
+        self.evaluations = 0
+        self._vertex_G = [e.grasp_matrices(self.torque_scale) for e in model.elements]
+        self._all: dict[ContactSpec, WrenchSlots] = {}
+
+    @property
+    def m(self) -> int:
+        return len(self.specs)
+
+    def check_elements(self, elements, field: str = "elements", partial: bool = False):
+        """Validate a list of ``m`` element ids (``1..m`` of them when ``partial``)."""
+        if isinstance(elements, (str, bytes)) or not hasattr(elements, "__len__"):
+            raise TypeError(f"{field}: expected a list of element ids, got {elements!r}")
+        if not (1 <= len(elements) <= self.m if partial else len(elements) == self.m):
+            wanted = f"1 to {self.m}" if partial else f"{self.m}"
+            raise ValueError(
+                f"{field}: expected {wanted} element ids (one per contact), got {len(elements)}"
+            )
+        return tuple(self.model.check_id(e, f"{field}[{k}]") for k, e in enumerate(elements))
+
+    def slots(self, elements) -> WrenchSlots:
+        """The slots of What_c^M: contact ``i`` on element ``elements[i]``, one row per vertex."""
+        rows = []
+        for spec, e in zip(self.specs, elements):
+            G = self._vertex_G[e]
+            pad = padded_rows(len(G)) - len(G)
+            if pad:
+                G = np.concatenate([G, np.repeat(G[-1:], pad, axis=0)])
+            rows.append((G, spec.type, spec.mu, spec.mu_s, spec.f_max))
+        return WrenchSlots.build(rows)
+
+    def __call__(self, elements, warm_start=None, partial: bool = False) -> EligibilityResult:
+        """rho_hat of ``elements`` (m ids; with ``partial``, the first ``k <= m`` contacts).
+
+        ``warm_start`` adds a start direction (e.g. the ``u*`` of a neighbouring set).
+        """
+        elements = self.check_elements(elements, partial=partial)
+        found = self.minimizer(self.slots(elements), warm_start)
+        self.evaluations += 1
+        value = signed_distance(found, self.minimizer.tolerances)
+        return EligibilityResult(elements, value, value < 0.0, found.direction, found.stats)
+
+    def element_values(self, spec_index: int, u: np.ndarray) -> np.ndarray:
+        """``max_j p_{W_ij}(u)`` of every element of the model for contact ``spec_index``: (n,)."""
+        spec = self.specs[spec_index]
+        if spec not in self._all:
+            self._all[spec] = WrenchSlots.build(
+                (G, spec.type, spec.mu, spec.mu_s, spec.f_max) for G in self._vertex_G
+            )
+        return self._all[spec].slot_values(np.asarray(u, dtype=float)[None])[0]
+
+
+def rho_hat(
+    model: Model, elements, specs, torque_scale: float = 1.0, *, minimizer=None
+) -> EligibilityResult:
+    """rho(0, What_c^M) of one element set (eq 33); see :class:`Eligibility` for loops."""
+    return Eligibility(model, specs, torque_scale, minimizer)(elements)
+
+
+__all__ = ["Eligibility", "EligibilityResult", "padded_rows", "rho_hat"]

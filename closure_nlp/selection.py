@@ -1,0 +1,275 @@
+"""Selecting eligible elements: the heuristic and the iterative algorithms (paper section 5).
+
+Both steer by rho_hat = rho(0, What_c^M) (:mod:`closure_nlp.eligibility`). The heuristic grows
+a set from ``i0`` random (or given) elements, each time adding the element whose best vertex
+wrench lies furthest along ``u*``, the direction that separates the current set from the origin
+(or its weakest side once the set is eligible). The iterative algorithm swaps one element at a time
+for the neighbour that lowers rho_hat most, until ``m`` consecutive positions give no descent.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .eligibility import Eligibility, EligibilityResult
+from .errors import MethodError
+
+
+@dataclass(frozen=True)
+class SelectionOptions:
+    """Options of both algorithms.
+
+    Attributes
+    ----------
+    initial : int
+        ``i0``, the number of random start elements of the heuristic (``1 <= i0 < m``).
+    restarts : int
+        Heuristic rounds tried before giving up on finding an eligible set.
+    descent : float
+        A swap counts as descent only if it lowers rho_hat by more than
+        ``descent * max(1, |rho_hat|)``: solver round-off never makes the iteration cycle.
+    max_iterations : int
+        Cap on iterative steps (a step = one position ``i`` tried).
+    """
+
+    initial: int = 1
+    restarts: int = 50
+    descent: float = 1e-9
+    max_iterations: int = 10_000
+
+    def __post_init__(self) -> None:
+        for name, low in (("initial", 1), ("restarts", 1), ("max_iterations", 1)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < low:
+                raise ValueError(f"{name}: expected an integer >= {low}, got {value!r}")
+        if not (isinstance(self.descent, (int, float)) and self.descent >= 0):
+            raise ValueError(f"descent: expected a number >= 0, got {self.descent!r}")
+
+
+@dataclass(frozen=True)
+class SelectionResult:
+    """Outcome of one selection run.
+
+    Attributes
+    ----------
+    elements : tuple of int
+        One element id per contact.
+    rho_hat : float
+    eligible : bool
+    direction : (6,) float
+        ``u*`` of the final set.
+    history : tuple of (int, float)
+        ``(iteration, rho_hat)`` after every step, iteration 0 being the start (Fig. 3).
+    evaluations : int
+        rho_hat computations made by this run.
+    seconds : float
+    rounds : int
+        Heuristic rounds used (1 if the first round was eligible); 0 for the iterative algorithm.
+    """
+
+    elements: tuple[int, ...]
+    rho_hat: float
+    eligible: bool
+    direction: np.ndarray
+    history: tuple[tuple[int, float], ...]
+    evaluations: int
+    seconds: float
+    rounds: int = 0
+
+    def to_dict(self) -> dict:
+        return {
+            "elements": list(self.elements),
+            "rho_hat": self.rho_hat,
+            "eligible": self.eligible,
+            "direction": self.direction.tolist(),
+            "history": [{"iteration": k, "rho_hat": v} for k, v in self.history],
+            "evaluations": self.evaluations,
+            "seconds": self.seconds,
+        }
+
+
+# progress(algorithm, step, rho_hat): called after every step; must not raise.
+Progress = Callable[[str, int, float], None]
+
+
+def heuristic(
+    eligibility: Eligibility,
+    *,
+    start=None,
+    seed: int | None = 0,
+    options: SelectionOptions = SelectionOptions(),
+    progress: Progress | None = None,
+) -> SelectionResult:
+    """Steps 1-5 of the heuristic algorithm.
+
+    Parameters
+    ----------
+    eligibility : Eligibility
+        The model, the ``m`` contact specs and the solvers.
+    start : sequence of int, optional
+        The ``i0`` start elements (``1 <= i0 < m``, or ``m`` to just evaluate them); random
+        from ``seed`` when omitted, and for every restart.
+    seed : int, optional
+    options : SelectionOptions
+    progress : callable, optional
+
+    Returns
+    -------
+    SelectionResult
+        The first eligible set found, else (after ``options.restarts`` rounds) the set with the
+        lowest rho_hat, with ``eligible`` False.
+    """
+    t0 = time.perf_counter()
+    m, n = eligibility.m, len(eligibility.model)
+    evaluations0 = eligibility.evaluations
+    rng = np.random.default_rng(seed)
+    given = None if start is None else _check_start(eligibility, start)
+    if given is None and not options.initial < m:
+        raise ValueError(f"initial: must be < m = {m}, got {options.initial}")
+    best: tuple[EligibilityResult, list] | None = None
+    for round_ in range(1, options.restarts + 1):
+        if given and round_ == 1:
+            chosen = list(given)
+        else:
+            chosen = rng.integers(0, n, options.initial).tolist()
+        history = []
+        found = eligibility(chosen, partial=True)
+        history.append((0, found.rho_hat))
+        while len(chosen) < m:
+            values = eligibility.element_values(len(chosen), found.direction)
+            chosen.append(int(np.argmax(values)))
+            found = eligibility(chosen, found.direction, partial=True)
+            history.append((len(history), found.rho_hat))
+            if progress:
+                progress("heuristic", len(history) - 1, found.rho_hat)
+        if best is None or found.rho_hat < best[0].rho_hat:
+            best = (found, history)
+        if found.eligible:
+            break
+    found, history = best
+    return SelectionResult(
+        found.elements,
+        found.rho_hat,
+        found.eligible,
+        found.direction,
+        tuple(history),
+        eligibility.evaluations - evaluations0,
+        time.perf_counter() - t0,
+        round_,
+    )
+
+
+def iterative(
+    eligibility: Eligibility,
+    start,
+    *,
+    options: SelectionOptions = SelectionOptions(),
+    progress: Progress | None = None,
+) -> SelectionResult:
+    """Steps 1-4 of the iterative algorithm from ``start`` (m element ids).
+
+    Position ``i`` (cyclically) is replaced by the neighbour that lowers rho_hat most, if any
+    does; the run ends after ``m`` consecutive positions without descent. Each candidate set's
+    rho_hat is warm-started from the current ``u*`` and remembered, so no set is solved twice.
+    """
+    t0 = time.perf_counter()
+    evaluations0 = eligibility.evaluations
+    current = list(eligibility.check_elements(start, "start"))
+    m = eligibility.m
+    seen: dict[tuple, EligibilityResult] = {}
+
+    def evaluate(elements, warm):
+        key = _multiset(eligibility, elements)
+        if key not in seen:
+            seen[key] = eligibility(elements, warm)
+        return seen[key]
+
+    best = evaluate(current, None)
+    history = [(0, best.rho_hat)]
+    count, i, step = 0, -1, 0
+    while count < m:
+        if step >= options.max_iterations:
+            raise MethodError(
+                f"iterative selection: no end after {step} steps (max_iterations); "
+                f"rho_hat = {best.rho_hat:.6g}"
+            )
+        step += 1
+        i = (i + 1) % m
+        candidate = None
+        for neighbour in eligibility.model.neighbours(current[i]):
+            trial = current.copy()
+            trial[i] = neighbour
+            found = evaluate(trial, best.direction)
+            if candidate is None or found.rho_hat < candidate.rho_hat:
+                candidate = found
+        margin = options.descent * max(1.0, abs(best.rho_hat))
+        if candidate is not None and candidate.rho_hat < best.rho_hat - margin:
+            best, current, count = candidate, list(candidate.elements), 0
+        else:
+            count += 1
+        history.append((step, best.rho_hat))
+        if progress:
+            progress("iterative", step, best.rho_hat)
+    return SelectionResult(
+        best.elements,
+        best.rho_hat,
+        best.eligible,
+        best.direction,
+        tuple(history),
+        eligibility.evaluations - evaluations0,
+        time.perf_counter() - t0,
+    )
+
+
+def run_selection(
+    eligibility: Eligibility,
+    algorithm: str = "heuristic",
+    *,
+    start=None,
+    seed: int | None = 0,
+    options: SelectionOptions = SelectionOptions(),
+    progress: Progress | None = None,
+) -> SelectionResult:
+    """``heuristic``, or ``iterative`` (from ``start`` if it names m elements, else from the
+    heuristic's result; evaluations and seconds then include the heuristic's)."""
+    if algorithm == "heuristic":
+        return heuristic(eligibility, start=start, seed=seed, options=options, progress=progress)
+    if algorithm != "iterative":
+        raise ValueError(f"algorithm: expected 'heuristic' or 'iterative', got {algorithm!r}")
+    if start is not None and len(start) == eligibility.m:
+        return iterative(eligibility, start, options=options, progress=progress)
+    first = heuristic(eligibility, start=start, seed=seed, options=options, progress=progress)
+    result = iterative(eligibility, first.elements, options=options, progress=progress)
+    return replace(
+        result,
+        evaluations=result.evaluations + first.evaluations,
+        seconds=result.seconds + first.seconds,
+    )
+
+
+def _multiset(eligibility: Eligibility, elements) -> tuple:
+    """Key of an element set: contacts with equal specs are interchangeable."""
+    kinds = [eligibility.specs.index(spec) for spec in eligibility.specs]
+    return tuple(sorted(zip(kinds, elements)))
+
+
+def _check_start(eligibility: Eligibility, start) -> tuple[int, ...]:
+    if isinstance(start, (str, bytes)) or not hasattr(start, "__len__"):
+        raise TypeError(f"start: expected a list of element ids, got {start!r}")
+    if not 1 <= len(start) <= eligibility.m:
+        raise ValueError(f"start: expected 1 to {eligibility.m} element ids, got {len(start)}")
+    return tuple(eligibility.model.check_id(e, f"start[{k}]") for k, e in enumerate(start))
+
+
+__all__ = [
+    "Progress",
+    "SelectionOptions",
+    "SelectionResult",
+    "heuristic",
+    "iterative",
+    "run_selection",
+]
