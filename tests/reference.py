@@ -50,70 +50,71 @@ def subset_matrix(m):
     return np.array(rows)
 
 
+def _rows(G):
+    """A slot's grasp matrices: one (6, 4) for a contact, (k, 6, 4) for an element's vertices."""
+    G = np.asarray(G, float)
+    return G[None] if G.ndim == 2 else G
+
+
+def slot_support(u, slot):
+    """Eq 36: the largest support value over the slot's rows (one row for a contact)."""
+    G, kind, mu, mu_s, f = slot
+    return max(contact_support(Gj.T @ u, kind, mu, mu_s, f) for Gj in _rows(G))
+
+
 def support(u, contacts):
-    """``contacts``: list of (G (6, 4), kind, mu, mu_s, f_max)."""
-    values = np.array([contact_support(G.T @ u, k, mu, ms, f) for G, k, mu, ms, f in contacts])
+    """``contacts``: list of (G (6, 4) or (k, 6, 4), kind, mu, mu_s, f_max), one per slot."""
+    values = np.array([slot_support(u, c) for c in contacts])
     return float(np.max(subset_matrix(len(contacts)) @ values))
 
 
+def _cone_gap(kind, mu, mu_s, d, s):
+    """``s**2`` minus the squared friction terms: the epigraph constraints of one row."""
+    t2 = d[1] ** 2 + d[2] ** 2
+    if kind == "pcwf":
+        return [s**2 - mu**2 * t2]
+    if kind == "sfcl":
+        return [s**2 - mu**2 * t2, s**2 - mu_s**2 * d[3] ** 2]
+    if kind == "sfce":
+        return [s**2 - mu**2 * t2 - mu_s**2 * d[3] ** 2]
+    return []
+
+
 def reference_min(contacts, samples=3000, starts=12, seed=0):
-    """min over the unit sphere of ``support``; returns (value, u)."""
+    """min over the unit sphere of ``support``; returns (value, u).
+
+    SLSQP on the epigraph: u, one s per row, one P per slot, t; s_r**2 >= friction terms,
+    P_i >= f (d_n + s_r) for every row r of slot i, t >= sum of P over every subset.
+    """
     rng = np.random.default_rng(seed)
     U = rng.standard_normal((samples, 6))
     U /= np.linalg.norm(U, axis=1, keepdims=True)
     U = np.vstack([np.eye(6), -np.eye(6), U])
     vals = np.array([support(u, contacts) for u in U])
     m = len(contacts)
+    rows = [(i, Gj) for i, c in enumerate(contacts) for Gj in _rows(c[0])]
+    n_rows = len(rows)
     subsets = subset_matrix(m)
 
     def unpack(x):
-        return x[:6], x[6 : 6 + m], x[6 + m]
+        return x[:6], x[6 : 6 + n_rows], x[6 + n_rows : 6 + n_rows + m], x[-1]
 
-    def row_value(x, i):
-        u, s, _ = unpack(x)
-        G, kind, mu, mu_s, f = contacts[i]
-        d = G.T @ u
-        return f * (d[0] + (s[i] if kind != "fpc" else 0.0))
+    def inequalities(x):
+        u, s, P, t = unpack(x)
+        out = []
+        for r, (i, Gj) in enumerate(rows):
+            _, kind, mu, mu_s, f = contacts[i]
+            d = Gj.T @ u
+            out += _cone_gap(kind, mu, mu_s, d, s[r])
+            out.append(P[i] - f * (d[0] + (s[r] if kind != "fpc" else 0.0)))
+        out += list(t - subsets @ P)
+        return np.array(out)
 
-    cons = [{"type": "eq", "fun": lambda x: unpack(x)[0] @ unpack(x)[0] - 1.0}]
-    for i, (G, kind, mu, mu_s, _f) in enumerate(contacts):
-        if kind in ("pcwf", "sfcl"):
-            cons.append(
-                {
-                    "type": "ineq",
-                    "fun": lambda x, i=i, G=G, mu=mu: (
-                        unpack(x)[1][i] ** 2
-                        - mu**2 * ((G.T @ unpack(x)[0])[1] ** 2 + (G.T @ unpack(x)[0])[2] ** 2)
-                    ),
-                }
-            )
-        if kind == "sfcl":
-            cons.append(
-                {
-                    "type": "ineq",
-                    "fun": lambda x, i=i, G=G, ms=mu_s: (
-                        unpack(x)[1][i] ** 2 - ms**2 * (G.T @ unpack(x)[0])[3] ** 2
-                    ),
-                }
-            )
-        if kind == "sfce":
-            cons.append(
-                {
-                    "type": "ineq",
-                    "fun": lambda x, i=i, G=G, mu=mu, ms=mu_s: (
-                        unpack(x)[1][i] ** 2
-                        - mu**2 * ((G.T @ unpack(x)[0])[1] ** 2 + (G.T @ unpack(x)[0])[2] ** 2)
-                        - ms**2 * (G.T @ unpack(x)[0])[3] ** 2
-                    ),
-                }
-            )
-    cons.append(
-        {
-            "type": "ineq",
-            "fun": lambda x: unpack(x)[2] - subsets @ np.array([row_value(x, i) for i in range(m)]),
-        }
-    )
-    bounds = [(-2, 2)] * 6 + [(0, None)] * m + [(None, None)]
+    cons = [
+        {"type": "eq", "fun": lambda x: unpack(x)[0] @ unpack(x)[0] - 1.0},
+        {"type": "ineq", "fun": inequalities},
+    ]
+    bounds = [(-2, 2)] * 6 + [(0, None)] * n_rows + [(None, None)] * (m + 1)
     best = (np.inf, None)
     picked = []
     for idx in np.argsort(vals):
@@ -121,11 +122,13 @@ def reference_min(contacts, samples=3000, starts=12, seed=0):
             continue
         picked.append(idx)
         u0 = U[idx]
-        s0 = []
-        for G, _kind, mu, mu_s, _f in contacts:
-            d = G.T @ u0
+        s0, P0 = [], np.full(m, -np.inf)
+        for i, Gj in rows:
+            _, kind, mu, mu_s, f = contacts[i]
+            d = Gj.T @ u0
             s0.append(np.sqrt(mu**2 * (d[1] ** 2 + d[2] ** 2) + mu_s**2 * d[3] ** 2) + 1e-6)
-        x0 = np.concatenate([u0, s0, [vals[idx] + 1e-3]])
+            P0[i] = max(P0[i], f * (d[0] + (s0[-1] if kind != "fpc" else 0.0)) + 1e-6)
+        x0 = np.concatenate([u0, s0, P0, [np.max(subsets @ P0) + 1e-3]])
         res = minimize(
             lambda x: x[-1],
             x0,
@@ -141,6 +144,14 @@ def reference_min(contacts, samples=3000, starts=12, seed=0):
         if len(picked) == starts:
             break
     return best
+
+
+def from_elements(vertex_lists, normals, kinds, torque_scale=1.0):
+    """Independent view of element slots: raw vertices and normals, one slot per contact."""
+    return [
+        (np.array([grasp(v, n, torque_scale) for v in V]), kind, mu, mu_s, f)
+        for V, n, (kind, mu, mu_s, f) in zip(vertex_lists, normals, kinds)
+    ]
 
 
 def from_contact_set(cs):

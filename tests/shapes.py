@@ -1,0 +1,53 @@
+"""Small element models built in code for tests: a box and random elements of every kind."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from closure_nlp.elements import Element, Model
+
+
+def box_model(half: float = 1.0) -> Model:
+    """A cube of side ``2 * half``: 6 square facets, neighbours across its 12 edges."""
+    elements = []
+    for axis in range(3):
+        others = [k for k in range(3) if k != axis]
+        for sign in (-1.0, 1.0):
+            corners = []
+            for p, q in [(-1, -1), (1, -1), (1, 1), (-1, 1)]:
+                v = np.zeros(3)
+                v[axis], v[others[0]], v[others[1]] = sign * half, p * half, q * half
+                corners.append(v)
+            normal = np.zeros(3)
+            normal[axis] = -sign
+            elements.append(Element("facet", corners, normal, name=f"elements[{len(elements)}]"))
+    adjacency = [(i, j) for i in range(6) for j in range(i + 1, 6) if i // 2 != j // 2]
+    return Model(tuple(elements), tuple(adjacency), "box", "unit")
+
+
+def random_element(rng, kind: str, radius: float = 1.0) -> Element:
+    """An element near the sphere of ``radius``, its normal pointing roughly at the centre."""
+    centre = rng.standard_normal(3)
+    centre *= radius / np.linalg.norm(centre)
+    normal = -centre / radius + 0.3 * rng.standard_normal(3)
+    normal /= np.linalg.norm(normal)
+    helper = np.eye(3)[int(np.argmin(np.abs(normal)))]
+    a = np.cross(normal, helper)
+    a /= np.linalg.norm(a)
+    b = np.cross(normal, a)
+    size = 0.2 * radius
+    if kind == "point":
+        vertices = [centre]
+    elif kind == "segment":
+        vertices = [centre - size * a, centre + size * a]
+    else:
+        k = int(rng.integers(3, 7))
+        angles = np.sort(rng.uniform(0, 2 * np.pi, k))
+        angles = 2 * np.pi * np.arange(k) / k + 0.3 * (angles - angles.mean()) / k
+        vertices = [centre + size * (np.cos(t) * a + np.sin(t) * b) for t in angles]
+    return Element(kind, vertices, normal)
+
+
+def random_model(rng, kinds) -> Model:
+    """One random element of each kind in ``kinds``, no adjacency."""
+    return Model(tuple(random_element(rng, k) for k in kinds), (), "random")

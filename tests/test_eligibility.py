@@ -1,0 +1,148 @@
+"""rho_hat = rho(0, What_c^M) of element sets: an independent reference, containment, padding."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from closure_nlp.contacts import ContactSet, contact_specs
+from closure_nlp.eligibility import Eligibility, padded_rows, rho_hat
+from closure_nlp.quality import rho
+from tests import reference
+from tests.shapes import box_model, random_model
+
+TYPES = ["fpc", "pcwf", "sfcl", "sfce"]
+KINDS = ["facet", "segment", "point"]
+
+
+def _independent(model, eligibility, elements):
+    """The reference's view: raw vertices and normals of the chosen elements."""
+    return reference.from_elements(
+        [model.elements[e].vertices for e in elements],
+        [model.elements[e].inward_normal for e in elements],
+        [(s.type.value, s.mu, s.mu_s, s.f_max) for s in eligibility.specs],
+        eligibility.torque_scale,
+    )
+
+
+def _case(seed, kind_mix, types):
+    rng = np.random.default_rng(seed)
+    m = len(types)
+    model = random_model(rng, [kind_mix[i % len(kind_mix)] for i in range(m + 2)])
+    specs = contact_specs(m, type=list(types), mu=0.5, mu_s=0.1, f_max=1.0)
+    elements = rng.permutation(len(model))[:m].tolist()
+    return model, Eligibility(model, specs, torque_scale=1.0), elements
+
+
+CASES = [
+    (seed, kinds, types)
+    for seed, (kinds, types) in enumerate(
+        [
+            (["facet"], ["pcwf"] * 4),
+            (["facet"], ["fpc"] * 7),
+            (["segment"], ["sfce"] * 3),
+            (["segment", "point"], ["sfcl"] * 4),
+            (["point"], ["pcwf"] * 4),
+            (["facet", "segment", "point"], ["fpc", "pcwf", "sfcl", "sfce"]),
+            (["facet", "point"], ["sfce"] * 2),
+            (["facet", "segment"], ["pcwf", "pcwf", "sfce"]),
+        ]
+    )
+]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("seed", "kinds", "types"), CASES)
+def test_rho_hat_agrees_with_independent_reference(seed, kinds, types):
+    model, eligibility, elements = _case(seed, kinds, types)
+    result = eligibility(elements)
+    slots = _independent(model, eligibility, elements)
+    # The value we report is the reference support function at our direction ...
+    assert (
+        -result.rho_hat
+        == pytest.approx(
+            reference.support(result.direction, slots), abs=1e-9 * max(1, abs(result.rho_hat))
+        )
+        or result.rho_hat == 0.0
+    )
+    # ... and no direction the reference finds is lower. IPOPT's barrier keeps each epigraph
+    # variable s >= sqrt(q) about sqrt(tol) = 1e-6 above a cone's apex (d_ot = 0), so a minimum
+    # with k contacts at their apex is reached to about k * 1e-6 * f_max.
+    ref_value, _ = reference.reference_min(slots, samples=1500, starts=8)
+    assert -result.rho_hat <= ref_value + 1e-6 * len(types) * max(1.0, abs(ref_value))
+
+
+@pytest.mark.parametrize("kind", TYPES)
+def test_contacts_inside_elements_are_never_better(kind):
+    """W_c^M lies in What_c^M: rho of contacts anywhere on the elements >= rho_hat."""
+    rng = np.random.default_rng(11)
+    model = random_model(rng, ["facet", "facet", "segment", "point", "facet"])
+    m = 4
+    specs = contact_specs(m, type=kind, mu=0.4, mu_s=0.1)
+    elements = [0, 1, 2, 4]
+    bound = Eligibility(model, specs).__call__(elements).rho_hat
+    for _ in range(4):
+        contacts = []
+        for i, e in enumerate(elements):
+            element = model.elements[e]
+            w = rng.dirichlet(np.ones(len(element.vertices)))
+            contacts.append(specs[i].at(element.position(w), element.inward_normal))
+        value = rho(ContactSet(tuple(contacts))).rho
+        assert value >= bound - 1e-6 * max(1.0, abs(bound))
+
+
+def test_point_elements_give_the_contacts_rho():
+    """A point element is a contact: rho_hat of points equals rho of contacts there."""
+    rng = np.random.default_rng(5)
+    model = random_model(rng, ["point"] * 4)
+    specs = contact_specs(4, type="sfce", mu=0.5, mu_s=0.2)
+    result = rho_hat(model, [0, 1, 2, 3], specs)
+    contacts = [s.at(e.vertices[0], e.inward_normal) for s, e in zip(specs, model.elements)]
+    assert result.rho_hat == pytest.approx(rho(ContactSet(tuple(contacts))).rho, abs=1e-7)
+
+
+def test_box_faces_analytic():
+    """4 PCwF on the 4 side faces of a cube; on one face only the set lies above the origin."""
+    model = box_model(1.0)
+    eligibility = Eligibility(model, contact_specs(4, type="pcwf", mu=0.5))
+    side = eligibility([0, 1, 2, 3])
+    assert side.eligible and side.rho_hat < 0
+    one_face = eligibility([4, 4, 4, 4])
+    # Every wrench of a face with normal +z has force_z = f_n = 1 and |force_xy| <= mu:
+    # the nearest point of the set is (0, 0, 1, torque 0) at distance 1 from the origin.
+    assert not one_face.eligible
+    assert one_face.rho_hat == pytest.approx(1.0, abs=1e-7)
+    assert abs(one_face.direction[2]) == pytest.approx(1.0, abs=1e-6)
+
+
+def test_padding_keeps_support_values():
+    rng = np.random.default_rng(3)
+    model = random_model(rng, ["facet"] * 6)
+    eligibility = Eligibility(model, contact_specs(3, type="sfcl"))
+    elements = [0, 2, 5]
+    padded = eligibility.slots(elements)
+    assert padded.rows_per_slot == tuple(
+        padded_rows(len(model.elements[e].vertices)) for e in elements
+    )
+    U = rng.standard_normal((50, 6))
+    U /= np.linalg.norm(U, axis=1, keepdims=True)
+    slots = _independent(model, eligibility, elements)
+    expected = [reference.support(u, slots) for u in U]
+    np.testing.assert_allclose(padded.support(U), expected, rtol=1e-12, atol=1e-12)
+
+
+def test_bad_element_lists():
+    model = box_model()
+    eligibility = Eligibility(model, contact_specs(2))
+    with pytest.raises(ValueError, match=r"elements: expected 2 element ids"):
+        eligibility([0, 1, 2])
+    with pytest.raises(ValueError, match=r"elements\[1\]: element id 6 out of range"):
+        eligibility([0, 6])
+    with pytest.raises(TypeError, match=r"elements\[0\]"):
+        eligibility(["a", 1])
+    with pytest.raises(TypeError, match="specs"):
+        Eligibility(model, ["pcwf"])
+    with pytest.raises(ValueError, match=r"contacts\[1\]\.mu: must be >= 0"):
+        contact_specs(2, mu=[0.2, -0.1])
+    with pytest.raises(ValueError, match="mu: expected one value or 2 values"):
+        contact_specs(2, mu=[0.2, 0.1, 0.3])

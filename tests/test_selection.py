@@ -1,0 +1,166 @@
+"""Heuristic and iterative element selection, through the API and the CLI."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import numpy as np
+import pytest
+
+from closure_nlp import cli
+from closure_nlp.contacts import contact_specs
+from closure_nlp.eligibility import Eligibility
+from closure_nlp.elements import Element, Model, save_model
+from closure_nlp.selection import SelectionOptions, heuristic, iterative, run_selection
+from tests.shapes import box_model
+
+
+def _ring_model(count: int = 12) -> Model:
+    """Square facets around a 12-gon prism's side, plus its two caps: a ring of neighbours."""
+    angles = 2 * np.pi * np.arange(count) / count
+    rim = np.column_stack([np.cos(angles), np.sin(angles)])
+    elements, adjacency = [], []
+    for k in range(count):
+        a, b = rim[k], rim[(k + 1) % count]
+        quad = [[*a, -0.5], [*b, -0.5], [*b, 0.5], [*a, 0.5]]
+        mid = (a + b) / 2
+        elements.append(Element("facet", quad, [-mid[0], -mid[1], 0.0]))
+        adjacency += [(k, (k + 1) % count), (k, count), (k, count + 1)]
+    elements.append(Element("facet", [[*p, -0.5] for p in rim], [0, 0, 1]))
+    elements.append(Element("facet", [[*p, 0.5] for p in rim[::-1]], [0, 0, -1]))
+    return Model(tuple(elements), tuple(adjacency), "ring")
+
+
+@pytest.fixture(scope="module")
+def ring():
+    model = _ring_model()
+    return Eligibility(model, contact_specs(3, type="pcwf", mu=0.3))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_heuristic_finds_eligible_sets(ring, seed):
+    result = heuristic(ring, seed=seed)
+    assert result.eligible and result.rho_hat < 0
+    assert len(result.elements) == 3
+    assert result.rho_hat == pytest.approx(ring(result.elements).rho_hat, abs=1e-7)
+    assert [k for k, _ in result.history] == list(range(len(result.history)))
+
+
+def test_iterative_ends_in_a_local_minimum(ring):
+    """No single swap of a contact's element for a neighbour lowers rho_hat (brute force)."""
+    start = [0, 1, 2]  # three neighbouring side facets: a poor start
+    result = iterative(ring, start)
+    assert result.rho_hat <= ring(start).rho_hat
+    values = [v for _, v in result.history]
+    assert all(b <= a for a, b in zip(values, values[1:]))  # never goes up
+    assert result.history[-1][1] == result.rho_hat
+    model = ring.model
+    for i, e in enumerate(result.elements):
+        for n in model.neighbours(e):
+            trial = list(result.elements)
+            trial[i] = n
+            assert ring(trial).rho_hat >= result.rho_hat - 1e-6, (i, n)
+
+
+def test_iterative_improves_a_bad_start_and_counts_its_work(ring):
+    first = ring([0, 1, 12])
+    result = iterative(ring, [0, 1, 12])
+    assert result.rho_hat < first.rho_hat - 1e-3
+    assert result.eligible
+    assert result.evaluations >= 1 + len(result.history) - 1
+    assert result.seconds > 0
+
+
+def test_run_selection_chains_heuristic_then_iterative(ring):
+    first = heuristic(ring, seed=4)
+    both = run_selection(ring, "iterative", seed=4)
+    assert both.rho_hat <= first.rho_hat + 1e-9
+    assert both.evaluations > first.evaluations
+    with pytest.raises(ValueError, match="algorithm"):
+        run_selection(ring, "greedy")
+
+
+def test_heuristic_restarts_and_reports_failure():
+    """Two FPCs can never hold a box: every round fails, the best set comes back not eligible."""
+    eligibility = Eligibility(box_model(), contact_specs(2, type="fpc"))
+    result = heuristic(eligibility, seed=0, options=SelectionOptions(restarts=3))
+    assert not result.eligible and result.rounds == 3
+    assert result.rho_hat >= 0
+
+
+def test_given_start_is_used(ring):
+    result = heuristic(ring, start=[5])
+    assert result.elements[0] == 5
+    with pytest.raises(ValueError, match=r"start\[0\]: element id 99"):
+        heuristic(ring, start=[99])
+    with pytest.raises(ValueError, match="initial"):
+        heuristic(ring, options=SelectionOptions(initial=3))
+    with pytest.raises(ValueError, match="restarts"):
+        SelectionOptions(restarts=0)
+
+
+def test_progress_callback_sees_every_step(ring):
+    seen = []
+    result = iterative(ring, [0, 4, 8], progress=lambda *a: seen.append(a))
+    assert [s for _, s, _ in seen] == [k for k, _ in result.history[1:]]
+    assert all(name == "iterative" for name, _, _ in seen)
+
+
+# --- CLI -------------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def ring_file(tmp_path_factory):
+    path = tmp_path_factory.mktemp("ring") / "ring.model.json"
+    save_model(_ring_model(), path)
+    return str(path)
+
+
+def _run(capsys, *argv):
+    code = cli.main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_cli_eligibility_and_select(capsys, ring_file):
+    code, out, _ = _run(capsys, "eligibility", ring_file, "--elements", "0,4,8", "--json")
+    data = json.loads(out)
+    assert code == 0 and data["eligible"] and data["elements"] == [0, 4, 8]
+    assert set(data) >= {"rho_hat", "eligible", "direction"}
+    code, out, _ = _run(
+        capsys, "select", ring_file, "--contacts", "3", "--algorithm", "iterative", "--json"
+    )
+    data = json.loads(out)
+    assert code == 0 and data["eligible"]
+    assert set(data) >= {"elements", "rho_hat", "eligible", "history", "seconds"}
+    assert data["history"][0]["iteration"] == 0
+    code, out, _ = _run(
+        capsys, "select", ring_file, "--contacts", "3", "--type", "sfce,sfce,pcwf", "--quiet"
+    )
+    assert code == 0 and "rho_hat" in out
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--elements", "0,x"], "--elements: expected comma-separated element ids"),
+        (["--elements", "0,99"], r"--elements\[1\]: element id 99 out of range"),
+        (["--elements", "0,1", "--mu", "-1"], r"contacts\[0\]\.mu: must be >= 0"),
+        (["--elements", "0,1", "--type", "glue"], "unknown contact type 'glue'"),
+        (["--elements", "0,1", "--mu", "0.1,0.2,0.3"], "--mu: expected 1 or 2 values"),
+        (["--elements", "0,1", "--torque-scale", "0"], "torque_scale: must be > 0"),
+    ],
+)
+def test_cli_bad_input(capsys, ring_file, argv, message):
+    code, out, err = _run(capsys, "eligibility", ring_file, *argv)
+    assert code == 2 and out == ""
+    assert err.startswith("error:") and len(err.strip().splitlines()) == 1
+    assert re.search(message, err), err
+
+
+def test_cli_select_failure_is_exit_1(capsys, tmp_path):
+    path = tmp_path / "box.model.json"
+    save_model(box_model(), path)
+    code, out, err = _run(capsys, "select", str(path), "--contacts", "2", "--type", "fpc")
+    assert code == 1 and "no eligible element set" in err
