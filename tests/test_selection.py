@@ -10,8 +10,8 @@ import pytest
 
 from closure_nlp import cli
 from closure_nlp.contacts import contact_specs
-from closure_nlp.eligibility import Eligibility
 from closure_nlp.elements import Element, Model, save_model
+from closure_nlp.eligibility import Eligibility
 from closure_nlp.selection import SelectionOptions, heuristic, iterative, run_selection
 from tests.shapes import box_model
 
