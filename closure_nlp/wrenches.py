@@ -106,7 +106,7 @@ class WrenchSlots:
             object.__setattr__(self, "_G_flat", self.G.transpose(1, 0, 2).reshape(6, -1))
         return (U @ self._G_flat).reshape(len(U), -1, 4)
 
-    def _rows(self, d: np.ndarray):
+    def row_terms(self, d: np.ndarray):
         """Row values ``p_{W_ij}`` (N, K) and each row's largest friction piece (index, square)."""
         q = np.einsum("nkc,kpc->nkp", d * d, self.pieces)
         k = np.argmax(q, axis=2)
@@ -115,7 +115,7 @@ class WrenchSlots:
 
     def row_values(self, U: np.ndarray) -> np.ndarray:
         """Support function of every row's extreme wrench set ``W_ij``: (N, 6) -> (N, K)."""
-        return self._rows(self.local(U))[0]
+        return self.row_terms(self.local(U))[0]
 
     def slot_values(self, U: np.ndarray) -> np.ndarray:
         """``P_i(u)``, the support function of each slot (eq 36): (N, 6) -> (N, m)."""
@@ -134,7 +134,7 @@ class WrenchSlots:
         """``p(u)`` and a wrench attaining it (its gradient where unique): (N,), (N, 6)."""
         U = np.atleast_2d(U)
         d = self.local(U)
-        rows, k, qk = self._rows(d)
+        rows, k, qk = self.row_terms(d)
         w = self.pieces[np.arange(len(self.G))[None, :], k]  # (N, K, 4)
         # The argmax force (eqs 9-12): full normal force, tangential part on the cone's rim, which
         # is the gradient of sqrt(q_k) at d (no tangential force when q_k = 0).

@@ -1,0 +1,451 @@
+"""Contact placement: barycentric weights on the chosen elements for the best rho (paper sec. 5).
+
+``max_c -rho(0, W_c^M) = max_c min_{|u|=1} p(u; c)`` is a max-min problem. We solve it by an
+exchange method with a trust region: a CasADi NLP maximises ``r`` subject to ``p(u_k; c) >= r``
+over a working set of directions ``u_k`` and weights within a radius of the best ones; the rho
+solver then computes the true rho of the new contacts (accepted only if better) and its worst
+direction joins the working set. It stops when the model predicts no gain. The method is local, so
+it runs from several starts (centroids first).
+
+Inside the NLP, ``p(u_k; c)`` is replaced by a smooth lower bound (one subset, one friction
+piece per contact, see :class:`ExchangeProblem`), so whatever it achieves the true one achieves.
+
+Afterwards a contact whose optimum sits on its element's boundary may move into a neighbouring
+element sharing that boundary, if that raises the optimum ("occupied and adjacent areas").
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+from scipy.optimize import nnls
+
+from .contacts import ContactSet
+from .elements import simplex_weights
+from .eligibility import Eligibility, padded_rows
+from .quality import rho
+from .sphere_search import sphere_samples
+from .wrenches import WrenchSlots
+
+DIRECTION_BUCKETS = (16, 32, 64, 128, 256)
+
+
+@dataclass(frozen=True)
+class PlacementOptions:
+    """Options of the exchange method.
+
+    Attributes
+    ----------
+    gap : float
+        Stop when ``r - (-rho) <= gap * max(1, |rho|)``.
+    max_rounds : int
+        Exchange rounds per element set.
+    random_directions : int
+        Pseudo-random directions in the first working set, besides ``+-e_k``.
+    neighbour_moves : int
+        Moves of contacts into neighbouring elements tried at most (0: stay on the elements).
+    starts : int
+        Start weights: the given ones (or the centroids), then random ones from ``seed``; the
+        trust-region method is local and symmetric starts are often stationary.
+    seed : int
+    subset_margin : float
+        Contacts with ``P_ik > -subset_margin * f_max`` count in the model of direction ``k``, so
+        a contact about to start helping is seen (any subset gives a valid lower bound).
+    ipopt_tol : float
+    """
+
+    gap: float = 1e-6
+    max_rounds: int = 40
+    starts: int = 4
+    seed: int = 0
+    subset_margin: float = 0.01
+    random_directions: int = 20
+    neighbour_moves: int = 20
+    ipopt_tol: float = 1e-10
+
+    def __post_init__(self) -> None:
+        for name in ("max_rounds", "random_directions", "neighbour_moves", "starts", "seed"):
+            value = getattr(self, name)
+            least = 1 if name in ("max_rounds", "starts") else 0
+            if isinstance(value, bool) or not isinstance(value, int) or value < least:
+                raise ValueError(f"{name}: expected an integer >= {least}, got {value!r}")
+        if not (isinstance(self.subset_margin, (int, float)) and self.subset_margin >= 0):
+            raise ValueError(f"subset_margin: expected a number >= 0, got {self.subset_margin!r}")
+        for name in ("gap", "ipopt_tol"):
+            value = getattr(self, name)
+            if not isinstance(value, (int, float)) or not value > 0:
+                raise ValueError(f"{name}: expected a positive number, got {value!r}")
+
+
+@dataclass(frozen=True)
+class PlacedContact:
+    """A contact on an element: barycentric ``weights`` (k,), its ``position`` and normal."""
+
+    element: int
+    weights: np.ndarray
+    position: np.ndarray
+    inward_normal: np.ndarray
+
+    def to_dict(self) -> dict:
+        return {
+            "element": self.element,
+            "weights": self.weights.tolist(),
+            "position": self.position.tolist(),
+            "inward_normal": self.inward_normal.tolist(),
+        }
+
+
+@dataclass(frozen=True)
+class Move:
+    """Contact ``contact`` moved from element ``source`` to its neighbour ``target``."""
+
+    contact: int
+    source: int
+    target: int
+    rho_before: float
+    rho_after: float
+
+
+@dataclass(frozen=True)
+class PlacementResult:
+    """Outcome of :func:`place`.
+
+    Attributes
+    ----------
+    contacts : tuple of PlacedContact
+    contact_set : ContactSet
+        The placed contacts with their specs, ready for :func:`closure_nlp.quality.rho`.
+    rho : float
+        rho(0, W_c^M) of the placed contacts, recomputed by the rho solver.
+    force_closure : bool
+    direction : (6,) float
+        Their weakest direction ``u*``.
+    start_rho : float
+        rho of the start (centroids, or the given weights).
+    model_value : float
+        The trust-region model's last prediction of ``-rho`` (close to it when converged; the
+        method is local, so this is not a bound on other placements).
+    rounds : int
+        Exchange rounds over all element sets tried.
+    moves : tuple of Move
+    seconds : float
+    """
+
+    contacts: tuple[PlacedContact, ...]
+    contact_set: ContactSet
+    rho: float
+    force_closure: bool
+    direction: np.ndarray
+    start_rho: float
+    model_value: float
+    rounds: int
+    moves: tuple[Move, ...]
+    seconds: float
+
+    @property
+    def elements(self) -> tuple[int, ...]:
+        return tuple(c.element for c in self.contacts)
+
+    def to_dict(self) -> dict:
+        return {
+            "contacts": [c.to_dict() for c in self.contacts],
+            "rho": self.rho,
+            "force_closure": self.force_closure,
+            "direction": self.direction.tolist(),
+            "start_rho": self.start_rho,
+            "model_value": self.model_value,
+            "rounds": self.rounds,
+            "moves": [vars(m) for m in self.moves],
+            "seconds": self.seconds,
+        }
+
+
+class ExchangeProblem:
+    """``max r`` over weights ``c`` s.t. a smooth lower bound of ``p(u_k; c)`` is ``>= r``.
+
+    For direction ``k`` the bound is ``sum_{i in S_k} f_i (d_n + sqrt(q_ik + eps^2) - eps)`` with
+    ``d = sum_j c_ij G_ij^T u_k``, ``S_k`` the contacts with ``P_ik > 0`` at the current weights
+    (the largest alone if none) and ``q_ik`` the friction piece that is largest there. Every term
+    is at most the true one (a sum over one subset, one piece, ``sqrt(q + eps^2) - eps <=
+    sqrt(q)``), so a solution's ``r`` is met by the true support function: each solve is a
+    restriction, and re-choosing ``S_k`` and the pieces at the new weights tightens it again.
+
+    Built once per shape; ``capacity`` directions, unused ones masked out by parameters.
+    """
+
+    EPS = 1e-9
+
+    def __init__(self, rows, capacity: int, tol: float = 1e-10, margin: float = 0.0):
+        self.margin = margin
+        self.rows, self.capacity = tuple(rows), capacity
+        m, K = len(self.rows), capacity
+        c = [ca.SX.sym(f"c{i}", k) for i, k in enumerate(self.rows)]
+        r = ca.SX.sym("r")
+        D = [ca.SX.sym(f"D{i}", 4 * k, K) for i, k in enumerate(self.rows)]  # G_ij^T u_k
+        W = [ca.SX.sym(f"W{i}", 4, K) for i in range(m)]  # chosen friction piece per direction
+        mask = ca.SX.sym("mask", m, K)  # S_k
+        f_max = ca.SX.sym("f_max", m)
+        active = ca.SX.sym("active", K)
+        total = 0
+        for i in range(m):
+            d = sum(c[i][j] * D[i][4 * j : 4 * j + 4, :] for j in range(self.rows[i]))
+            q = ca.sum1(W[i] * d**2)
+            P = f_max[i] * (d[0, :] + ca.sqrt(q + self.EPS**2) - self.EPS)
+            total = total + mask[i, :] * P
+        g = ca.vertcat(*[ca.sum1(ci) for ci in c], (total - active.T * r).T)
+        self._lbg = np.concatenate([np.ones(m), np.zeros(K)])
+        self._ubg = np.concatenate([np.ones(m), np.full(K, np.inf)])
+        x = ca.vertcat(*c, r)
+        p = ca.vertcat(*[ca.vec(a) for a in (*D, *W)], ca.vec(mask), f_max, active)
+        self._n_c = sum(self.rows)
+        self._solver = ca.nlpsol(
+            "exchange",
+            "ipopt",
+            {"x": x, "p": p, "f": -r, "g": g},
+            {
+                "print_time": False,
+                "error_on_fail": False,
+                "ipopt": {
+                    "print_level": 0,
+                    "sb": "yes",
+                    "tol": tol,
+                    "constr_viol_tol": tol,
+                    "max_iter": 500,
+                },
+            },
+        )
+
+    def solve(self, vertex_G, slots_at_c, f_max, U, c0, radius):
+        """One solve from weights ``c0`` (padded), each weight within ``radius`` of its start;
+        ``slots_at_c`` are the contacts at ``c0``.
+
+        Returns the new padded weights (list) and ``r``.
+        """
+        m, K = len(self.rows), self.capacity
+        n = len(U)
+        d = slots_at_c.local(U)  # (n, m, 4)
+        P, piece, _ = slots_at_c.row_terms(d)
+        mask = np.zeros((m, K))
+        mask[:, :n] = (P > -self.margin * f_max[None, :]).T
+        none = ~mask[:, :n].any(axis=0)
+        mask[np.argmax(P[none], axis=1), np.flatnonzero(none)] = 1.0
+        chosen = slots_at_c.pieces[np.arange(m)[None, :], piece]  # (n, m, 4)
+        D_parts, W_parts = [], []
+        for i, G in enumerate(vertex_G):
+            D_i = np.zeros((4 * len(G), K))
+            D_i[:, :n] = np.einsum("jrc,kr->jck", G, U).reshape(4 * len(G), n)
+            W_i = np.zeros((4, K))
+            W_i[:, :n] = chosen[:, i, :].T
+            D_parts.append(D_i.ravel(order="F"))
+            W_parts.append(W_i.ravel(order="F"))
+        active = np.zeros(K)
+        active[:n] = 1.0
+        params = np.concatenate([*D_parts, *W_parts, mask.ravel(order="F"), f_max, active])
+        r0 = float(np.min(np.where(mask[:, :n] > 0, P.T, 0.0).sum(axis=0))) - 1e-6
+        x0 = np.concatenate([*c0, [r0]])
+        flat = np.concatenate(c0)
+        lbx = np.append(np.maximum(flat - radius, 0.0), -np.inf)
+        ubx = np.append(np.minimum(flat + radius, 1.0), np.inf)
+        sol = self._solver(x0=x0, p=params, lbx=lbx, ubx=ubx, lbg=self._lbg, ubg=self._ubg)
+        x = np.asarray(sol["x"]).ravel()
+        weights, at = [], 0
+        for k in self.rows:
+            weights.append(x[at : at + k])
+            at += k
+        return weights, float(x[-1])
+
+
+def _padded(weights: np.ndarray, size: int) -> np.ndarray:
+    out = np.zeros(size)
+    out[: len(weights)] = weights
+    return out
+
+
+def _unpadded(weights: np.ndarray, count: int) -> np.ndarray:
+    """Fold the weights of repeated (padding) vertices back onto the last real vertex."""
+    w = np.maximum(np.asarray(weights[:count], dtype=float), 0.0)
+    w[-1] += max(float(np.sum(weights[count:])), 0.0)
+    return w / w.sum()
+
+
+def nearest_weights(vertices: np.ndarray, point: np.ndarray) -> np.ndarray:
+    """Barycentric weights of the point of ``conv(vertices)`` nearest to ``point``: (k,)."""
+    k = len(vertices)
+    if k == 1:
+        return np.ones(1)
+    scale = max(1.0, float(np.abs(vertices).max()))
+    A = np.vstack([vertices.T / scale, 1e3 * np.ones((1, k))])  # sum-to-one as a stiff row
+    b = np.concatenate([point / scale, [1e3]])
+    w, _ = nnls(A, b)
+    return w / w.sum()
+
+
+class Placer:
+    """Contact placement on element sets of one model, solvers reused across calls."""
+
+    def __init__(self, eligibility: Eligibility, options: PlacementOptions = PlacementOptions()):
+        self.eligibility = eligibility
+        self.options = options
+        self._problems: dict[tuple, ExchangeProblem] = {}
+
+    def _problem(self, rows, count) -> ExchangeProblem:
+        capacity = next((b for b in DIRECTION_BUCKETS if count <= b), count)
+        key = (rows, capacity)
+        if key not in self._problems:
+            self._problems[key] = ExchangeProblem(
+                rows, capacity, self.options.ipopt_tol, self.options.subset_margin
+            )
+        return self._problems[key]
+
+    def contact_set(self, elements, weights) -> ContactSet:
+        model, specs = self.eligibility.model, self.eligibility.specs
+        return ContactSet(
+            tuple(
+                specs[i].at(
+                    model.elements[e].position(w),
+                    model.elements[e].inward_normal,
+                    f"contacts[{i}]",
+                )
+                for i, (e, w) in enumerate(zip(elements, weights))
+            ),
+            self.eligibility.torque_scale,
+        )
+
+    def optimise(self, elements, weights):
+        """Trust-region exchange on fixed elements from ``weights``.
+
+        Returns (weights, rho result, the model's last predicted ``-rho``, rounds).
+        """
+        model, specs = self.eligibility.model, self.eligibility.specs
+        minimizer = self.eligibility.minimizer
+        ts = self.eligibility.torque_scale
+        counts = [len(model.elements[e].vertices) for e in elements]
+        rows = tuple(padded_rows(k) for k in counts)
+        vertex_G = []
+        for e, k in zip(elements, rows):
+            G = model.elements[e].grasp_matrices(ts)
+            vertex_G.append(np.concatenate([G, np.repeat(G[-1:], k - len(G), axis=0)]))
+        f_max = np.array([spec.f_max for spec in specs])
+        best_w = [np.asarray(w, float) for w in weights]
+        best = rho(self.contact_set(elements, best_w), minimizer=minimizer)
+        U = list(sphere_samples(self.options.random_directions, seed=1))
+        U.append(best.direction)
+        # A trust region around the best weights: the restricted model is only good nearby, and
+        # without it the solves jump between far corners (cutting planes oscillate).
+        c_best, radius, predicted = [_padded(w, k) for w, k in zip(best_w, rows)], 0.5, np.inf
+        rounds = 0
+        while rounds < self.options.max_rounds:
+            rounds += 1
+            at_best = WrenchSlots.from_contacts(self.contact_set(elements, best_w))
+            problem = self._problem(rows, len(U))
+            c, predicted = problem.solve(vertex_G, at_best, f_max, np.array(U), c_best, radius)
+            if predicted + best.rho <= self.options.gap * max(1.0, abs(best.rho)):
+                break  # the model sees no better weights within the trust region
+            w = [_unpadded(ci, k) for ci, k in zip(c, counts)]
+            found = rho(
+                self.contact_set(elements, w), minimizer=minimizer, warm_start=best.direction
+            )
+            U.append(found.direction)
+            if found.rho < best.rho:
+                best, best_w, c_best = found, w, c
+                radius = min(1.0, 2.0 * radius)
+            else:
+                radius *= 0.25
+                if radius < 1e-9:
+                    break
+        return best_w, best, predicted, rounds
+
+    def __call__(self, elements, weights=None) -> PlacementResult:
+        t0 = time.perf_counter()
+        model = self.eligibility.model
+        elements = list(self.eligibility.check_elements(elements))
+        counts = [len(model.elements[e].vertices) for e in elements]
+        if weights is None:  # the element centroids
+            weights = [np.full(k, 1.0 / k) for k in counts]
+        if len(weights) != len(elements):
+            raise ValueError(f"weights: expected {len(elements)} lists, got {len(weights)}")
+        weights = [
+            simplex_weights(w, k, f"weights[{i}]") for i, (w, k) in enumerate(zip(weights, counts))
+        ]
+        start = rho(self.contact_set(elements, weights), minimizer=self.eligibility.minimizer)
+        rng = np.random.default_rng(self.options.seed)
+        best_w, best, predicted, rounds = self.optimise(elements, weights)
+        for _ in range(self.options.starts - 1):
+            trial = [rng.dirichlet(np.ones(k)) for k in counts]
+            w, found, up, n_rounds = self.optimise(elements, trial)
+            rounds += n_rounds
+            if found.rho < best.rho:
+                best_w, best, predicted = w, found, up
+        moves = []
+        for _ in range(self.options.neighbour_moves):
+            move = self._try_moves(elements, best_w, best)
+            if move is None:
+                break
+            (i, target, w_new, found, up, n_rounds) = move
+            rounds += n_rounds
+            moves.append(Move(i, elements[i], target, best.rho, found.rho))
+            elements[i] = target
+            best_w, best, predicted = w_new, found, up
+        placed = tuple(
+            PlacedContact(e, w, model.elements[e].position(w), model.elements[e].inward_normal)
+            for e, w in zip(elements, best_w)
+        )
+        return PlacementResult(
+            placed,
+            self.contact_set(elements, best_w),
+            best.rho,
+            best.force_closure,
+            best.direction,
+            start.rho,
+            predicted,
+            rounds,
+            tuple(moves),
+            time.perf_counter() - t0,
+        )
+
+    def _try_moves(self, elements, weights, best):
+        """The first neighbour move (contact on its element's boundary) that lowers rho."""
+        model = self.eligibility.model
+        tol = self.eligibility.minimizer.tolerances.geometry
+        for i, (e, w) in enumerate(zip(elements, weights)):
+            element = model.elements[e]
+            if len(w) > 1 and w.min() > 1e-6:
+                continue  # strictly inside its element: not on a shared boundary
+            here = element.position(w)
+            for n in model.neighbours(e):
+                target = model.elements[n]
+                w_n = nearest_weights(target.vertices, here)
+                gap = np.linalg.norm(target.position(w_n) - here)
+                if gap > 1e3 * tol * max(1.0, element.size, target.size):
+                    continue  # the neighbour does not touch this contact
+                trial = list(elements)
+                trial[i] = n
+                trial_w = list(weights)
+                trial_w[i] = w_n
+                w_new, found, up, n_rounds = self.optimise(trial, trial_w)
+                margin = self.options.gap * max(1.0, abs(best.rho))
+                if found.rho < best.rho - margin:
+                    return i, n, w_new, found, up, n_rounds
+        return None
+
+
+def place(
+    eligibility: Eligibility, elements, weights=None, options: PlacementOptions = PlacementOptions()
+) -> PlacementResult:
+    """Place one contact on each of ``elements`` (and their neighbours) for the best rho."""
+    return Placer(eligibility, options)(elements, weights)
+
+
+__all__ = [
+    "ExchangeProblem",
+    "Move",
+    "PlacedContact",
+    "PlacementOptions",
+    "PlacementResult",
+    "Placer",
+    "nearest_weights",
+    "place",
+]
