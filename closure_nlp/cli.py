@@ -214,6 +214,151 @@ def build_parser() -> argparse.ArgumentParser:
 COMMANDS: list = [_add_rho, _add_eligibility, _add_select]
 
 
+# --- characterize and show (element models from meshes, pictures) ----------------------------
+
+
+def _length(text: str) -> float:
+    """argparse type: a finite number >= 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (value >= 0 and value != float("inf")):
+        raise argparse.ArgumentTypeError(f"expected a finite number >= 0, got {text!r}")
+    return value
+
+
+def _add_characterize(sub, common) -> None:
+    p = sub.add_parser(
+        "characterize", parents=[common], help="element model (facets, segments, points) of a mesh"
+    )
+    p.add_argument("mesh", metavar="MESH", help="closed mesh file (STL, OBJ, PLY, GLB, OFF...)")
+    p.add_argument("--out", required=True, metavar="MODEL", help="*.model.json to write")
+    p.add_argument("--segment-spacing", type=_length, metavar="X", help="min. ruling spacing")
+    p.add_argument("--point-spacing", type=_length, metavar="Y", help="min. point spacing")
+    p.add_argument(
+        "--sharp-angle",
+        type=_length,
+        default=30.0,
+        metavar="DEG",
+        help="edges sharper than this separate surfaces (default 30)",
+    )
+    p.add_argument("--name", help="model name (default: the mesh file's stem)")
+    p.add_argument("--units", default="", help="length unit of the mesh, e.g. mm")
+    p.set_defaults(run=_cmd_characterize)
+
+
+def _cmd_characterize(args) -> None:
+    import os
+    from pathlib import Path
+
+    from .characterize import characterize
+    from .elements import save_model
+
+    out = Path(args.out)
+    mesh_ref = Path(os.path.relpath(Path(args.mesh).resolve(), out.resolve().parent)).as_posix()
+    try:
+        model = characterize(
+            args.mesh,
+            segment_spacing=args.segment_spacing,
+            point_spacing=args.point_spacing,
+            sharp_angle=args.sharp_angle,
+            name=args.name,
+            units=args.units,
+            mesh_ref=mesh_ref,
+        )
+    except ValueError as exc:
+        text = str(exc)
+        raise (exc if text.startswith(args.mesh) else InputError(args.mesh, text)) from None
+    try:
+        save_model(model, out)
+    except OSError as exc:
+        raise InputError(args.out, f"cannot write: {exc.strerror or exc}") from None
+    counts = model.counts()
+    summary = ", ".join(f"{n} {kind}s" for kind, n in counts.items())
+    payload = {
+        "file": args.mesh,
+        "elements": counts,
+        "adjacency": len(model.adjacency),
+        "out": str(out),
+    }
+    _emit(args, payload, f"{args.mesh}: {summary}, {len(model.adjacency)} neighbour pairs -> {out}")
+
+
+def _add_show(sub, common) -> None:
+    p = sub.add_parser("show", parents=[common], help="picture (or 3-D scene) of a model")
+    p.add_argument("model", metavar="MODEL", help="*.model.json")
+    p.add_argument("--contacts", metavar="FILE", help="*.contacts.json to draw as balls")
+    p.add_argument(
+        "--out",
+        required=True,
+        metavar="PNG",
+        help="picture (.png .svg .pdf .jpg) or interactive scene (.glb .html)",
+    )
+    p.add_argument(
+        "--highlight",
+        metavar="I,J,...",
+        help="element ids to highlight (default: the contacts' 'element' ids)",
+    )
+    p.add_argument("--elev", type=float, default=22.0, help="view elevation, degrees")
+    p.add_argument("--azim", type=float, default=-58.0, help="view azimuth, degrees")
+    p.add_argument("--no-mesh", action="store_true", help="do not draw the model's mesh")
+    p.set_defaults(run=_cmd_show)
+
+
+def _contact_elements(path: str) -> list[int]:
+    """The ``element`` ids named by the contacts of a contact-set file (for highlighting)."""
+    from .files import load_json
+
+    data = load_json(path)
+    entries = data.get("contacts", []) if isinstance(data, dict) else []
+    ids = [e.get("element") for e in entries if isinstance(e, dict)]
+    return [i for i in ids if isinstance(i, int) and not isinstance(i, bool)]
+
+
+def _cmd_show(args) -> None:
+    from pathlib import Path
+
+    from .drawing import PICTURE_SUFFIXES, SCENE_SUFFIXES, save_view
+
+    [(_, model)] = _load_each([args.model], load_model)
+    contacts, highlight = None, []
+    if args.contacts:
+        [(_, contacts)] = _load_each([args.contacts], load_contact_set)
+        highlight = _contact_elements(args.contacts)
+    if args.highlight:
+        try:
+            highlight = [int(part) for part in args.highlight.split(",")]
+        except ValueError:
+            message = f"expected element ids I,J,..., got {args.highlight!r}"
+            raise InputError("--highlight", message) from None
+    try:
+        for k, i in enumerate(highlight):
+            model.check_id(i, f"contacts[{k}].element" if not args.highlight else "--highlight")
+    except (ValueError, TypeError) as exc:
+        raise InputError(args.contacts if not args.highlight else "--highlight", str(exc)) from None
+    suffix = Path(args.out).suffix.lower()
+    if suffix not in PICTURE_SUFFIXES | SCENE_SUFFIXES:
+        raise InputError(
+            "--out",
+            f"unsupported file type {suffix or args.out!r} "
+            "(use .png, .svg, .pdf, .jpg, .glb or .html)",
+        )
+    options = (
+        {}
+        if suffix in SCENE_SUFFIXES
+        else {"view": (args.elev, args.azim), "show_mesh": not args.no_mesh}
+    )
+    try:
+        out = save_view(model, args.out, contacts, highlight=highlight, **options)
+    except OSError as exc:
+        raise InputError(args.out, f"cannot write: {exc.strerror or exc}") from None
+    _emit(args, {"file": args.model, "out": str(out)}, f"{args.model}: drawn to {out}")
+
+
+COMMANDS.extend([_add_characterize, _add_show])
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:

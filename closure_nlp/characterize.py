@@ -1,0 +1,861 @@
+"""Element models from triangle meshes (paper section 2: facets, line segments, discrete points).
+
+The surface is cut along sharp edges (dihedral angle above ``sharp_angle``) into smooth regions.
+Inside each region:
+
+- a planar patch (coplanar connected triangles) becomes convex facets: its triangles are merged
+  greedily into convex polygons (Hertel-Mehlhorn: drop a diagonal while the union stays convex),
+  projected exactly onto the patch's plane. A planar patch much larger than the region's other
+  patches (a flat face that runs smoothly into a fillet) is a facet too;
+- a ruled patch (cylinder: face normals perpendicular to one axis; circular cone: face normals at
+  one angle to an axis, rulings through the apex) becomes line segments along its rulings, the
+  mesh edges that run along the axis (or through the apex), merged when collinear and thinned to
+  ``segment_spacing``;
+- any other curved patch becomes discrete points at its vertices, thinned to ``point_spacing``.
+
+Every normal is an inward normal: the mesh's outward normal negated. Two elements are neighbours
+when they share a mesh vertex; a segment or a point is also a neighbour of the elements across a
+mesh edge from the vertices it stands for (its own, and the dropped ones nearest to it).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import breadth_first_order, connected_components, dijkstra
+
+from .elements import Element, ElementKind, Model
+
+
+@dataclass(frozen=True)
+class CharacterizeOptions:
+    """Thresholds of :func:`characterize`.
+
+    Attributes
+    ----------
+    sharp_angle : float
+        Degrees. Mesh edges whose dihedral angle exceeds it separate smooth regions.
+    flat_angle : float
+        Degrees. Adjacent triangles whose normals differ by less are coplanar; also the
+        tolerance of the ruled-surface tests.
+    facet_area_ratio : float
+        A planar patch inside a curved region is a facet when its area is at least this many
+        times the median patch area of the region.
+    faceted_limit : int
+        A curved, non-ruled part made of at most this many planar patches is a faceted solid
+        (a cut gem, a coarse polyhedron) and becomes facets; a finer one is a tessellated smooth
+        surface and becomes points.
+    segment_spacing : float or None
+        Rulings closer than this to a kept ruling are dropped (None keeps all).
+    point_spacing : float or None
+        Vertices closer than this to a kept point are dropped (None keeps all).
+    """
+
+    sharp_angle: float = 30.0
+    flat_angle: float = 0.5
+    facet_area_ratio: float = 4.0
+    segment_spacing: float | None = None
+    point_spacing: float | None = None
+    faceted_limit: int = 100
+
+    def __post_init__(self) -> None:
+        if isinstance(self.faceted_limit, bool) or not isinstance(self.faceted_limit, int):
+            raise TypeError(f"faceted_limit: expected an integer, got {self.faceted_limit!r}")
+        if self.faceted_limit < 0:
+            raise ValueError(f"faceted_limit: must be >= 0, got {self.faceted_limit!r}")
+        for key in ("sharp_angle", "flat_angle", "facet_area_ratio"):
+            value = getattr(self, key)
+            if not isinstance(value, (int, float)) or not np.isfinite(value) or value <= 0:
+                raise ValueError(f"{key}: must be a positive number, got {value!r}")
+        if not self.flat_angle < self.sharp_angle < 180:
+            raise ValueError(
+                f"sharp_angle: must lie between flat_angle ({self.flat_angle}) and 180, "
+                f"got {self.sharp_angle!r}"
+            )
+        for key in ("segment_spacing", "point_spacing"):
+            value = getattr(self, key)
+            if value is None:
+                continue
+            if (
+                isinstance(value, bool)
+                or not isinstance(value, (int, float))
+                or not np.isfinite(value)
+                or value < 0
+            ):
+                raise ValueError(f"{key}: must be a number >= 0, got {value!r}")
+
+
+# --- reading and repairing -------------------------------------------------------------------
+
+
+def load_mesh(mesh_or_path, source: str | None = None):
+    """A closed, consistently wound ``trimesh.Trimesh`` with outward normals.
+
+    Parameters
+    ----------
+    mesh_or_path : trimesh.Trimesh or str or Path
+        A mesh, or a file trimesh can read (STL, OBJ, PLY, GLB, OFF...).
+    source : str, optional
+        How errors name the input (default: the path, or ``"mesh"``).
+
+    Raises
+    ------
+    ValueError
+        Unreadable file, no triangles, or a mesh that is open or inconsistently wound and that
+        merging vertices, fixing normals and filling small holes does not close.
+    """
+    import trimesh
+
+    if isinstance(mesh_or_path, trimesh.Trimesh):
+        mesh = mesh_or_path.copy()
+        source = source or "mesh"
+    elif isinstance(mesh_or_path, (str, Path)):
+        path = Path(mesh_or_path)
+        source = source or str(path)
+        mesh = _read_mesh(path, source)
+    else:
+        raise TypeError(f"mesh: expected a trimesh.Trimesh or a path, got {mesh_or_path!r}")
+    return repair_mesh(mesh, source)
+
+
+def _read_mesh(path: Path, source: str):
+    import trimesh
+
+    if not path.is_file():
+        raise ValueError(f"{source}: file not found")
+    try:
+        loaded = trimesh.load(str(path), force="mesh", process=True)
+    except Exception as exc:  # trimesh raises many kinds for a bad file
+        raise ValueError(
+            f"{source}: cannot read mesh: {exc.__class__.__name__}: {exc}".rstrip(": ")
+        ) from None
+    if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
+        raise ValueError(f"{source}: no triangles found (not a mesh file, or an empty mesh)")
+    return loaded
+
+
+def repair_mesh(mesh, source: str = "mesh"):
+    """Merge vertices, drop degenerate faces, fill small holes and orient the normals outward.
+
+    Returns
+    -------
+    mesh : trimesh.Trimesh
+        Closed (watertight), consistently wound, positive volume.
+
+    Raises
+    ------
+    ValueError
+        When the mesh stays open or inconsistently wound.
+    """
+    import trimesh
+
+    faces = np.asarray(mesh.faces)
+    vertices = np.asarray(mesh.vertices, dtype=float)
+    if len(faces) == 0:
+        raise ValueError(f"{source}: the mesh has no triangles")
+    if not np.all(np.isfinite(vertices)):
+        raise ValueError(f"{source}: vertices must be finite")
+    mesh = trimesh.Trimesh(vertices, faces, process=True)
+    mesh.update_faces(mesh.nondegenerate_faces())
+    mesh.update_faces(mesh.unique_faces())
+    mesh.remove_unreferenced_vertices()
+    if len(mesh.faces) == 0:
+        raise ValueError(f"{source}: every triangle of the mesh is degenerate")
+    if not mesh.is_watertight:
+        _fill_small_holes(mesh)
+    if not mesh.is_watertight:
+        open_edges = _boundary_edge_count(mesh)
+        raise ValueError(
+            f"{source}: the mesh is not closed ({open_edges} open or non-manifold edges) "
+            "and could not be repaired; a closed surface is needed to tell inside from outside"
+        )
+    if not mesh.is_winding_consistent:
+        _fix_winding(mesh)
+    if not mesh.is_winding_consistent:
+        raise ValueError(
+            f"{source}: the mesh's triangles are inconsistently wound (not orientable)"
+        )
+    trimesh.repair.fix_normals(mesh)
+    if not mesh.volume > 0:
+        raise ValueError(f"{source}: the mesh encloses no volume")
+    return mesh
+
+
+def _fix_winding(mesh) -> None:
+    """Flip faces so that neighbours run their shared edge in opposite directions.
+
+    Breadth-first from one face per connected part (``trimesh.repair.fix_winding`` does the
+    same but needs networkx).
+    """
+    faces = np.asarray(mesh.faces).copy()
+    pairs, shared = mesh.face_adjacency, mesh.face_adjacency_edges
+    n = len(faces)
+
+    def runs_forward(f: int, a: int, b: int) -> bool:
+        tri = faces[f].tolist()
+        return tri[(tri.index(a) + 1) % 3] == b
+
+    same = {}
+    for (f, g), (a, b) in zip(pairs.tolist(), shared.tolist()):
+        same[(f, g)] = same[(g, f)] = runs_forward(f, a, b) == runs_forward(g, a, b)
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n)).tocsr()
+    flip = np.zeros(n, bool)
+    done = np.zeros(n, bool)
+    for root in range(n):
+        if done[root]:
+            continue
+        order, parent = breadth_first_order(graph, root, directed=False)
+        done[order] = True
+        for f in order[1:]:
+            flip[f] = flip[parent[f]] ^ same[(int(parent[f]), int(f))]
+    faces[flip] = faces[flip][:, ::-1]
+    mesh.faces = faces
+
+
+def _boundary_edge_count(mesh) -> int:
+    edges = np.sort(mesh.edges, axis=1)
+    _, counts = np.unique(edges, axis=0, return_counts=True)
+    return int((counts != 2).sum())
+
+
+def _fill_small_holes(mesh) -> None:
+    """Close holes bounded by 3 or 4 edges (what ``trimesh.repair.fill_holes`` fills)."""
+    import trimesh
+
+    try:
+        trimesh.repair.fill_holes(mesh)
+        return
+    except ImportError:  # trimesh's hole filling needs networkx, which is optional
+        pass
+    edges = mesh.edges  # directed, from the faces' winding
+    key = np.sort(edges, axis=1)
+    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    if np.any(counts > 2):
+        return  # non-manifold: not a hole
+    boundary = edges[counts[inverse.ravel()] == 1]
+    new_faces = []
+    for loop in _loops(boundary):
+        if len(loop) == 3:
+            new_faces.append(loop[::-1])
+        elif len(loop) == 4:
+            new_faces += [[loop[0], loop[3], loop[2]], [loop[0], loop[2], loop[1]]]
+        else:
+            return
+    if new_faces:
+        mesh.faces = np.vstack([mesh.faces, np.array(new_faces, dtype=np.int64)])
+
+
+def _loops(directed_edges: np.ndarray) -> list[list[int]]:
+    """Simple vertex loops of a set of directed boundary edges ([] if one is not simple)."""
+    nxt: dict[int, int] = {}
+    for a, b in directed_edges.tolist():
+        if a in nxt:
+            return []
+        nxt[a] = b
+    loops, seen = [], set()
+    for start in nxt:
+        if start in seen:
+            continue
+        loop, v = [], start
+        while v not in seen:
+            if v not in nxt:
+                return []
+            seen.add(v)
+            loop.append(v)
+            v = nxt[v]
+        if v != start:
+            return []
+        loops.append(loop)
+    return loops
+
+
+# --- characterization ------------------------------------------------------------------------
+
+
+@dataclass
+class _Draft:
+    """An element on its way to the model, with the mesh vertices it stands for."""
+
+    element: Element
+    owned: set[int]
+    region: int  # index of the curved patch a segment or point belongs to; -1 for facets
+
+
+def characterize(
+    mesh_or_path,
+    *,
+    segment_spacing: float | None = None,
+    point_spacing: float | None = None,
+    sharp_angle: float = 30.0,
+    flat_angle: float = 0.5,
+    facet_area_ratio: float = 4.0,
+    faceted_limit: int = 100,
+    name: str | None = None,
+    units: str = "",
+    mesh_ref: str | None = None,
+) -> Model:
+    """Describe a closed mesh by convex facets, line segments and discrete points.
+
+    Parameters
+    ----------
+    mesh_or_path : trimesh.Trimesh or str or Path
+        The object's surface.
+    segment_spacing, point_spacing : float, optional
+        Thinning distances for rulings and points (in the mesh's unit); None keeps them all.
+    sharp_angle, flat_angle, facet_area_ratio, faceted_limit
+        See :class:`CharacterizeOptions`.
+    name : str, optional
+        Model name (default: the file's stem, or ``"mesh"``).
+    units : str
+        The mesh's length unit, recorded in the model.
+    mesh_ref : str, optional
+        Stored as the model's ``mesh`` (a path relative to where the model file will go).
+
+    Returns
+    -------
+    Model
+        Facets first, then segments, then points; adjacency from the mesh topology.
+    """
+    options = CharacterizeOptions(
+        sharp_angle, flat_angle, facet_area_ratio, segment_spacing, point_spacing, faceted_limit
+    )
+    mesh = load_mesh(mesh_or_path)
+    if name is None:
+        name = Path(mesh_or_path).stem if isinstance(mesh_or_path, (str, Path)) else "mesh"
+    drafts, curved = _characterize_mesh(mesh, options)
+    order = sorted(
+        range(len(drafts)), key=lambda i: list(ElementKind).index(drafts[i].element.kind)
+    )
+    drafts = [drafts[i] for i in order]
+    elements = tuple(
+        Element(d.element.kind, d.element.vertices, d.element.inward_normal, name=f"elements[{i}]")
+        for i, d in enumerate(drafts)
+    )
+    adjacency = _adjacency(mesh, drafts, curved)
+    return Model(elements, adjacency, name=name, units=units, mesh=mesh_ref)
+
+
+def _characterize_mesh(mesh, options: CharacterizeOptions):
+    """Drafts of every element, and per curved patch its faces and singular vertices."""
+    sharp = np.radians(options.sharp_angle)
+    flat = np.radians(options.flat_angle)
+    regions = _face_components(mesh, mesh.face_adjacency_angles < sharp)
+    patches = _face_components(mesh, mesh.face_adjacency_angles < flat)
+    drafts: list[_Draft] = []
+    curved: list[np.ndarray] = []
+    for r in range(regions.max() + 1):
+        faces = np.flatnonzero(regions == r)
+        drafts += _characterize_region(mesh, faces, patches, curved, options)
+    return drafts, curved
+
+
+def _face_components(mesh, keep: np.ndarray) -> np.ndarray:
+    """(F,) int: component label of each face, joining faces across the ``keep`` edges."""
+    pairs = mesh.face_adjacency[keep]
+    n = len(mesh.faces)
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    return connected_components(graph, directed=False)[1]
+
+
+def _characterize_region(mesh, faces, patches, curved, options) -> list[_Draft]:
+    """Facets, segments or points for one smooth region (faces: (k,) int).
+
+    Planar patches much larger than the region's median patch are taken apart from the rest:
+    alone (a flat face running into a fillet) they are facets; several joined (the flat strips
+    of a coarsely tessellated cylinder) they are tested like any curved patch. ``curved``
+    collects the faces of each curved patch; drafts refer to it by index.
+    """
+    labels = patches[faces]
+    groups = [faces[labels == g] for g in np.unique(labels)]
+    if len(groups) <= 2:
+        return [d for g in groups for d in _facets(mesh, g)]
+    areas = np.array([mesh.area_faces[g].sum() for g in groups])
+    big = areas >= options.facet_area_ratio * np.median(areas)
+    drafts: list[_Draft] = []
+    for chosen, fallback in ((big, "facets"), (~big, "points")):
+        part = np.concatenate([g for g, b in zip(groups, chosen) if b] or [np.zeros(0, int)])
+        for component in _split(mesh, part, np.radians(options.sharp_angle)):
+            drafts += _curved(mesh, component, patches, curved, options, fallback)
+    return drafts
+
+
+def _split(mesh, faces: np.ndarray, sharp: float) -> list[np.ndarray]:
+    """Connected components (across smooth edges) of a set of faces."""
+    if len(faces) == 0:
+        return []
+    keep = np.isin(mesh.face_adjacency, faces).all(axis=1) & (mesh.face_adjacency_angles < sharp)
+    labels = _face_components(mesh, keep)[faces]
+    return [faces[labels == c] for c in np.unique(labels)]
+
+
+def _curved(mesh, faces, patches, curved, options, fallback: str = "points") -> list[_Draft]:
+    """Elements of a patch: segments if it is ruled; facets if it has at most 2 planes, or
+    few planes (see ``faceted_limit``), or ``fallback`` says so; points otherwise."""
+    groups = np.unique(patches[faces])
+    rulings = None if len(groups) <= 2 else _rulings(mesh, faces, np.radians(options.flat_angle))
+    faceted = fallback == "facets" or len(groups) <= options.faceted_limit
+    if len(groups) <= 2 or (rulings is None and faceted):
+        return [d for g in groups for d in _facets(mesh, faces[patches[faces] == g])]
+    region = len(curved)
+    singular = np.zeros(0, np.int64)
+    if rulings is not None:  # a cone's apex ends every ruling: it stands for none of them
+        uses = np.bincount(np.concatenate(rulings))
+        singular = np.flatnonzero(uses >= 3)
+    curved.append((faces, singular))
+    if rulings is not None:
+        return _segments(mesh, faces, rulings, region, options.segment_spacing)
+    return _points(mesh, faces, region, options.point_spacing)
+
+
+# --- facets ----------------------------------------------------------------------------------
+
+
+def _facets(mesh, faces: np.ndarray) -> list[_Draft]:
+    """Convex facets covering one planar patch (faces: (k,) int)."""
+    areas = mesh.area_faces[faces]
+    normal = (mesh.face_normals[faces] * areas[:, None]).sum(0)
+    normal /= np.linalg.norm(normal)
+    centre = (mesh.triangles_center[faces] * areas[:, None]).sum(0) / areas.sum()
+    verts = mesh.vertices
+    flat = verts - np.outer((verts - centre) @ normal, normal)  # every vertex onto the plane
+    frame = _plane_frame(normal)
+    xy = (flat - centre) @ frame
+    triangles = _remove_interior_vertices(mesh.faces[faces], xy)
+    drafts = []
+    for loop, owned in _convex_pieces(triangles, xy):
+        loop = _drop_straight(loop, xy)
+        if _area(xy[loop]) <= 1e-9 * areas.sum():
+            continue  # a sliver left by collinear boundary vertices
+        element = Element(ElementKind.FACET, flat[loop], -normal)
+        drafts.append(_Draft(element, owned, -1))
+    return drafts
+
+
+def _plane_frame(normal: np.ndarray) -> np.ndarray:
+    """(3, 2) float: orthonormal in-plane axes with ``x, y, normal`` right-handed."""
+    helper = np.zeros(3)
+    helper[int(np.argmin(np.abs(normal)))] = 1.0
+    x = np.cross(helper, normal)
+    x /= np.linalg.norm(x)
+    return np.column_stack([x, np.cross(normal, x)])
+
+
+def _area(xy: np.ndarray) -> float:
+    """Signed area of a polygon (k, 2), positive when counter-clockwise."""
+    x, y = xy[:, 0], xy[:, 1]
+    return float(0.5 * (x @ np.roll(y, -1) - y @ np.roll(x, -1)))
+
+
+def _remove_interior_vertices(triangles: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    """Retriangulate a planar patch (t, 3) without vertices inside it.
+
+    The triangles around each interior vertex are replaced by an ear-clipped triangulation of
+    their outer boundary, so that convex merging is not blocked by a vertex no piece can drop.
+    """
+    tris = [tuple(int(v) for v in t) for t in triangles]
+    directed = {(t[k], t[(k + 1) % 3]) for t in tris for k in range(3)}
+    boundary = {v for a, b in directed if (b, a) not in directed for v in (a, b)}
+    interior = sorted({v for t in tris for v in t} - boundary)
+    for v in interior:
+        star = [t for t in tris if v in t]
+        ring = _link_loop(star, v)
+        if ring is None:
+            continue
+        tris = [t for t in tris if v not in t] + _ear_clip(ring, xy)
+    return np.array(tris, dtype=np.int64).reshape(-1, 3)
+
+
+def _link_loop(star: list[tuple[int, int, int]], v: int) -> list[int] | None:
+    """The loop of outer edges of the triangles around vertex ``v``, in their winding order."""
+    nxt = {}
+    for t in star:
+        k = t.index(v)
+        nxt[t[(k + 1) % 3]] = t[(k + 2) % 3]
+    start = next(iter(nxt))
+    loop, u = [start], nxt[start]
+    while u != start:
+        if u not in nxt or len(loop) > len(nxt):
+            return None
+        loop.append(u)
+        u = nxt[u]
+    return loop if len(loop) == len(nxt) else None
+
+
+def _ear_clip(loop: list[int], xy: np.ndarray) -> list[tuple[int, int, int]]:
+    """Triangulate a simple counter-clockwise polygon given by vertex ids."""
+    loop = list(loop)
+    out = []
+    while len(loop) > 3:
+        k = len(loop)
+        best, fallback, best_cross = None, 0, -np.inf
+        for i in range(k):
+            a, b, c = loop[i - 1], loop[i], loop[(i + 1) % k]
+            u, w = xy[b] - xy[a], xy[c] - xy[b]
+            cross = u[0] * w[1] - u[1] * w[0]
+            if cross <= 0:
+                continue
+            others = [x for x in loop if x not in (a, b, c)]
+            if not any(_in_triangle(xy[x], xy[a], xy[b], xy[c]) for x in others):
+                best = i
+                break
+            if cross > best_cross:  # round-off: no clean ear, clip the most convex corner
+                fallback, best_cross = i, cross
+        i = best if best is not None else fallback
+        out.append((loop[i - 1], loop[i], loop[(i + 1) % k]))
+        del loop[i]
+    out.append(tuple(loop))
+    return out
+
+
+def _in_triangle(p, a, b, c) -> bool:
+    """Whether 2-D point ``p`` lies strictly inside the counter-clockwise triangle abc."""
+
+    def side(u, v):
+        return (v[0] - u[0]) * (p[1] - u[1]) - (v[1] - u[1]) * (p[0] - u[0])
+
+    return side(a, b) > 0 and side(b, c) > 0 and side(c, a) > 0
+
+
+def _convex_pieces(triangles: np.ndarray, xy: np.ndarray) -> list[tuple[list[int], set[int]]]:
+    """Merge counter-clockwise triangles (t, 3) into convex polygons (Hertel-Mehlhorn).
+
+    Returns a list of (vertex loop, vertex ids of the merged triangles).
+    """
+    parent = list(range(len(triangles)))
+    loops = {i: [int(v) for v in tri] for i, tri in enumerate(triangles)}
+    owned = {i: set(loops[i]) for i in loops}
+
+    def find(i: int) -> int:
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    edge_face = {}
+    for f, tri in enumerate(triangles.tolist()):
+        for k in range(3):
+            edge_face[(tri[k], tri[(k + 1) % 3])] = f
+    shared = [(a, b) for (a, b) in edge_face if a < b and (b, a) in edge_face]
+    shared.sort(key=lambda e: -float(np.linalg.norm(xy[e[0]] - xy[e[1]])))
+    for a, b in shared:
+        p, q = find(edge_face[(a, b)]), find(edge_face[(b, a)])
+        if p == q:
+            continue
+        merged = _merge_loops(loops[p], loops[q], a, b)
+        if merged is None or not _is_convex(xy[merged]):
+            continue
+        parent[q] = p
+        loops[p] = merged
+        owned[p] |= owned.pop(q)
+        del loops[q]
+    return [(loops[i], owned[i]) for i in sorted(loops)]
+
+
+def _merge_loops(p: list[int], q: list[int], a: int, b: int) -> list[int] | None:
+    """Union of loop ``p`` (with edge a->b) and loop ``q`` (with edge b->a) across that edge."""
+    try:
+        i, j = p.index(b), q.index(a)
+    except ValueError:
+        return None
+    p_rot = p[i:] + p[:i]  # b ... a
+    q_rot = q[j:] + q[:j]  # a ... b
+    if p_rot[-1] != a or q_rot[-1] != b:
+        return None
+    merged = p_rot + q_rot[1:-1]
+    return merged if len(set(merged)) == len(merged) else None
+
+
+def _is_convex(xy: np.ndarray, eps: float = 1e-9) -> bool:
+    """Whether the counter-clockwise polygon (k, 2) is convex (straight corners allowed)."""
+    edges = np.roll(xy, -1, axis=0) - xy
+    nxt = np.roll(edges, -1, axis=0)
+    cross = edges[:, 0] * nxt[:, 1] - edges[:, 1] * nxt[:, 0]
+    scale = np.linalg.norm(edges, axis=1) * np.linalg.norm(nxt, axis=1)
+    return bool(np.all(cross >= -eps * scale))
+
+
+def _drop_straight(loop: list[int], xy: np.ndarray, eps: float = 1e-9) -> list[int]:
+    """Remove corners where the boundary goes straight on."""
+    keep = []
+    k = len(loop)
+    for i in range(k):
+        u = xy[loop[i]] - xy[loop[i - 1]]
+        w = xy[loop[(i + 1) % k]] - xy[loop[i]]
+        cross = u[0] * w[1] - u[1] * w[0]
+        if abs(cross) > eps * np.linalg.norm(u) * np.linalg.norm(w) or u @ w < 0:
+            keep.append(loop[i])
+    return keep if len(keep) >= 3 else loop
+
+
+# --- segments --------------------------------------------------------------------------------
+
+
+def _rulings(mesh, faces: np.ndarray, tol: float) -> list[np.ndarray] | None:
+    """Rulings of a cylindrical or circular-conical patch, or None if it is not one.
+
+    Returns
+    -------
+    rulings : list of (k,) int
+        Each a chain of mesh vertices along one straight ruling, in order.
+    """
+    normals = mesh.face_normals[faces]
+    axis, offset, residual = _normal_circle(normals)
+    if residual > np.sin(tol):
+        return None
+    edges = _patch_edges(mesh, faces)
+    a, b = mesh.vertices[edges[:, 0]], mesh.vertices[edges[:, 1]]
+    d = b - a
+    length = np.linalg.norm(d, axis=1)
+    d = d / length[:, None]
+    if abs(offset) < np.sin(tol):  # cylinder: rulings parallel to the axis
+        along = np.abs(d @ axis) > np.cos(tol)
+    else:  # cone: rulings through the apex
+        apex = _apex(mesh, faces)
+        if apex is None:
+            return None
+        to_apex = apex - a
+        off = np.linalg.norm(np.cross(to_apex, d), axis=1)
+        along = off < np.tan(tol) * np.maximum(np.linalg.norm(to_apex, axis=1), length)
+    ruling_edges = edges[along]
+    if not _faces_with_edge(mesh.faces[faces], ruling_edges).all():
+        return None
+    return _chains(mesh.vertices, ruling_edges, tol)
+
+
+def _normal_circle(normals: np.ndarray) -> tuple[np.ndarray, float, float]:
+    """Fit ``n . axis = offset`` to unit normals (k, 3): a circle on the Gauss sphere."""
+    centre = normals.mean(axis=0)
+    _, sing, vt = np.linalg.svd(normals - centre)
+    axis = vt[2]
+    offset = float(centre @ axis)
+    residual = float(np.abs(normals @ axis - offset).max())
+    if sing[1] < 1e-9:  # all normals on one line: a plane, not a ruled curved patch
+        return axis, offset, np.inf
+    return axis, offset, residual
+
+
+def _apex(mesh, faces: np.ndarray) -> np.ndarray | None:
+    """Least-squares common point of the faces' planes (the cone's apex)."""
+    n = mesh.face_normals[faces]
+    rhs = (n * mesh.triangles_center[faces]).sum(1)
+    sol, _, rank, _ = np.linalg.lstsq(n, rhs, rcond=None)
+    return sol if rank == 3 else None
+
+
+def _patch_edges(mesh, faces: np.ndarray) -> np.ndarray:
+    """(e, 2) int: unique undirected edges of the faces."""
+    tri = mesh.faces[faces]
+    edges = np.vstack([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
+    return np.unique(np.sort(edges, axis=1), axis=0)
+
+
+def _faces_with_edge(tri: np.ndarray, edges: np.ndarray) -> np.ndarray:
+    """(t,) bool: whether each triangle (t, 3) has one of the undirected ``edges`` (e, 2)."""
+    keys = {(int(a), int(b)) for a, b in np.sort(edges, axis=1)}
+    hit = np.zeros(len(tri), bool)
+    for i, (x, y, z) in enumerate(tri.tolist()):
+        for a, b in ((x, y), (y, z), (z, x)):
+            if (min(a, b), max(a, b)) in keys:
+                hit[i] = True
+                break
+    return hit
+
+
+def _chains(vertices: np.ndarray, edges: np.ndarray, tol: float) -> list[np.ndarray]:
+    """Join collinear edges (e, 2) that share a vertex into chains of vertices."""
+    parent = list(range(len(edges)))
+
+    def find(i: int) -> int:
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    d = vertices[edges[:, 1]] - vertices[edges[:, 0]]
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    at_vertex: dict[int, list[int]] = {}
+    for k, (a, b) in enumerate(edges.tolist()):
+        at_vertex.setdefault(a, []).append(k)
+        at_vertex.setdefault(b, []).append(k)
+    for ks in at_vertex.values():
+        for i in ks:
+            for j in ks:
+                if i < j and abs(d[i] @ d[j]) > np.cos(tol):
+                    parent[find(j)] = find(i)
+    groups: dict[int, set[int]] = {}
+    for k, (a, b) in enumerate(edges.tolist()):
+        groups.setdefault(find(k), set()).update((a, b))
+    chains = []
+    for ids in groups.values():
+        ids = np.array(sorted(ids))
+        pts = vertices[ids]
+        direction = pts[np.argmax(np.linalg.norm(pts - pts[0], axis=1))] - pts[0]
+        chains.append(ids[np.argsort((pts - pts[0]) @ direction)])
+    return chains
+
+
+def _segments(mesh, faces, rulings, region, spacing) -> list[_Draft]:
+    """One segment per ruling (thinned to ``spacing``), normal from the faces along it."""
+    verts = mesh.vertices
+    face_set = set(faces.tolist())
+    vertex_faces = mesh.vertex_faces
+    uses = np.bincount(np.concatenate(rulings), minlength=len(verts))
+    drafts: list[_Draft] = []
+    for chain in rulings:
+        ends = verts[[chain[0], chain[-1]]]
+        direction = (ends[1] - ends[0]) / np.linalg.norm(ends[1] - ends[0])
+        touching = {f for v in chain for f in vertex_faces[v] if f >= 0 and f in face_set}
+        near = [f for f in touching if sum(v in chain for v in mesh.faces[f]) >= 2]
+        outward = mesh.face_normals[near or list(touching)].sum(axis=0)
+        outward -= (outward @ direction) * direction
+        element = Element(ElementKind.SEGMENT, ends, -outward)
+        owned = {int(v) for v in chain if uses[v] <= 2}  # not a cone's apex, shared by all
+        drafts.append(_Draft(element, owned or {int(chain[-1])}, region))
+    midpoints = np.array([d.element.centroid for d in drafts])
+    keep = _thin(midpoints, spacing, _ruling_order(midpoints))
+    return [drafts[i] for i in keep]
+
+
+def _ruling_order(midpoints: np.ndarray) -> np.ndarray:
+    """Order rulings by angle around their common centre (so thinning keeps every k-th)."""
+    centred = midpoints - midpoints.mean(axis=0)
+    if len(midpoints) < 3:
+        return np.arange(len(midpoints))
+    _, _, vt = np.linalg.svd(centred)
+    xy = centred @ vt[:2].T
+    return np.argsort(np.arctan2(xy[:, 1], xy[:, 0]), kind="stable")
+
+
+def _thin(points: np.ndarray, spacing: float | None, order=None) -> list[int]:
+    """Greedy Poisson-disc thinning: ids (ascending) of points kept at least ``spacing`` apart."""
+    if spacing is None or spacing <= 0 or len(points) == 0:
+        return list(range(len(points)))
+    order = np.arange(len(points)) if order is None else order
+    cells: dict[tuple[int, ...], list[int]] = {}
+    kept = []
+    for i in order:
+        cell = tuple(np.floor(points[i] / spacing).astype(int))
+        near = (
+            j
+            for dx in (-1, 0, 1)
+            for dy in (-1, 0, 1)
+            for dz in (-1, 0, 1)
+            for j in cells.get((cell[0] + dx, cell[1] + dy, cell[2] + dz), ())
+        )
+        if any(np.linalg.norm(points[j] - points[i]) < spacing for j in near):
+            continue
+        cells.setdefault(cell, []).append(int(i))
+        kept.append(int(i))
+    return sorted(kept)
+
+
+# --- points ----------------------------------------------------------------------------------
+
+
+def _points(mesh, faces, region, spacing) -> list[_Draft]:
+    """One point per vertex of the patch (thinned), normal from the patch's faces only.
+
+    The normal is the angle-weighted mean of the normals of the faces around the vertex.
+    """
+    tri = mesh.faces[faces]
+    angles = mesh.face_angles[faces]  # (k, 3): each face's corner angles weigh its normal
+    outward = np.zeros_like(mesh.vertices)
+    for k in range(3):
+        np.add.at(outward, tri[:, k], mesh.face_normals[faces] * angles[:, k, None])
+    ids = np.unique(tri)
+    keep = _thin(mesh.vertices[ids], spacing)
+    drafts = []
+    for v in ids[keep]:
+        element = Element(ElementKind.POINT, mesh.vertices[[v]], -outward[v])
+        drafts.append(_Draft(element, {int(v)}, region))
+    return drafts
+
+
+# --- adjacency -------------------------------------------------------------------------------
+
+
+def _adjacency(mesh, drafts: list[_Draft], curved: list) -> tuple[tuple[int, int], ...]:
+    """Neighbour pairs: a shared mesh vertex, or (unless both are facets) a mesh edge between."""
+    owners = _owners(mesh, drafts, curved)
+    facet = np.array([d.element.kind is ElementKind.FACET for d in drafts])
+    pairs: set[tuple[int, int]] = set()
+    for ids in owners:
+        for i in ids:
+            for j in ids:
+                if i < j:
+                    pairs.add((i, j))
+    for u, v in mesh.edges_unique.tolist():
+        for i in owners[u]:
+            for j in owners[v]:
+                if i != j and not (facet[i] and facet[j]):
+                    pairs.add((min(i, j), max(i, j)))
+    return tuple(sorted(pairs))
+
+
+def _owners(mesh, drafts: list[_Draft], curved: list) -> list[set[int]]:
+    """Element ids standing for each mesh vertex.
+
+    A segment or a point also stands for the vertices of its curved patch nearest to it along
+    the mesh (those of dropped rulings or points), so thinning keeps neighbours connected.
+    """
+    n = len(mesh.vertices)
+    owners: list[set[int]] = [set() for _ in range(n)]
+    for i, d in enumerate(drafts):
+        for v in d.owned:
+            owners[v].add(i)
+    edges, lengths = mesh.edges_unique, mesh.edges_unique_length
+    for region, (faces, singular) in enumerate(curved):
+        source_owner = {v: i for i, d in enumerate(drafts) if d.region == region for v in d.owned}
+        if not source_owner:
+            continue
+        patch_vertices = np.unique(mesh.faces[faces])
+        inside = np.zeros(n, bool)
+        inside[patch_vertices] = True
+        sub = inside[edges].all(axis=1)
+        graph = coo_matrix((lengths[sub], (edges[sub, 0], edges[sub, 1])), shape=(n, n)).tocsr()
+        sources = np.array(sorted(source_owner))
+        _, _, nearest = dijkstra(
+            graph, directed=False, indices=sources, min_only=True, return_predecessors=True
+        )
+        skip = set(singular.tolist())
+        for v in patch_vertices.tolist():
+            if v not in source_owner and v not in skip and nearest[v] >= 0:
+                owners[v].add(source_owner[int(nearest[v])])
+    return owners
+
+
+__all__ = ["CharacterizeOptions", "characterize", "load_mesh", "repair_mesh", "winding_number"]
+
+
+def winding_number(mesh, points) -> np.ndarray:
+    """Generalised winding number of a closed triangle mesh at points (exact inside test).
+
+    Needs no spatial index (``trimesh``'s ``contains`` needs ``rtree``); meshes whose closed parts
+    overlap give the number of parts around a point.
+
+    Parameters
+    ----------
+    mesh : trimesh.Trimesh
+        Outward-wound triangles.
+    points : (p, 3) float
+
+    Returns
+    -------
+    w : (p,) float
+        About 1 inside, 0 outside, 1/2 on a face.
+    """
+    pts = np.atleast_2d(np.asarray(points, dtype=float))
+    out = np.empty(len(pts))
+    tri = np.asarray(mesh.triangles)
+    for start in range(0, len(pts), 64):
+        rel = tri[None, :, :, :] - pts[start : start + 64, None, None, :]  # (p, F, 3, 3)
+        a, b, c = rel[..., 0, :], rel[..., 1, :], rel[..., 2, :]
+        la, lb, lc = (np.linalg.norm(v, axis=-1) for v in (a, b, c))
+        det = np.einsum("pfi,pfi->pf", a, np.cross(b, c))
+        dot = lambda u, v: np.einsum("pfi,pfi->pf", u, v)  # noqa: E731
+        denom = la * lb * lc + dot(a, b) * lc + dot(b, c) * la + dot(c, a) * lb
+        out[start : start + 64] = np.arctan2(det, denom).sum(axis=1) / (2 * np.pi)
+    return out

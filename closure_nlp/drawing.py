@@ -1,0 +1,383 @@
+"""Pictures of element models and contacts (matplotlib, headless) and 3-D scenes (trimesh).
+
+:func:`draw_model` draws into any 3-D axes, so a caller can draw a model once and then add
+contacts in several sizes (initial contacts small, final ones large) with :func:`draw_contacts`.
+:func:`render_model` writes a picture file; :func:`export_scene` writes an interactive GLB or HTML.
+"""
+
+from __future__ import annotations
+
+import io
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from .contacts import Contact, ContactSet
+from .elements import ElementKind, Model
+from .files import write_atomic
+
+FACET_COLOUR = np.array([0.62, 0.74, 0.88])
+SEGMENT_COLOUR = np.array([0.12, 0.31, 0.47])
+POINT_COLOUR = np.array([0.16, 0.5, 0.38])
+HIGHLIGHT_COLOUR = np.array([0.95, 0.55, 0.15])
+CONTACT_COLOUR = "#c0392b"
+LIGHT = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
+PICTURE_SUFFIXES = {".png", ".pdf", ".svg", ".jpg", ".jpeg"}
+SCENE_SUFFIXES = {".glb", ".html"}
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def counts_text(model: Model) -> str:
+    """``"57 facets, 0 segments, 0 points"``."""
+    return ", ".join(f"{n} {kind}s" for kind, n in model.counts().items())
+
+
+def contact_arrays(contacts) -> tuple[np.ndarray, np.ndarray]:
+    """Positions (m, 3) and inward normals (m, 3) of a ContactSet, Contacts or (pos, normals)."""
+    if contacts is None:
+        return np.zeros((0, 3)), np.zeros((0, 3))
+    if isinstance(contacts, ContactSet):
+        contacts = contacts.contacts
+    if isinstance(contacts, tuple) and len(contacts) == 2 and not isinstance(contacts[0], Contact):
+        pos, nrm = (np.atleast_2d(np.asarray(a, dtype=float)) for a in contacts)
+    else:
+        items = list(contacts)
+        if not all(isinstance(c, Contact) for c in items):
+            raise TypeError("contacts: expected a ContactSet, Contacts or (positions, normals)")
+        pos = np.array([c.position for c in items]).reshape(-1, 3)
+        nrm = np.array([c.inward_normal for c in items]).reshape(-1, 3)
+    if pos.shape != nrm.shape or pos.shape[1:] != (3,):
+        raise ValueError(f"contacts: positions {pos.shape} and normals {nrm.shape} do not match")
+    return pos, nrm
+
+
+def model_extent(model: Model) -> float:
+    """Largest side of the axis-aligned box around every element vertex."""
+    pts = np.vstack([e.vertices for e in model.elements])
+    return float(np.ptp(pts, axis=0).max()) or 1.0
+
+
+def _shade(normals: np.ndarray, base: np.ndarray) -> np.ndarray:
+    """(k, 3) RGB: ``base`` lit by a fixed light from the outward normals (-inward)."""
+    lit = 0.68 + 0.32 * np.clip(-normals @ LIGHT, -1.0, 1.0)
+    return np.clip(base[None, :] * lit[:, None], 0.0, 1.0)
+
+
+def draw_model(
+    model: Model,
+    contacts=None,
+    ax=None,
+    *,
+    highlight: Sequence[int] = (),
+    contact_sizes: float | Sequence[float] = 80.0,
+    contact_colour: str = CONTACT_COLOUR,
+    show_mesh: bool = True,
+    title: str | None = None,
+    view: tuple[float, float] = (22.0, -58.0),
+):
+    """Draw a model's elements (and contacts) into 3-D axes.
+
+    Parameters
+    ----------
+    model : Model
+    contacts : ContactSet or sequence of Contact or (positions (m, 3), normals (m, 3)), optional
+        Drawn as balls with arrows along their inward normals (pushing into the object).
+    ax : mpl_toolkits.mplot3d.Axes3D, optional
+        Axes to draw into; a new figure is made when omitted.
+    highlight : sequence of int
+        Element ids drawn in the highlight colour (e.g. the selected elements).
+    contact_sizes : float or (m,) float
+        Marker areas of the contact balls (points^2).
+    show_mesh : bool
+        Also draw the model's mesh, faintly, when the model has one and it can be read.
+    title : str, optional
+        Default: the model's name and its element counts.
+    view : (float, float)
+        Elevation and azimuth in degrees.
+
+    Returns
+    -------
+    ax : Axes3D
+    """
+    if ax is None:
+        plt = _pyplot()
+        fig = plt.figure(figsize=(7.0, 6.0))
+        ax = fig.add_subplot(projection="3d")
+    chosen = {model.check_id(i, "highlight") for i in highlight}
+    if show_mesh:
+        _draw_mesh(ax, model)
+    _draw_facets(ax, model, chosen)
+    _draw_segments(ax, model, chosen)
+    _draw_points(ax, model, chosen)
+    draw_contacts(
+        ax, contacts, sizes=contact_sizes, colour=contact_colour, scale=model_extent(model)
+    )
+    _equal_aspect(ax, model, contacts)
+    ax.view_init(*view)
+    ax.set_title(title if title is not None else f"{model.name}: {counts_text(model)}")
+    unit = f" [{model.units}]" if model.units else ""
+    for axis, name in zip(("x", "y", "z"), ("x", "y", "z")):
+        getattr(ax, f"set_{axis}label")(name + unit)
+    return ax
+
+
+def _ids(model: Model, kind: ElementKind) -> list[int]:
+    return [i for i, e in enumerate(model.elements) if e.kind is kind]
+
+
+def _draw_mesh(ax, model: Model) -> None:
+    path = model.mesh_path
+    if path is None or not path.is_file():
+        return
+    import trimesh
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+    try:
+        mesh = trimesh.load(str(path), force="mesh")
+    except Exception:  # a drawing aid only: a broken mesh file must not stop the picture
+        return
+    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+        return
+    colours = _shade(-mesh.face_normals, np.array([0.85, 0.85, 0.85]))
+    ax.add_collection3d(
+        Poly3DCollection(
+            mesh.triangles, facecolors=np.c_[colours, np.full(len(colours), 0.12)], linewidths=0
+        )
+    )
+
+
+def _draw_facets(ax, model: Model, chosen: set[int]) -> None:
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+    ids = _ids(model, ElementKind.FACET)
+    if not ids:
+        return
+    normals = np.array([model.elements[i].inward_normal for i in ids])
+    colours = np.array(
+        [
+            _shade(n[None], HIGHLIGHT_COLOUR if i in chosen else FACET_COLOUR)[0]
+            for i, n in zip(ids, normals)
+        ]
+    )
+    polygons = [model.elements[i].vertices for i in ids]
+    ax.add_collection3d(
+        Poly3DCollection(
+            polygons,
+            facecolors=np.c_[colours, np.full(len(ids), 0.9)],
+            edgecolors="#33415c",
+            linewidths=0.5,
+        )
+    )
+
+
+def _draw_segments(ax, model: Model, chosen: set[int]) -> None:
+    from mpl_toolkits.mplot3d.art3d import Line3DCollection
+
+    ids = _ids(model, ElementKind.SEGMENT)
+    if not ids:
+        return
+    lines = [model.elements[i].vertices for i in ids]
+    colours = np.array([HIGHLIGHT_COLOUR if i in chosen else SEGMENT_COLOUR for i in ids])
+    widths = [3.0 if i in chosen else 1.4 for i in ids]
+    ax.add_collection3d(Line3DCollection(lines, colors=colours, linewidths=widths))
+
+
+def _draw_points(ax, model: Model, chosen: set[int]) -> None:
+    ids = _ids(model, ElementKind.POINT)
+    if not ids:
+        return
+    pts = np.array([model.elements[i].vertices[0] for i in ids])
+    colours = np.array([HIGHLIGHT_COLOUR if i in chosen else POINT_COLOUR for i in ids])
+    sizes = [30.0 if i in chosen else 6.0 for i in ids]
+    ax.scatter(pts[:, 0], pts[:, 1], pts[:, 2], c=colours, s=sizes, depthshade=False)
+
+
+def draw_contacts(
+    ax,
+    contacts,
+    *,
+    sizes: float | Sequence[float] = 80.0,
+    colour: str = CONTACT_COLOUR,
+    scale: float = 1.0,
+    arrow_length: float | None = None,
+) -> None:
+    """Contacts as balls with arrows that end at the contact and point along its inward normal.
+
+    Parameters
+    ----------
+    ax : Axes3D
+    contacts : ContactSet or sequence of Contact or (positions (m, 3), normals (m, 3))
+    sizes : float or (m,) float
+        Marker areas in points^2 (small for initial contacts, large for final ones).
+    scale : float
+        Size of the object; arrows are ``0.15 * scale`` long unless ``arrow_length`` is given.
+    """
+    pos, nrm = contact_arrays(contacts)
+    if len(pos) == 0:
+        return
+    sizes = np.broadcast_to(np.asarray(sizes, dtype=float), (len(pos),))
+    length = 0.15 * scale if arrow_length is None else arrow_length
+    tails = pos - length * nrm
+    ax.quiver(
+        tails[:, 0],
+        tails[:, 1],
+        tails[:, 2],
+        nrm[:, 0],
+        nrm[:, 1],
+        nrm[:, 2],
+        length=length,
+        normalize=True,
+        color=colour,
+        linewidth=1.6,
+        arrow_length_ratio=0.3,
+    )
+    ax.scatter(
+        pos[:, 0],
+        pos[:, 1],
+        pos[:, 2],
+        s=sizes,
+        c=colour,
+        edgecolors="black",
+        linewidths=0.5,
+        depthshade=False,
+        alpha=1.0,
+    )
+
+
+def _equal_aspect(ax, model: Model, contacts) -> None:
+    pts = [e.vertices for e in model.elements]
+    pos, nrm = contact_arrays(contacts)
+    if len(pos):
+        pts += [pos, pos - 0.15 * model_extent(model) * nrm]
+    pts = np.vstack(pts)
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    centre, half = (lo + hi) / 2, max(float((hi - lo).max()) / 2, 1e-9)
+    ax.set_xlim(centre[0] - half, centre[0] + half)
+    ax.set_ylim(centre[1] - half, centre[1] + half)
+    ax.set_zlim(centre[2] - half, centre[2] + half)
+    ax.set_box_aspect((1, 1, 1))
+
+
+def render_model(model: Model, path, contacts=None, **options) -> Path:
+    """Draw ``model`` (see :func:`draw_model` for ``options``) and write a picture, atomically.
+
+    The format follows the suffix of ``path`` (.png, .pdf, .svg, .jpg).
+    """
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in PICTURE_SUFFIXES:
+        raise ValueError(
+            f"out: unsupported picture type {suffix or path.name!r} (use .png, .svg, .pdf)"
+        )
+    plt = _pyplot()
+    fig = plt.figure(figsize=(7.0, 6.0))
+    try:
+        ax = fig.add_subplot(projection="3d")
+        draw_model(model, contacts, ax, **options)
+        buffer = io.BytesIO()
+        fig.savefig(
+            buffer, format=suffix.lstrip(".").replace("jpg", "jpeg"), dpi=130, bbox_inches="tight"
+        )
+    finally:
+        plt.close(fig)
+    return write_atomic(path, buffer.getvalue())
+
+
+# --- interactive scenes ----------------------------------------------------------------------
+
+
+def build_scene(model: Model, contacts=None, *, highlight: Sequence[int] = ()):
+    """A ``trimesh.Scene`` of the model: mesh, facets, segments (thin rods), points, contacts."""
+    import trimesh
+
+    chosen = {model.check_id(i, "highlight") for i in highlight}
+    scene = trimesh.Scene()
+    size = model_extent(model)
+    path = model.mesh_path
+    if path is not None and path.is_file():
+        mesh = trimesh.load(str(path), force="mesh")
+        mesh.visual.face_colors = [200, 200, 200, 60]
+        scene.add_geometry(mesh, geom_name="mesh")
+    base = {
+        ElementKind.FACET: FACET_COLOUR,
+        ElementKind.SEGMENT: SEGMENT_COLOUR,
+        ElementKind.POINT: POINT_COLOUR,
+    }
+    for i, element in enumerate(model.elements):
+        colour = (HIGHLIGHT_COLOUR if i in chosen else base[element.kind]) * 255
+        part = _element_mesh(element, size, chosen=i in chosen)
+        part.visual.face_colors = [*colour.astype(int).tolist(), 255]
+        scene.add_geometry(part, geom_name=f"element_{i}")
+    pos, nrm = contact_arrays(contacts)
+    for k, (p, n) in enumerate(zip(pos, nrm)):
+        ball = trimesh.creation.icosphere(2, radius=0.02 * size)
+        ball.apply_translation(p)
+        arrow = trimesh.creation.cylinder(radius=0.005 * size, segment=[p - 0.15 * size * n, p])
+        for name, part in (("contact", ball), ("normal", arrow)):
+            part.visual.face_colors = [192, 57, 43, 255]
+            scene.add_geometry(part, geom_name=f"{name}_{k}")
+    return scene
+
+
+def _element_mesh(element, size: float, chosen: bool = False):
+    import trimesh
+
+    v = element.vertices
+    if element.kind is ElementKind.FACET:
+        faces = [[0, j, j + 1] for j in range(1, len(v) - 1)]
+        lifted = v - 0.002 * size * element.inward_normal  # just outside the object's surface
+        both = np.vstack([lifted, lifted])
+        faces = faces + [[len(v) + a, len(v) + c, len(v) + b] for a, b, c in faces]
+        return trimesh.Trimesh(both, faces, process=False)
+    if element.kind is ElementKind.SEGMENT:
+        radius = (0.008 if chosen else 0.004) * size
+        return trimesh.creation.cylinder(radius=radius, segment=v, sections=8)
+    ball = trimesh.creation.icosphere(1, radius=(0.012 if chosen else 0.006) * size)
+    ball.apply_translation(v[0])
+    return ball
+
+
+def export_scene(model: Model, contacts, path, *, highlight: Sequence[int] = ()) -> Path:
+    """Write an interactive scene, atomically: ``.glb`` (binary glTF) or ``.html`` (three.js)."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in SCENE_SUFFIXES:
+        raise ValueError(f"out: unsupported scene type {suffix or path.name!r} (use .glb or .html)")
+    scene = build_scene(model, contacts, highlight=highlight)
+    if suffix == ".glb":
+        data = scene.export(file_type="glb")
+    else:
+        from trimesh.viewer.notebook import scene_to_html
+
+        data = scene_to_html(scene)
+    return write_atomic(path, data)
+
+
+def save_view(
+    model: Model, path, contacts=None, *, highlight: Sequence[int] = (), **options
+) -> Path:
+    """Picture or interactive scene, chosen by the suffix of ``path``."""
+    suffix = Path(path).suffix.lower()
+    if suffix in SCENE_SUFFIXES:
+        return export_scene(model, contacts, path, highlight=highlight)
+    return render_model(model, path, contacts, highlight=highlight, **options)
+
+
+__all__ = [
+    "build_scene",
+    "counts_text",
+    "draw_contacts",
+    "draw_model",
+    "export_scene",
+    "render_model",
+    "save_view",
+]
