@@ -15,6 +15,8 @@ from .contacts import contact_specs, load_contact_set
 from .elements import load_model
 from .eligibility import Eligibility
 from .errors import MethodError
+from .placement import PlacementOptions, Placer
+from .planning import plan, write_report
 from .quality import rho
 from .selection import run_selection
 
@@ -184,6 +186,93 @@ def _cmd_select(args) -> None:
         )
 
 
+def _add_place(sub, common) -> None:
+    p = sub.add_parser("place", parents=[common], help="optimal contacts on given elements")
+    p.add_argument("model", metavar="MODEL", help="*.model.json")
+    p.add_argument("--elements", required=True, help="element ids, one per contact: I,J,...")
+    p.add_argument("--starts", type=int, default=4, help="start weights tried (default 4)")
+    p.add_argument("--seed", type=int, default=0, help="random start weights after the first")
+    _add_contact_options(p)
+    p.set_defaults(run=_cmd_place)
+
+
+def _placement_options(args) -> PlacementOptions:
+    try:
+        return PlacementOptions(starts=args.starts, seed=args.seed)
+    except ValueError as exc:
+        raise ValueError(f"--{exc}") from None
+
+
+def _placement_text(result) -> str:
+    verdict = "force closure" if result.force_closure else "not force closure"
+    lines = [
+        f"rho = {result.rho:.9g} ({verdict}); centroids gave {result.start_rho:.6g}; "
+        f"{result.seconds:.2f} s"
+    ]
+    for i, c in enumerate(result.contacts):
+        pos = " ".join(f"{x:.4f}" for x in c.position)
+        lines.append(f"  contact {i}: element {c.element} at [{pos}]")
+    return "\n".join(lines)
+
+
+def _cmd_place(args) -> None:
+    ids = _ids(args.elements, "--elements")
+    eligibility = _eligibility(args, len(ids))
+    ids = eligibility.check_elements(ids, "--elements")
+    result = Placer(eligibility, _placement_options(args))(ids)
+    _emit(args, result.to_dict(), f"{args.model}: {_placement_text(result)}")
+    if not result.force_closure:
+        raise MethodError(
+            f"{args.model}: the placed contacts are not force closure (rho = {result.rho:.6g})"
+        )
+
+
+def _add_plan(sub, common) -> None:
+    p = sub.add_parser("plan", parents=[common], help="heuristic, iterative and placement")
+    p.add_argument("model", metavar="MODEL", help="*.model.json")
+    p.add_argument("--contacts", type=int, required=True, metavar="M", help="number of contacts")
+    p.add_argument("--seed", type=int, default=0, help="random start of the heuristic")
+    p.add_argument("--starts", type=int, default=4, help="placement start weights (default 4)")
+    p.add_argument("--out", metavar="DIR", help="write report.json, pictures and summary.md")
+    _add_contact_options(p)
+    p.set_defaults(run=_cmd_plan)
+
+
+def _cmd_plan(args) -> None:
+    eligibility = _eligibility(args, args.contacts)
+    placement_options = _placement_options(args)
+    progress, close = _progress(args)
+    try:
+        result = plan(eligibility, seed=args.seed, placement=placement_options, progress=progress)
+    finally:
+        close()
+    payload = result.to_dict()
+    if args.out:
+        options = {
+            "contacts": args.contacts,
+            "seed": args.seed,
+            "type": args.type,
+            "mu": args.mu,
+            "mu_s": args.mu_s,
+            "f_max": args.f_max,
+            "torque_scale": args.torque_scale,
+            "placement": vars(placement_options),
+        }
+        payload["out"] = write_report(eligibility.model, result, args.out, options)
+    h, it = result.heuristic, result.iterative
+    text = (
+        f"{args.model}: heuristic {_join(h.elements)} rho_hat = {h.rho_hat:.6g} "
+        f"({h.seconds:.2f} s); iterative {_join(it.elements)} rho_hat = {it.rho_hat:.6g} "
+        f"({it.seconds:.2f} s)\n{_placement_text(result.placement)}\ntotal {result.seconds:.2f} s"
+        + (f"; report in {args.out}" if args.out else "")
+    )
+    _emit(args, payload, text)
+    if not result.placement.force_closure:
+        raise MethodError(
+            f"{args.model}: no force-closure placement found (rho = {result.placement.rho:.6g})"
+        )
+
+
 def _join(ids) -> str:
     return ",".join(str(i) for i in ids)
 
@@ -211,7 +300,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 # Functions (subparsers, common_parent) -> None, each registering one command.
-COMMANDS: list = [_add_rho, _add_eligibility, _add_select]
+COMMANDS: list = [_add_rho, _add_eligibility, _add_select, _add_place, _add_plan]
 
 
 # --- characterize and show (element models from meshes, pictures) ----------------------------

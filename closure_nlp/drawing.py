@@ -27,7 +27,8 @@ PICTURE_SUFFIXES = {".png", ".pdf", ".svg", ".jpg", ".jpeg"}
 SCENE_SUFFIXES = {".glb", ".html"}
 
 
-def _pyplot():
+def pyplot():
+    """matplotlib.pyplot on the headless Agg backend."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -109,7 +110,7 @@ def draw_model(
     ax : Axes3D
     """
     if ax is None:
-        plt = _pyplot()
+        plt = pyplot()
         fig = plt.figure(figsize=(7.0, 6.0))
         ax = fig.add_subplot(projection="3d")
     chosen = {model.check_id(i, "highlight") for i in highlight}
@@ -278,17 +279,26 @@ def render_model(model: Model, path, contacts=None, **options) -> Path:
         raise ValueError(
             f"out: unsupported picture type {suffix or path.name!r} (use .png, .svg, .pdf)"
         )
-    plt = _pyplot()
+    plt = pyplot()
     fig = plt.figure(figsize=(7.0, 6.0))
     try:
         ax = fig.add_subplot(projection="3d")
         draw_model(model, contacts, ax, **options)
-        buffer = io.BytesIO()
-        fig.savefig(
-            buffer, format=suffix.lstrip(".").replace("jpg", "jpeg"), dpi=130, bbox_inches="tight"
-        )
+        return save_figure(fig, path)
     finally:
         plt.close(fig)
+
+
+def save_figure(fig, path, dpi: int = 130) -> Path:
+    """Write a matplotlib figure atomically, in the format of ``path``'s suffix."""
+    path = Path(path)
+    buffer = io.BytesIO()
+    fig.savefig(
+        buffer,
+        format=path.suffix.lower().lstrip(".").replace("jpg", "jpeg"),
+        dpi=dpi,
+        bbox_inches="tight",
+    )
     return write_atomic(path, buffer.getvalue())
 
 

@@ -1,0 +1,195 @@
+"""The whole method in one call: heuristic, iterative selection, placement; and its report.
+
+:func:`plan` chains the three steps on one :class:`~closure_nlp.eligibility.Eligibility` (so
+every solver is built once); :func:`write_report` writes what a user keeps of a run: ``report.json``
+(every number, the options and the versions), a picture like the paper's Fig. 1, a plot like its
+Fig. 3 and a short Markdown summary. Every file is written atomically.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from .eligibility import Eligibility
+from .files import write_atomic, write_json
+from .placement import PlacementOptions, PlacementResult, Placer
+from .selection import Progress, SelectionOptions, SelectionResult, heuristic, iterative
+
+
+@dataclass(frozen=True)
+class PlanResult:
+    """The three steps of one run."""
+
+    heuristic: SelectionResult
+    iterative: SelectionResult
+    placement: PlacementResult
+    seconds: float
+
+    def to_dict(self) -> dict:
+        return {
+            "heuristic": self.heuristic.to_dict(),
+            "iterative": self.iterative.to_dict(),
+            "placement": self.placement.to_dict(),
+            "seconds": self.seconds,
+        }
+
+
+def plan(
+    eligibility: Eligibility,
+    *,
+    seed: int | None = 0,
+    start=None,
+    selection: SelectionOptions = SelectionOptions(),
+    placement: PlacementOptions = PlacementOptions(),
+    progress: Progress | None = None,
+) -> PlanResult:
+    """Heuristic from ``seed`` (or ``start``), iterative from its result, then placement."""
+    t0 = time.perf_counter()
+    first = heuristic(eligibility, start=start, seed=seed, options=selection, progress=progress)
+    second = iterative(eligibility, first.elements, options=selection, progress=progress)
+    placed = Placer(eligibility, placement)(second.elements)
+    return PlanResult(first, second, placed, time.perf_counter() - t0)
+
+
+@lru_cache(maxsize=1)
+def versions() -> dict:
+    """Versions of Python, this package, numpy, casadi and the IPOPT that casadi bundles."""
+    import casadi
+
+    from . import __version__
+
+    return {
+        "closure_nlp": __version__,
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "casadi": casadi.__version__,
+        "ipopt": _ipopt_version(),
+    }
+
+
+def _ipopt_version() -> str:
+    """IPOPT prints its version in its banner only, from C: catch file descriptor 1."""
+    import casadi as ca
+
+    x = ca.SX.sym("x")
+    solver = ca.nlpsol(
+        "v", "ipopt", {"x": x, "f": x**2}, {"print_time": False, "ipopt": {"print_level": 5}}
+    )
+    sys.stdout.flush()
+    saved = os.dup(1)
+    with tempfile.TemporaryFile() as capture:
+        os.dup2(capture.fileno(), 1)
+        try:
+            solver(x0=1.0)
+        finally:
+            sys.stdout.flush()
+            os.dup2(saved, 1)
+            os.close(saved)
+        capture.seek(0)
+        banner = capture.read().decode(errors="replace")
+    for line in banner.splitlines():
+        if "Ipopt version" in line:
+            return line.split("Ipopt version", 1)[1].split(",")[0].strip()
+    return "unknown"
+
+
+def summary_markdown(model, result: PlanResult, options: dict) -> str:
+    """A short human summary of a run."""
+    h, it, pl = result.heuristic, result.iterative, result.placement
+    verdict = "force closure" if pl.force_closure else "NOT force closure"
+    rows = [
+        f"# {model.name}: {len(pl.contacts)} contacts ({options.get('type', '')})",
+        "",
+        "| step | elements | value | seconds | evaluations |",
+        "|---|---|---|---|---|",
+        f"| heuristic | {_ids(h.elements)} | rho_hat = {h.rho_hat:.4f} | {h.seconds:.2f} "
+        f"| {h.evaluations} |",
+        f"| iterative | {_ids(it.elements)} | rho_hat = {it.rho_hat:.4f} | {it.seconds:.2f} "
+        f"| {it.evaluations} |",
+        f"| placement | {_ids(pl.elements)} | rho = {pl.rho:.4f} | {pl.seconds:.2f} "
+        f"| {pl.rounds} rounds |",
+        "",
+        f"Result: rho = {pl.rho:.6g} ({verdict}); contacts at the element centroids had "
+        f"rho = {pl.start_rho:.6g}. Total {result.seconds:.2f} s.",
+        "",
+    ]
+    for i, c in enumerate(pl.contacts):
+        pos = ", ".join(f"{x:.3f}" for x in c.position)
+        rows.append(f"- contact {i}: element {c.element}, position ({pos})")
+    for mv in pl.moves:
+        rows.append(
+            f"- contact {mv.contact} moved from element {mv.source} to its neighbour "
+            f"{mv.target}: rho {mv.rho_before:.4f} -> {mv.rho_after:.4f}"
+        )
+    return "\n".join(rows) + "\n"
+
+
+def _ids(ids) -> str:
+    return ",".join(str(i) for i in ids)
+
+
+def write_report(model, result: PlanResult, out_dir, options: dict) -> dict:
+    """Write ``report.json``, ``placement.png``, ``history.png`` and ``summary.md`` in
+    ``out_dir``; returns their paths by name."""
+    from .drawing import draw_contacts, draw_model, model_extent, pyplot, save_figure
+
+    out = Path(out_dir)
+    paths = {}
+    report = {
+        "model": model.name,
+        **result.to_dict(),
+        "options": options,
+        "versions": versions(),
+    }
+    json.dumps(report, allow_nan=False)  # refuse NaN before anything is written
+    plt = pyplot()
+    # Fig. 1: initial contacts (element centroids) small, final ones large, on chosen elements.
+    start = [
+        (model.elements[e].centroid, model.elements[e].inward_normal)
+        for e in result.iterative.elements
+    ]
+    final = result.placement.contact_set
+    fig = plt.figure(figsize=(7.0, 6.0))
+    ax = fig.add_subplot(projection="3d")
+    draw_model(
+        model,
+        (np.array([p for p, _ in start]), np.array([n for _, n in start])),
+        ax,
+        highlight=sorted(set(result.placement.elements) | set(result.iterative.elements)),
+        contact_sizes=25.0,
+        contact_colour="tab:blue",
+        title=f"{model.name}: rho = {result.placement.rho:.4f}",
+    )
+    draw_contacts(ax, final, sizes=140.0, scale=model_extent(model))
+    paths["placement.png"] = save_figure(fig, out / "placement.png")
+    plt.close(fig)
+    # Fig. 3: rho_hat against the iteration number.
+    fig, ax = plt.subplots(figsize=(6.0, 4.0))
+    h = [v for _, v in result.heuristic.history]
+    it = [v for _, v in result.iterative.history]
+    ax.plot(range(len(h)), h, "o-", label="heuristic (contacts added)")
+    ax.plot(range(len(h) - 1, len(h) - 1 + len(it)), it, ".-", label="iterative (swaps)")
+    ax.axhline(0.0, color="grey", lw=0.8)
+    ax.set_xlabel("iteration")
+    ax.set_ylabel("rho(0, What_c^M)")
+    ax.set_title(f"{model.name}: element selection")
+    ax.legend()
+    fig.tight_layout()
+    paths["history.png"] = save_figure(fig, out / "history.png")
+    plt.close(fig)
+    paths["summary.md"] = write_atomic(out / "summary.md", summary_markdown(model, result, options))
+    paths["report.json"] = write_json(out / "report.json", report)
+    return {name: str(p) for name, p in paths.items()}
+
+
+__all__ = ["PlanResult", "plan", "summary_markdown", "versions", "write_report"]
