@@ -8,6 +8,8 @@ Fig. 3 and a short Markdown summary. Every file is written atomically.
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import os
 import platform
@@ -78,25 +80,26 @@ def versions() -> dict:
 
 
 def _ipopt_version() -> str:
-    """IPOPT prints its version in its banner only, from C: catch file descriptor 1."""
+    """IPOPT states its version only in its banner: run a tiny solve and catch the banner, which
+    casadi prints through Python's ``sys.stdout`` or, depending on the build, file descriptor 1."""
     import casadi as ca
 
     x = ca.SX.sym("x")
-    solver = ca.nlpsol(
-        "v", "ipopt", {"x": x, "f": x**2}, {"print_time": False, "ipopt": {"print_level": 5}}
-    )
+    options = {"print_time": False, "ipopt": {"print_level": 5}}
+    solver = ca.nlpsol("version", "ipopt", {"x": x, "f": x**2}, options)
     sys.stdout.flush()
     saved = os.dup(1)
+    text = io.StringIO()
     with tempfile.TemporaryFile() as capture:
         os.dup2(capture.fileno(), 1)
         try:
-            solver(x0=1.0)
+            with contextlib.redirect_stdout(text):
+                solver(x0=1.0)
         finally:
-            sys.stdout.flush()
             os.dup2(saved, 1)
             os.close(saved)
         capture.seek(0)
-        banner = capture.read().decode(errors="replace")
+        banner = text.getvalue() + capture.read().decode(errors="replace")
     for line in banner.splitlines():
         if "Ipopt version" in line:
             return line.split("Ipopt version", 1)[1].split(",")[0].strip()

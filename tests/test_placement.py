@@ -1,0 +1,150 @@
+"""Contact placement on elements, neighbour moves, and the end-to-end ``plan`` command."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from closure_nlp import cli
+from closure_nlp.contacts import ContactSet, contact_specs
+from closure_nlp.elements import Element, Model, save_model
+from closure_nlp.eligibility import Eligibility
+from closure_nlp.placement import PlacementOptions, Placer, nearest_weights
+from closure_nlp.quality import rho
+from tests import reference
+from tests.shapes import box_model
+
+MODELS = Path(__file__).resolve().parents[1] / "models"
+
+
+def _check_on_elements(eligibility, result):
+    """Each contact on its element (weights on the simplex), with the element's normal."""
+    model = eligibility.model
+    for c in result.contacts:
+        element = model.elements[c.element]
+        assert c.weights.min() >= 0 and c.weights.sum() == pytest.approx(1.0, abs=1e-12)
+        np.testing.assert_allclose(c.position, c.weights @ element.vertices, atol=1e-12)
+        np.testing.assert_allclose(c.inward_normal, element.inward_normal, atol=1e-15)
+
+
+def test_box_placement_beats_centroids_and_is_consistent():
+    eligibility = Eligibility(box_model(1.0), contact_specs(4, type="pcwf", mu=0.5))
+    placer = Placer(eligibility, PlacementOptions(neighbour_moves=0))
+    elements = [0, 1, 2, 3]
+    result = placer(elements)
+    _check_on_elements(eligibility, result)
+    assert result.force_closure
+    assert result.rho <= result.start_rho  # never above the centroid start
+    assert result.rho < result.start_rho - 0.1  # and clearly better on this box
+    # The final rho is the rho solver's, recomputed from the final positions ...
+    again = rho(result.contact_set)
+    assert result.rho == pytest.approx(again.rho, abs=1e-9)
+    # ... agrees with the independent reference at its direction ...
+    slots = reference.from_contact_set(result.contact_set)
+    assert -result.rho == pytest.approx(reference.support(result.direction, slots), abs=1e-9)
+    # ... and is never better than the elements allow (W_c^M inside What_c^M).
+    assert result.rho >= eligibility(elements).rho_hat - 1e-6
+
+
+def test_given_weights_start_and_bad_weights():
+    eligibility = Eligibility(box_model(), contact_specs(4, type="sfce", mu=0.4, mu_s=0.1))
+    placer = Placer(eligibility, PlacementOptions(starts=1, neighbour_moves=0))
+    start = [np.array([0.7, 0.1, 0.1, 0.1])] * 4
+    result = placer([0, 1, 2, 3], weights=start)
+    contacts = [
+        s.at(eligibility.model.elements[e].position(w), eligibility.model.elements[e].inward_normal)
+        for s, e, w in zip(eligibility.specs, [0, 1, 2, 3], start)
+    ]
+    assert result.start_rho == pytest.approx(rho(ContactSet(tuple(contacts))).rho, abs=1e-9)
+    assert result.rho <= result.start_rho
+    with pytest.raises(ValueError, match=r"weights\[1\]: weights must be >= 0 and sum to 1"):
+        placer([0, 1, 2, 3], weights=[start[0], [0.5, 0.6, 0.0, 0.0], start[0], start[0]])
+    with pytest.raises(ValueError, match="starts"):
+        PlacementOptions(starts=0)
+
+
+def _strip_model() -> Model:
+    """Two facets side by side on the floor (z = 0), two walls: a contact on facet 0 does best
+    across the shared edge x = 1, in facet 1."""
+    floor_a = Element("facet", [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], [0, 0, 1])
+    floor_b = Element("facet", [[1, 0, 0], [3, 0, 0], [3, 1, 0], [1, 1, 0]], [0, 0, 1])
+    top = Element("facet", [[0, 0, 2], [0, 1, 2], [3, 1, 2], [3, 0, 2]], [0, 0, -1])
+    wall = Element("facet", [[0, 0, 0], [0, 1, 0], [0, 1, 2], [0, 0, 2]], [1, 0, 0])
+    wall2 = Element("facet", [[3, 0, 0], [3, 0, 2], [3, 1, 2], [3, 1, 0]], [-1, 0, 0])
+    return Model((floor_a, floor_b, top, wall, wall2), ((0, 1), (0, 3), (1, 4)), "strip")
+
+
+def test_contact_moves_to_a_neighbour_only_when_that_helps():
+    model = _strip_model()
+    eligibility = Eligibility(model, contact_specs(4, type="pcwf", mu=0.5), torque_scale=0.5)
+    stay = Placer(eligibility, PlacementOptions(neighbour_moves=0, starts=2))([0, 2, 3, 4])
+    move = Placer(eligibility, PlacementOptions(starts=2))([0, 2, 3, 4])
+    _check_on_elements(eligibility, move)
+    for mv in move.moves:
+        assert mv.rho_after < mv.rho_before  # every move helped
+        assert mv.target in model.neighbours(mv.source)
+    if move.moves:
+        assert move.rho < stay.rho
+    else:
+        assert move.rho == pytest.approx(stay.rho, abs=1e-9)
+
+
+def test_nearest_weights():
+    square = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
+    w = nearest_weights(square, np.array([0.25, 0.5, 0.0]))
+    np.testing.assert_allclose(w @ square, [0.25, 0.5, 0.0], atol=1e-9)
+    w = nearest_weights(square, np.array([2.0, 0.5, 1.0]))  # outside: the nearest edge point
+    np.testing.assert_allclose(w @ square, [1.0, 0.5, 0.0], atol=1e-6)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    ("name", "kind", "m"), [("lamp", "pcwf", 4), ("cup", "sfce", 4), ("pistol", "fpc", 7)]
+)
+def test_example_models_end_in_force_closure(name, kind, m):
+    from closure_nlp.elements import load_model
+    from closure_nlp.planning import plan
+
+    model = load_model(MODELS / f"{name}.model.json")
+    eligibility = Eligibility(model, contact_specs(m, type=kind, mu=0.2, mu_s=0.2))
+    result = plan(eligibility, seed=0, placement=PlacementOptions(starts=2))
+    placed = result.placement
+    _check_on_elements(eligibility, placed)
+    assert result.iterative.rho_hat <= result.heuristic.rho_hat
+    assert placed.force_closure and placed.rho <= placed.start_rho
+    assert placed.rho >= eligibility(list(placed.elements)).rho_hat - 1e-6
+
+
+def test_cli_place_and_plan_end_to_end(capsys, tmp_path):
+    path = tmp_path / "box.model.json"
+    save_model(box_model(10.0), path)
+    common = ["--torque-scale", "0.1", "--starts", "1", "--json"]
+    code = cli.main(["place", str(path), "--elements", "0,1,2,3", *common])
+    data = json.loads(capsys.readouterr().out)
+    assert code == 0 and data["force_closure"] and len(data["contacts"]) == 4
+    assert set(data["contacts"][0]) >= {"element", "weights", "position", "inward_normal"}
+    out = tmp_path / "run"
+    code = cli.main(["plan", str(path), "--contacts", "4", "--out", str(out), *common])
+    data = json.loads(capsys.readouterr().out)
+    assert code == 0
+    assert set(data) >= {"heuristic", "iterative", "placement", "seconds"}
+    names = {"report.json", "placement.png", "history.png", "summary.md"}
+    assert {p.name for p in out.iterdir()} == names  # no temporary files left behind
+    report = json.loads((out / "report.json").read_text())
+    assert report["placement"]["rho"] == data["placement"]["rho"]
+    assert report["options"]["contacts"] == 4 and report["versions"]["ipopt"] != "unknown"
+    assert (out / "placement.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_cli_place_bad_input(capsys, tmp_path):
+    path = tmp_path / "box.model.json"
+    save_model(box_model(), path)
+    code = cli.main(["place", str(path), "--elements", "0,1,7"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.startswith("error:") and "--elements[2]: element id 7" in err
+    code = cli.main(["place", str(path), "--elements", "0,1", "--starts", "0"])
+    err = capsys.readouterr().err
+    assert code == 2 and "--starts: expected an integer >= 1" in err
