@@ -14,8 +14,10 @@ $(STAMP): pyproject.toml
 
 install: $(STAMP)
 
+# The whole method on the lamp (4 PCwF): heuristic, iterative selection, placement, report.
 demo: $(STAMP)
-	$(BIN)/closure-nlp rho examples/box_7fpc.contacts.json
+	MPLBACKEND=Agg $(BIN)/closure-nlp plan models/lamp.model.json --contacts 4 --type pcwf \
+		--mu 0.2 --seed 1 --out out/lamp
 
 test: $(STAMP)
 	MPLBACKEND=Agg $(BIN)/python -m pytest -q
@@ -24,10 +26,12 @@ test-fast: $(STAMP)
 	MPLBACKEND=Agg $(BIN)/python -m pytest -q -m "not slow"
 
 lint: $(STAMP)
-	$(BIN)/ruff check closure_nlp tests examples
+	$(BIN)/ruff check closure_nlp tests examples models
 
 bench: $(STAMP)
 	$(BIN)/python -m closure_nlp.bench rho
+	$(BIN)/python -m closure_nlp.bench rho-hat
+	$(BIN)/python -m closure_nlp.bench select
 
 clean:
 	rm -rf $(VENV) build *.egg-info
