@@ -50,6 +50,8 @@ class PlacementOptions:
     starts : int
         Start weights: the given ones (or the centroids), then random ones from ``seed``; the
         trust-region method is local and symmetric starts are often stationary.
+    extra_starts : int
+        Further random starts tried, one at a time, while none has reached force closure.
     seed : int
     subset_margin : float
         Contacts with ``P_ik > -subset_margin * f_max`` count in the model of direction ``k``, so
@@ -60,6 +62,7 @@ class PlacementOptions:
     gap: float = 1e-6
     max_rounds: int = 40
     starts: int = 4
+    extra_starts: int = 8
     seed: int = 0
     subset_margin: float = 0.01
     random_directions: int = 20
@@ -67,7 +70,14 @@ class PlacementOptions:
     ipopt_tol: float = 1e-10
 
     def __post_init__(self) -> None:
-        for name in ("max_rounds", "random_directions", "neighbour_moves", "starts", "seed"):
+        for name in (
+            "max_rounds",
+            "random_directions",
+            "neighbour_moves",
+            "starts",
+            "extra_starts",
+            "seed",
+        ):
             value = getattr(self, name)
             least = 1 if name in ("max_rounds", "starts") else 0
             if isinstance(value, bool) or not isinstance(value, int) or value < least:
@@ -373,7 +383,9 @@ class Placer:
         start = rho(self.contact_set(elements, weights), minimizer=self.eligibility.minimizer)
         rng = np.random.default_rng(self.options.seed)
         best_w, best, predicted, rounds = self.optimise(elements, weights)
-        for _ in range(self.options.starts - 1):
+        for k in range(1, self.options.starts + self.options.extra_starts):
+            if k >= self.options.starts and best.force_closure:
+                break  # extra starts only while no start has reached force closure
             trial = [rng.dirichlet(np.ones(k)) for k in counts]
             w, found, up, n_rounds = self.optimise(elements, trial)
             rounds += n_rounds
