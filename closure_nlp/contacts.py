@@ -15,7 +15,7 @@ from enum import Enum
 import numpy as np
 
 from .files import load_json
-from .validation import as_number, as_unit_vector, as_vector, check_keys
+from .validation import as_number, as_unit_vector, as_vector, check_keys, parse_choice
 
 DEFAULT_MU = 0.2
 DEFAULT_MU_S = 0.2
@@ -32,15 +32,7 @@ class ContactType(str, Enum):
 
     @classmethod
     def parse(cls, value, field: str = "type") -> ContactType:
-        if isinstance(value, cls):
-            return value
-        if isinstance(value, str):
-            try:
-                return cls(value.strip().lower())
-            except ValueError:
-                pass
-        names = ", ".join(t.value for t in cls)
-        raise ValueError(f"{field}: unknown contact type {value!r} (expected one of {names})")
+        return parse_choice(cls, value, field, "contact type")
 
 
 def friction_pieces(kind: ContactType, mu: float, mu_s: float) -> np.ndarray:

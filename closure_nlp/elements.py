@@ -17,7 +17,7 @@ import numpy as np
 from .contacts import grasp_matrices, local_frame
 from .files import load_json, write_json
 from .tolerances import DEFAULT_TOLERANCES, Tolerances
-from .validation import as_unit_vector, as_vector, check_keys
+from .validation import as_unit_vector, as_vector, check_keys, parse_choice
 
 
 class ElementKind(str, Enum):
@@ -27,15 +27,7 @@ class ElementKind(str, Enum):
 
     @classmethod
     def parse(cls, value, field: str = "kind") -> ElementKind:
-        if isinstance(value, cls):
-            return value
-        if isinstance(value, str):
-            try:
-                return cls(value.strip().lower())
-            except ValueError:
-                pass
-        names = ", ".join(k.value for k in cls)
-        raise ValueError(f"{field}: unknown element kind {value!r} (expected one of {names})")
+        return parse_choice(cls, value, field, "element kind")
 
 
 @dataclass(frozen=True, eq=False)

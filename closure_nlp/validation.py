@@ -66,3 +66,16 @@ def check_keys(mapping: dict, field: str, allowed: set[str], required: set[str] 
     missing = sorted(required - set(mapping))
     if missing:
         raise ValueError(f"{field}: missing key {missing[0]!r}")
+
+
+def parse_choice(cls, value, field: str, what: str):
+    """A member of the string enum ``cls`` from its value (case and spaces ignored)."""
+    if isinstance(value, cls):
+        return value
+    if isinstance(value, str):
+        try:
+            return cls(value.strip().lower())
+        except ValueError:
+            pass
+    names = ", ".join(member.value for member in cls)
+    raise ValueError(f"{field}: unknown {what} {value!r} (expected one of {names})")
