@@ -52,19 +52,28 @@ def _load_each(paths, loader):
 def _add_rho(sub, common) -> None:
     p = sub.add_parser("rho", parents=[common], help="rho(0, W_c^M) of contact-set files")
     p.add_argument("files", nargs="+", metavar="FILE", help="*.contacts.json")
+    p.add_argument(
+        "--certify",
+        action="store_true",
+        help="also certified bounds lo <= rho <= hi (inner polytope by qhull, SOCP by cvxpy)",
+    )
     p.set_defaults(run=_cmd_rho)
 
 
 def _cmd_rho(args) -> None:
     for path, contact_set in _load_each(args.files, load_contact_set):
-        result = rho(contact_set)
+        result = rho(contact_set, certify=args.certify)
         payload = {"file": path, **result.to_dict()}
         verdict = "force closure" if result.force_closure else "not force closure"
         direction = " ".join(f"{x:+.4f}" for x in result.direction)
+        bounds = ""
+        if result.bounds is not None:
+            bounds = f"; certified {result.bounds[0]:.9g} <= rho <= {result.bounds[1]:.9g}"
         _emit(
             args,
             payload,
-            f"{path}: rho = {result.rho:.9g} ({verdict}); weakest direction u* = [{direction}]",
+            f"{path}: rho = {result.rho:.9g} ({verdict}); weakest direction u* = [{direction}]"
+            + bounds,
         )
 
 
@@ -459,6 +468,98 @@ def main(argv: list[str] | None = None) -> int:
         sys.stderr.write(f"error: {exc}\n")
         return 1
     return 0
+
+
+# --- study: grids of plans on Dask (closure_nlp.study) ----------------------------------------
+
+
+def _study_count(least: int):
+    """argparse type: an integer >= ``least``."""
+
+    def convert(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+        if value < least:
+            raise argparse.ArgumentTypeError(f"expected an integer >= {least}, got {text!r}")
+        return value
+
+    return convert
+
+
+def _add_study(sub, common) -> None:
+    p = sub.add_parser(
+        "study", parents=[common], help="a grid of plans (models x contacts x seeds) on Dask"
+    )
+    p.add_argument("study", metavar="STUDY", help="study file (TOML)")
+    p.add_argument(
+        "--out", required=True, metavar="DIR", help="results/, summary.md/.csv, results.csv, plots"
+    )
+    p.add_argument("--scheduler", metavar="ADDRESS", help="join this Dask scheduler")
+    p.add_argument(
+        "--workers", type=_study_count(1), metavar="N", help="local workers (default: cores)"
+    )
+    p.add_argument("--serial", action="store_true", help="run in this process, without Dask")
+    p.add_argument(
+        "--limit", type=_study_count(0), metavar="N", help="run at most N tasks now (then resume)"
+    )
+    p.add_argument("--retry-failed", action="store_true", help="run failed tasks again")
+    p.set_defaults(run=_cmd_study)
+
+
+def _cmd_study(args) -> None:
+    from .study import load_study, run_study
+
+    try:
+        study = load_study(args.study)
+    except (ValueError, TypeError) as exc:
+        raise InputError(args.study, str(exc)) from None
+    bar = None
+
+    def progress(done: int, total: int, row) -> None:
+        nonlocal bar
+        if bar is None:
+            from tqdm import tqdm
+
+            bar = tqdm(total=total, unit="task", file=sys.stderr, leave=False, desc=study.name)
+        if row is not None:
+            bar.set_postfix_str(f"{row['model']} {row['type']}x{row['contacts']}", refresh=False)
+            bar.update(1)
+
+    quiet = args.quiet or not sys.stderr.isatty()
+    try:
+        result = run_study(
+            study,
+            args.out,
+            scheduler=args.scheduler,
+            workers=args.workers,
+            serial=args.serial,
+            limit=args.limit,
+            retry_failed=args.retry_failed,
+            progress=None if quiet else progress,
+        )
+    except OSError as exc:
+        raise InputError(args.out, f"cannot write: {exc.strerror or exc}") from None
+    finally:
+        if bar is not None:
+            bar.close()
+    payload = {"file": args.study, **result.to_dict()}
+    text = (
+        f"{args.study}: {result.total} tasks: {result.run} run ({result.failed} failed), "
+        f"{result.skipped} done before, {result.remaining} remaining; {result.seconds:.1f} s on "
+        f"{result.workers} worker(s), {result.tasks_per_second:.3f} tasks/s\n"
+        f"summary in {result.paths['summary.md']}"
+    )
+    _emit(args, payload, text)
+    if result.failed:
+        raise MethodError(
+            f"{args.study}: {result.failed} of {result.run} tasks failed "
+            f"(errors in {result.paths['summary.md']})"
+        )
+
+
+COMMANDS.append(_add_study)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -20,7 +20,7 @@ the support function at the returned unit direction, never the epigraph variable
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import casadi as ca
 import numpy as np
@@ -108,6 +108,8 @@ class RhoResult:
         Unit ``u*`` with ``p(u*) = -rho``: the weakest wrench direction.
     support_point : (6,) float
     stats : SolverStats
+    bounds : (float, float) or None
+        Certified ``(lo, hi)`` with ``lo <= rho <= hi`` (``rho(..., certify=True)``), else None.
     """
 
     rho: float
@@ -115,9 +117,10 @@ class RhoResult:
     direction: np.ndarray
     support_point: np.ndarray
     stats: SolverStats = field(repr=False)
+    bounds: tuple[float, float] | None = None
 
     def to_dict(self) -> dict:
-        return {
+        out = {
             "rho": self.rho,
             "force_closure": self.force_closure,
             "direction": self.direction.tolist(),
@@ -126,6 +129,9 @@ class RhoResult:
             "iterations": self.stats.iterations,
             "seconds": self.stats.seconds,
         }
+        if self.bounds is not None:
+            out["bounds"] = [float(self.bounds[0]), float(self.bounds[1])]
+        return out
 
 
 class SupportMinProblem:
@@ -313,7 +319,11 @@ _DEFAULT_MINIMIZER = SupportMinimizer()
 
 
 def rho(
-    contact_set: ContactSet, *, minimizer: SupportMinimizer | None = None, warm_start=None
+    contact_set: ContactSet,
+    *,
+    minimizer: SupportMinimizer | None = None,
+    warm_start=None,
+    certify: bool = False,
 ) -> RhoResult:
     """rho(0, W_c^M) of a contact set (eq 24).
 
@@ -324,16 +334,33 @@ def rho(
         Holds the cached NLPs and the options; a shared default is used when omitted.
     warm_start : (6,) float, optional
         A direction to add to the starts (e.g. the previous ``u*`` in a loop).
+    certify : bool
+        Also compute certified bounds (:func:`closure_nlp.certify.certified_bounds`, started
+        at ``u*``). When their search finds a direction with a lower support value than IPOPT's,
+        the result reports that direction, so that ``lo <= rho <= hi`` always holds.
 
     Returns
     -------
     RhoResult
+        ``bounds`` is set when ``certify`` is true.
     """
     if not isinstance(contact_set, ContactSet):
         raise TypeError(f"contact_set: expected a ContactSet, got {type(contact_set).__name__}")
+    if not isinstance(certify, bool):
+        raise TypeError(f"certify: expected a bool, got {type(certify).__name__}")
     minimizer = minimizer or _DEFAULT_MINIMIZER
-    found = minimizer(WrenchSlots.from_contacts(contact_set), warm_start)
-    return _as_rho(found, minimizer.tolerances)
+    slots = WrenchSlots.from_contacts(contact_set)
+    found = minimizer(slots, warm_start)
+    if not certify:
+        return _as_rho(found, minimizer.tolerances)
+    from .certify import certified_bounds  # cvxpy and qhull only when asked for
+
+    bounds = certified_bounds(slots, found.direction, tolerances=minimizer.tolerances)
+    if -bounds.lo < found.value:  # the bounds' search found a lower support value
+        u = bounds.direction
+        found = SupportMinimum(-bounds.lo, u, slots.support_point(u), found.stats)
+    result = _as_rho(found, minimizer.tolerances)
+    return replace(result, bounds=(bounds.lo, bounds.hi))
 
 
 def signed_distance(found: SupportMinimum, tolerances: Tolerances) -> float:
