@@ -178,10 +178,11 @@ class ExchangeProblem:
 
     For direction ``k`` the bound is ``sum_{i in S_k} f_i (d_n + sqrt(q_ik + eps^2) - eps)`` with
     ``d = sum_j c_ij G_ij^T u_k``, ``S_k`` the contacts with ``P_ik > -margin * f_i`` at the
-    current weights (the largest alone if none; a contact about to help must be seen) and ``q_ik`` the friction piece that is largest there. Every term
-    is at most the true one (a sum over one subset, one piece, ``sqrt(q + eps^2) - eps <=
-    sqrt(q)``), so a solution's ``r`` is met by the true support function: each solve is a
-    restriction, and re-choosing ``S_k`` and the pieces at the new weights tightens it again.
+    current weights (the largest alone if none; a contact about to help must be seen) and
+    ``q_ik`` the friction piece that is largest there. Every term is at most the true one (a sum
+    over one subset, one piece, ``sqrt(q + eps^2) - eps <= sqrt(q)``), so a solution's ``r`` is
+    met by the true support function: each solve is a restriction, and re-choosing ``S_k`` and
+    the pieces at the new weights tightens it again.
 
     Built once per shape; ``capacity`` directions, unused ones masked out by parameters.
     """

@@ -27,21 +27,60 @@ def sphere_samples(n: int, seed: int = 0) -> np.ndarray:
     return _SAMPLES[key]
 
 
-def descend(slots: WrenchSlots, U: np.ndarray, iterations: int = 30):
-    """Riemannian subgradient descent on the sphere, batched, with a step per direction.
+def smoothed_support(slots: WrenchSlots, U: np.ndarray, tau: float):
+    """A smooth upper approximation of ``p`` and its gradient: (N, 6) -> (N,), (N, 6).
+
+    Every max of ``p`` (over an element's vertex rows, over the subsets of slots) is replaced by
+    its log-sum-exp with temperature ``tau`` (``p <= p_tau <= p + O(tau log K)``). The descent
+    on ``p`` itself stalls at kinks, where the subgradient flips from step to step; on
+    ``p_tau`` it runs into the basin, and lowering ``tau`` sharpens the basins again.
+    """
+    rows, wrench = slots.row_support(U)
+    ends = np.append(slots.starts[1:], rows.shape[1])
+    P = np.empty((len(U), slots.m))
+    grad_P = np.empty((len(U), slots.m, 6))
+    for i, (a, b) in enumerate(zip(slots.starts, ends)):
+        P[:, i], weights = _soft_max(rows[:, a:b], tau)
+        grad_P[:, i] = np.einsum("nk,nkr->nr", weights, wrench[:, a:b])
+    # sum_i max(P_i, 0) + min(max_i P_i, 0), both smoothed: softplus and -softplus(-softmax).
+    top, weights = _soft_max(P, tau)
+    value = tau * np.logaddexp(0.0, P / tau).sum(axis=1) - tau * np.logaddexp(0.0, -top / tau)
+    outer = _sigmoid(P / tau) + _sigmoid(-top / tau)[:, None] * weights
+    return value, np.einsum("nm,nmr->nr", outer, grad_P)
+
+
+def _soft_max(X: np.ndarray, tau: float):
+    """``tau log sum exp(X / tau)`` along axis 1 and its gradient (softmax weights)."""
+    top = X.max(axis=1, keepdims=True)
+    e = np.exp((X - top) / tau)
+    total = e.sum(axis=1, keepdims=True)
+    return (top + tau * np.log(total))[:, 0], e / total
+
+
+def _sigmoid(x: np.ndarray) -> np.ndarray:
+    return 0.5 * (1.0 + np.tanh(0.5 * x))  # no overflow for large |x|
+
+
+def descend(slots: WrenchSlots, U: np.ndarray, iterations: int = 30, tau: float | None = None):
+    """Riemannian (sub)gradient descent on the sphere, batched, with a step per direction.
 
     Each direction steps along the negative tangential (sub)gradient by an angle that grows
-    on success and halves on failure, so every direction's value only ever decreases.
+    on success and halves on failure, so every direction's value only ever decreases. With
+    ``tau`` the descent runs on :func:`smoothed_support` instead of ``p``.
 
     Returns
     -------
     U : (N, 6) float
         End directions, unit.
     values : (N,) float
-        ``p`` at the end directions.
+        ``p`` at the end directions (the true support function, also after a smoothed run).
     """
+
+    def evaluate(V):
+        return slots.evaluate(V) if tau is None else smoothed_support(slots, V, tau)
+
     U = np.array(U, dtype=float)
-    values, grad = slots.evaluate(U)
+    values, grad = evaluate(U)
     angle = np.full(len(U), 0.3)
     for _ in range(iterations):
         tangent = grad - np.einsum("nr,nr->n", grad, U)[:, None] * U
@@ -50,7 +89,7 @@ def descend(slots: WrenchSlots, U: np.ndarray, iterations: int = 30):
         step = -tangent / np.where(moving, norm, 1.0)[:, None]
         trial = np.cos(angle)[:, None] * U + np.sin(angle)[:, None] * step
         trial /= np.linalg.norm(trial, axis=1, keepdims=True)
-        trial_values, trial_grad = slots.evaluate(trial)
+        trial_values, trial_grad = evaluate(trial)
         better = moving & (trial_values < values)
         U[better], values[better], grad[better] = (
             trial[better],
@@ -58,15 +97,14 @@ def descend(slots: WrenchSlots, U: np.ndarray, iterations: int = 30):
             trial_grad[better],
         )
         angle = np.where(better, np.minimum(angle * 1.5, 0.6), angle * 0.5)
-    return U, values
+    return U, (values if tau is None else slots.support(U))
 
 
-def distinct_lowest(U: np.ndarray, values: np.ndarray, count: int, min_distance: float):
-    """Indices of up to ``count`` lowest values whose directions are pairwise ``> min_distance``."""
-    picked: list[int] = []
-    for i in np.argsort(values, kind="stable"):
-        if all(np.linalg.norm(U[i] - U[j]) > min_distance for j in picked):
-            picked.append(int(i))
-            if len(picked) == count:
-                break
-    return picked
+def smoothed_descent(slots: WrenchSlots, U: np.ndarray, taus, iterations: int):
+    """:func:`descend` on ``p_tau`` for each ``tau`` in turn (relative to the largest f_max)."""
+    scale = max(1.0, float(np.max(slots.f_max)))
+    values = None
+    for tau in taus:
+        U, values = descend(slots, U, iterations, tau * scale)
+    return U, (slots.support(U) if values is None else values)
+

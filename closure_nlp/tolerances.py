@@ -22,15 +22,15 @@ class Tolerances:
         Relative tolerance for planarity, perpendicular normals and distinct vertices,
         measured against an element's size.
     distinct_start : float
-        Two candidate start directions closer than this (Euclidean, on the unit sphere)
-        are the same basin.
+        A candidate start direction closer than this (Euclidean, on the unit sphere) to a
+        start already tried, or to the minimum it led to, is taken to lie in the same basin.
     """
 
     ipopt: float = 1e-12
     zero_rho: float = 1e-9
     certify: float = 1e-6
     geometry: float = 1e-6
-    distinct_start: float = 0.2
+    distinct_start: float = 0.05
 
     def __post_init__(self) -> None:
         for f in fields(self):

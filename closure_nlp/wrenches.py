@@ -130,9 +130,8 @@ class WrenchSlots:
         """Support function ``p(u)`` of the whole set (eqs 26, 35): (N, 6) -> (N,)."""
         return combine_slots(self.slot_values(U))
 
-    def evaluate(self, U: np.ndarray):
-        """``p(u)`` and a wrench attaining it (its gradient where unique): (N,), (N, 6)."""
-        U = np.atleast_2d(U)
+    def row_support(self, U: np.ndarray):
+        """Each row's value ``p_{W_ij}(u)`` and support wrench (gradient): (N, K), (N, K, 6)."""
         d = self.local(U)
         rows, k, qk = self.row_terms(d)
         w = self.pieces[np.arange(len(self.G))[None, :], k]  # (N, K, 4)
@@ -141,8 +140,12 @@ class WrenchSlots:
         rim = w * d / np.sqrt(np.where(qk > 0, qk, np.inf))[..., None]
         rim[..., 0] += 1.0
         force = self.f_max[None, :, None] * rim
-        # (N, K, 6): each row's support point (optimize: a BLAS path, 10x faster here)
-        wrench = np.einsum("krc,nkc->nkr", self.G, force, optimize=True)
+        # optimize: a BLAS path, 10x faster here
+        return rows, np.einsum("krc,nkc->nkr", self.G, force, optimize=True)
+
+    def evaluate(self, U: np.ndarray):
+        """``p(u)`` and a wrench attaining it (its gradient where unique): (N,), (N, 6)."""
+        rows, wrench = self.row_support(np.atleast_2d(U))
         if len(self.starts) == rows.shape[1]:
             P, slot_wrench = rows, wrench
         else:

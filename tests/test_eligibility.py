@@ -2,10 +2,15 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
+from closure_nlp.certify import certified_bounds
 from closure_nlp.contacts import ContactSet, contact_specs
+from closure_nlp.crosscheck import force_closure_cvxpy
+from closure_nlp.elements import load_model
 from closure_nlp.eligibility import Eligibility, padded_rows, rho_hat
 from closure_nlp.quality import rho
 from tests import reference
@@ -70,6 +75,33 @@ def test_rho_hat_agrees_with_independent_reference(seed, kinds, types):
     # with k contacts at their apex is reached to about k * 1e-6 * f_max.
     ref_value, _ = reference.reference_min(slots, samples=800, starts=6)
     assert -result.rho_hat <= ref_value + 1e-6 * len(types) * max(1.0, abs(ref_value))
+
+
+MODELS = Path(__file__).resolve().parents[1] / "models"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    ("name", "kind", "eligible_set"),
+    [("lamp", "pcwf", [48, 0, 53, 34]), ("cup", "sfcl", [24, 31, 20, 3]), ("pistol", "fpc", None)],
+)
+def test_rho_hat_of_model_elements_lies_within_certified_bounds(name, kind, eligible_set):
+    """The cross-check methods (cvxpy SOCP, qhull inner polytope) on the union of vertex sets."""
+    model = load_model(MODELS / f"{name}.model.json")
+    m = 7 if kind == "fpc" else 4
+    eligibility = Eligibility(model, contact_specs(m, type=kind, mu=0.2, mu_s=0.2))
+    rng = np.random.default_rng(3)
+    sets = [rng.choice(len(model), m).tolist() for _ in range(3)]
+    for elements in [*([eligible_set] if eligible_set else []), *sets]:
+        result = eligibility(elements)
+        slots = eligibility.slots(elements)
+        lo, hi = certified_bounds(slots, result.direction)
+        tol = 1e-6 * max(1.0, abs(result.rho_hat))
+        assert lo - tol <= result.rho_hat <= hi + tol, (elements, result.rho_hat, lo, hi)
+        if abs(result.rho_hat) > 1e-6:
+            assert force_closure_cvxpy(slots) is result.eligible
+        if elements is eligible_set:
+            assert result.eligible  # the README's example set
 
 
 @pytest.mark.parametrize("kind", TYPES)

@@ -6,6 +6,7 @@ import pytest
 from closure_nlp.contacts import Contact, ContactSet, contact_set_from_dict
 from closure_nlp.quality import SearchOptions, SupportMinimizer, rho
 from closure_nlp.random_sets import random_contact_set
+from closure_nlp.tolerances import Tolerances
 from closure_nlp.wrenches import WrenchSlots
 from tests import reference
 
@@ -121,11 +122,15 @@ def test_reference_suite_covers_both_signs():
 
 
 def test_finds_global_minimum_where_weaker_starts_fail():
-    """A 5-SFCe grasp with a narrow global basin: fewer IPOPT starts with IPOPT's default
-    barrier (which drifts out of the start's basin) end in a local minimum 1e-3 too high."""
+    """A 5-SFCe grasp with a narrow global basin: one IPOPT start with IPOPT's default
+    barrier (which drifts out of the start's basin) ends in a local minimum 1e-3 too high."""
     cs = make("sfce", 5, 1)
     slots = WrenchSlots.from_contacts(cs)
-    weaker = SupportMinimizer(search=SearchOptions(ipopt_starts=2), ipopt_options={"mu_init": 0.1})
+    weaker = SupportMinimizer(
+        Tolerances(distinct_start=0.2),
+        SearchOptions(smoothing=(), ipopt_starts=1),
+        ipopt_options={"mu_init": 0.1},
+    )
     ref_value, _ = reference.reference_min(reference.from_contact_set(cs), samples=2000, starts=10)
     assert weaker(slots).value > ref_value + 1e-4  # the trap is real
     assert -rho(cs).rho == pytest.approx(ref_value, abs=1e-6)
