@@ -59,7 +59,9 @@ def bench_rho(cases: int = 30, repeats: int = 3, seed: int = 0) -> dict:
     """ms per rho evaluation (solver reused) for each case family, ours against the baseline."""
     minimizer = SupportMinimizer()
     thorough = SupportMinimizer(
-        search=SearchOptions(samples=1024, descent_iterations=60, ipopt_starts=12)
+        search=SearchOptions(
+            samples=1024, descent_iterations=60, ipopt_starts=12, element_ipopt_starts=12
+        )
     )
     report = {"benchmark": "rho", "cases_per_family": cases, "repeats": repeats, "families": {}}
     for name, types in BENCH_CASES.items():

@@ -50,12 +50,15 @@ class SearchOptions:
     smoothing_iterations : int
         Steps of the smoothed descent at each temperature.
     ipopt_starts : int
-        IPOPT runs, from the lowest end points of both descents, skipping an end point within
-        ``tolerances.distinct_start`` of a start already tried or a minimum already found.
-        Element sets (What_c^M) have many basins, and the descents' end values rank them only
-        roughly: on 205 seeded element and contact sets checked against certified bounds, 3
-        runs missed the global minimum on 4 (by up to 4.4e-3), 6 runs on 2 (1.8e-3), 8 runs on
-        1. The search is a heuristic: ``rho(..., certify=True)`` is the proof.
+        IPOPT runs for contact sets (one row per slot), from the lowest end points of both
+        descents, skipping an end point within ``tolerances.distinct_start`` of a start already
+        tried or a minimum already found.
+    element_ipopt_starts : int
+        The same for element sets (a slot with several vertex rows, What_c^M): they have many
+        more basins, which the descents' end values rank only roughly. On 205 seeded element
+        and contact sets checked against certified bounds, 3 runs missed the global minimum on
+        4 element sets (by up to 4.4e-3), 6 runs on 2 (1.8e-3), 8 runs on 1; contact sets were
+        never missed with 3. The search is a heuristic: ``rho(..., certify=True)`` is the proof.
     max_iter : int
         IPOPT iteration cap per run.
     """
@@ -64,13 +67,15 @@ class SearchOptions:
     descent_iterations: int = 30
     smoothing: tuple = (0.1, 0.03, 0.01)
     smoothing_iterations: int = 10
-    ipopt_starts: int = 6
+    ipopt_starts: int = 3
+    element_ipopt_starts: int = 6
     max_iter: int = 300
 
     def __post_init__(self) -> None:
-        for name in ("samples", "descent_iterations", "smoothing_iterations", "ipopt_starts"):
+        counts = ("samples", "descent_iterations", "smoothing_iterations")
+        for name in (*counts, "ipopt_starts", "element_ipopt_starts"):
             value = getattr(self, name)
-            least = 0 if name != "ipopt_starts" else 1
+            least = 0 if name in counts else 1
             if isinstance(value, bool) or not isinstance(value, int) or value < least:
                 raise ValueError(f"search.{name}: must be an integer >= {least}, got {value!r}")
         value = self.max_iter
@@ -331,9 +336,10 @@ class SupportMinimizer:
         first = int(np.argmin(values))
         best = (values[first], U[first], "descent", False)
         iterations = runs = 0
+        budget = search.ipopt_starts if slots.m == len(slots.G) else search.element_ipopt_starts
         tried: list[np.ndarray] = []  # starts and the minima they led to
         for i in np.argsort(values, kind="stable"):
-            if runs == search.ipopt_starts:
+            if runs == budget:
                 break
             if any(np.linalg.norm(U[i] - v) <= self.tolerances.distinct_start for v in tried):
                 continue  # a basin already explored

@@ -36,12 +36,16 @@ def smoothed_support(slots: WrenchSlots, U: np.ndarray, tau: float):
     ``p_tau`` it runs into the basin, and lowering ``tau`` sharpens the basins again.
     """
     rows, wrench = slots.row_support(U)
-    ends = np.append(slots.starts[1:], rows.shape[1])
-    P = np.empty((len(U), slots.m))
-    grad_P = np.empty((len(U), slots.m, 6))
-    for i, (a, b) in enumerate(zip(slots.starts, ends)):
-        P[:, i], weights = _soft_max(rows[:, a:b], tau)
-        grad_P[:, i] = np.einsum("nk,nkr->nr", weights, wrench[:, a:b])
+    if slots.m == rows.shape[1]:  # contacts: one row per slot, no max over vertices
+        P, grad_P = rows, wrench
+    else:
+        counts = np.asarray(slots.rows_per_slot)
+        top = np.maximum.reduceat(rows, slots.starts, axis=1)
+        e = np.exp((rows - np.repeat(top, counts, axis=1)) / tau)
+        total = np.add.reduceat(e, slots.starts, axis=1)
+        P = top + tau * np.log(total)
+        weights = e / np.repeat(total, counts, axis=1)
+        grad_P = np.add.reduceat(weights[..., None] * wrench, slots.starts, axis=1)
     # sum_i max(P_i, 0) + min(max_i P_i, 0), both smoothed: softplus and -softplus(-softmax).
     top, weights = _soft_max(P, tau)
     value = tau * np.logaddexp(0.0, P / tau).sum(axis=1) - tau * np.logaddexp(0.0, -top / tau)

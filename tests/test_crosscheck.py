@@ -234,7 +234,7 @@ def test_plain_descent_alone_misses_what_the_smoothed_one_finds():
     # 7.5e-3 too high (rho_hat too negative).
     slots = element_slots("pcwf", 1)
     plain = SupportMinimizer(
-        Tolerances(distinct_start=0.2), SearchOptions(smoothing=(), ipopt_starts=3)
+        Tolerances(distinct_start=0.2), SearchOptions(smoothing=(), element_ipopt_starts=3)
     )(slots)
     ours = SupportMinimizer()(slots)
     lo, _ = certified_bounds(slots, ours.direction, options=CertifyOptions(max_iter=10))

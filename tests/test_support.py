@@ -5,8 +5,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from closure_nlp.contacts import Contact, ContactSet, ContactType, local_frame
+from closure_nlp.contacts import Contact, ContactSet, ContactType, grasp_matrices, local_frame
 from closure_nlp.random_sets import random_contact_set
+from closure_nlp.sphere_search import smoothed_support
 from closure_nlp.wrenches import WrenchSlots
 from tests import reference
 
@@ -125,3 +126,28 @@ def test_torque_scale_scales_torque_rows_and_spin_column():
     np.testing.assert_allclose(G2[:3], G1[:3])
     np.testing.assert_allclose(G2[3:], 0.25 * G1[3:])
     np.testing.assert_allclose(G1[3:, 3], [0, 0, 1])
+
+
+@pytest.mark.parametrize("kind", ["pcwf", "sfcl", "sfce"])
+def test_smoothed_support_is_an_upper_bound_with_its_exact_gradient(kind):
+    """The smoothed descent's function: p <= p_tau <= p + O(tau), and its gradient."""
+    rng = np.random.default_rng(4)
+    kind = ContactType.parse(kind)
+    slots = WrenchSlots.build(
+        [(grasp_matrices(rng.normal(size=(k, 3)), rng.normal(size=3)), kind, 0.4, 0.2, 1.0)
+         for k in (1, 3, 4)]
+    )
+    U = rng.normal(size=(20, 6))
+    U /= np.linalg.norm(U, axis=1, keepdims=True)
+    for tau in (0.1, 1e-3):
+        value, grad = smoothed_support(slots, U, tau)
+        exact = slots.support(U)
+        assert np.all(value >= exact - 1e-12)
+        # each soft max adds at most tau log(count): rows (twice: P_i and max_i P_i), softplus
+        slack = tau * (2 * np.log(12.0) + slots.m * np.log(2.0) + np.log(slots.m))
+        assert np.all(value <= exact + slack + 1e-12)
+        h = 1e-6
+        up = [smoothed_support(slots, U + h * e, tau)[0] for e in np.eye(6)]
+        down = [smoothed_support(slots, U - h * e, tau)[0] for e in np.eye(6)]
+        numeric = (np.stack(up, axis=1) - np.stack(down, axis=1)) / (2 * h)
+        np.testing.assert_allclose(grad, numeric, atol=1e-6 * max(1.0, 1 / tau))
