@@ -310,6 +310,12 @@ class SupportMinimizer:
         self.ipopt_options = dict(ipopt_options or {})
         self._problems: dict[tuple, SupportMinProblem] = {}
 
+    def with_search(self, search: SearchOptions) -> SupportMinimizer:
+        """The same NLPs (the cache is shared) with another start strategy."""
+        other = SupportMinimizer(self.tolerances, search, self.ipopt_options)
+        other._problems = self._problems
+        return other
+
     def problem(self, slots: WrenchSlots) -> SupportMinProblem:
         key = SupportMinProblem.key(slots)
         if key not in self._problems:

@@ -19,6 +19,10 @@ how far its rho falls outside ``[lo, hi]`` (0 inside). Methods:
   closure (and only there: it returns 0 for the others).
 * cvxpy force-closure check: the verdict only (rank + SOCP margin).
 
+The same methods (but GraspIt!, which has no element sets) then measure rho_hat of random
+element sets of the example models (lamp 4 PCwF, cup 4 SFCl and 4 SFCe, pistol 7 FPC): the
+support function of the union of the elements' vertex wrench sets, with many more local minima.
+
 Writes ``compare_solvers.csv``, ``compare_solvers.md`` and ``compare_solvers.png`` to ``--out``
 and prints the Markdown table. ``--small`` runs a CI-sized suite (about 30 s).
 """
@@ -38,8 +42,10 @@ from scipy.spatial import ConvexHull, QhullError
 
 from closure_nlp.bench import paper_baseline
 from closure_nlp.certify import certified_bounds
-from closure_nlp.contacts import ContactType
+from closure_nlp.contacts import ContactType, contact_specs
 from closure_nlp.crosscheck import ball_minimum, force_closure_check
+from closure_nlp.elements import load_model
+from closure_nlp.eligibility import Eligibility
 from closure_nlp.files import write_atomic
 from closure_nlp.quality import rho
 from closure_nlp.random_sets import random_contact_set
@@ -52,7 +58,7 @@ ROOT = Path(__file__).resolve().parents[1]
 TYPES = ["fpc", "pcwf", "sfcl", "sfce"]
 KINDS = [*TYPES, "mixed"]
 METHODS = {
-    "ipopt": "IPOPT (quality.rho)",
+    "ipopt": "IPOPT (ours)",
     "slsqp": "SLSQP from +-e_k (paper)",
     "graspit": "GraspIt!/Dex-Net 8-edge qhull (other set)",
     "cvxpy": "cvxpy SOCP distance (not closure only)",
@@ -71,6 +77,19 @@ def suite(small: bool, seeds: int):
                 rng = np.random.default_rng(1000 * m + seed + 17 * len(kind))
                 types = list(rng.choice(TYPES, m)) if kind == "mixed" else [kind] * m
                 yield kind, m, seed, random_contact_set(rng, types, mu=0.5, mu_s=0.3, tilt=0.25)
+
+
+ELEMENT_CASES = [("lamp", "pcwf", 4), ("cup", "sfcl", 4), ("cup", "sfce", 4), ("pistol", "fpc", 7)]
+
+
+def element_suite(small: bool, seeds: int):
+    """(kind, m, seed, Eligibility, element ids): random element sets of the example models."""
+    for name, kind, m in ELEMENT_CASES:
+        model = load_model(ROOT / "models" / f"{name}.model.json")
+        eligibility = Eligibility(model, contact_specs(m, type=kind, mu=0.2, mu_s=0.2))
+        for seed in range(2 if small else 4 * seeds):
+            rng = np.random.default_rng(seed)
+            yield f"{name} {kind}", m, seed, eligibility, rng.choice(len(model), m).tolist()
 
 
 def edge_wrenches(contact_set) -> np.ndarray:
@@ -104,43 +123,67 @@ def timed(function, *args, **kwargs):
 
 
 def run(small: bool, seeds: int) -> list[dict]:
-    """One row per (set, method)."""
+    """One row per (set, method): the contact sets, then the element sets (rho_hat)."""
     rows = []
     for kind, m, seed, cs in suite(small, seeds):
-        slots = WrenchSlots.from_contacts(cs)
         rho(cs)  # build and warm the NLP of this shape: we time reuse
-        ours, ours_ms = timed(rho, cs)
-        bounds, bounds_ms = timed(certified_bounds, slots, ours.direction)
-        lo, hi = bounds
-        certified = bounds.force_closure
-        base = {"kind": kind, "m": m, "seed": seed, "lo": lo, "hi": hi, "certified": certified}
-
-        def add(method, value, ms, verdict, _base=base, _lo=lo, _hi=hi):
-            error = max(_lo - value, value - _hi, 0.0) if value is not None else None
-            rows.append(
-                {**_base, "method": method, "rho": value, "ms": ms, "error": error,
-                 "verdict": verdict}
-            )  # fmt: skip
-
-        add("ipopt", ours.rho, ours_ms, ours.force_closure)
-        value, ms = timed(paper_baseline, slots)
-        add("slsqp", -value, ms, -value < 0)
-        value, ms = timed(graspit_rho, cs)
-        add("graspit", value, ms, value < 0)
-        ball_minimum(slots)  # compile the SOCP of this shape once
-        found, ms = timed(ball_minimum, slots)
-        add("cvxpy", found.distance if certified is False else None, ms, found.distance == 0)
-        check, ms = timed(force_closure_check, slots)
-        add("cvxpy_fc", None, ms, check.force_closure)
-        rows.append(
-            {**base, "method": "certified", "rho": None, "ms": bounds_ms, "error": hi - lo,
-             "verdict": certified, "converged": bounds.converged}
-        )  # fmt: skip
-        print(
-            f"{kind} m={m} seed={seed}: rho {ours.rho:+.6f} in [{lo:+.9f}, {hi:+.9f}] "
-            f"({bounds_ms:.0f} ms)",
-            file=sys.stderr,
+        rows += measure(
+            {"family": "contacts", "kind": kind, "m": m, "seed": seed},
+            WrenchSlots.from_contacts(cs),
+            lambda _cs=cs: _as_tuple(rho(_cs)),
+            lambda _cs=cs: graspit_rho(_cs),
         )
+    for kind, m, seed, eligibility, elements in element_suite(small, seeds):
+        eligibility(elements)  # build and warm the NLP of this shape
+        rows += measure(
+            {"family": "elements", "kind": kind, "m": m, "seed": seed},
+            eligibility.slots(elements),
+            lambda _e=eligibility, _ids=elements: _as_tuple(_e(_ids)),
+        )
+    return rows
+
+
+def _as_tuple(result):
+    """(rho or rho_hat, direction, verdict) of a RhoResult or an EligibilityResult."""
+    value = getattr(result, "rho", getattr(result, "rho_hat", None))
+    return value, result.direction, value < 0
+
+
+def measure(base: dict, slots: WrenchSlots, ours, graspit=None) -> list[dict]:
+    """Every method on one set, each error measured against the certified bounds."""
+    rows = []
+    (value, direction, verdict), ours_ms = timed(ours)
+    bounds, bounds_ms = timed(certified_bounds, slots, direction)
+    lo, hi = bounds
+    certified = bounds.force_closure
+    base = {**base, "lo": lo, "hi": hi, "certified": certified}
+
+    def add(method, rho_value, ms, claim):
+        error = max(lo - rho_value, rho_value - hi, 0.0) if rho_value is not None else None
+        rows.append(
+            {**base, "method": method, "rho": rho_value, "ms": ms, "error": error, "verdict": claim}
+        )
+
+    add("ipopt", value, ours_ms, verdict)
+    baseline, ms = timed(paper_baseline, slots)
+    add("slsqp", -baseline, ms, -baseline < 0)
+    if graspit is not None:
+        graspit_value, ms = timed(graspit)
+        add("graspit", graspit_value, ms, graspit_value < 0)
+    ball_minimum(slots)  # compile the SOCP of this shape once
+    found, ms = timed(ball_minimum, slots)
+    add("cvxpy", found.distance if certified is False else None, ms, found.distance == 0)
+    check, ms = timed(force_closure_check, slots)
+    add("cvxpy_fc", None, ms, check.force_closure)
+    rows.append(
+        {**base, "method": "certified", "rho": None, "ms": bounds_ms, "error": hi - lo,
+         "verdict": certified, "converged": bounds.converged}
+    )  # fmt: skip
+    print(
+        f"{base['family']} {base['kind']} m={base['m']} seed={base['seed']}: rho {value:+.6f} "
+        f"in [{lo:+.9f}, {hi:+.9f}] ({bounds_ms:.0f} ms)",
+        file=sys.stderr,
+    )
     return rows
 
 
@@ -149,6 +192,8 @@ def summary(rows: list[dict]) -> list[dict]:
     out = []
     for method, label in METHODS.items():
         mine = [r for r in rows if r["method"] == method]
+        if not mine:
+            continue
         timed_rows = [
             r for r in mine if r["rho"] is not None or method in ("certified", "cvxpy_fc")
         ]
@@ -187,38 +232,49 @@ def _fmt(value, spec=".1e") -> str:
 
 
 def table(rows: list[dict]) -> str:
-    stats = summary(rows)
-    n = len({(r["kind"], r["m"], r["seed"]) for r in rows})
-    closure = sum(r["certified"] is True for r in rows if r["method"] == "certified")
-    lines = [
-        "| method | sets | median ms | median ms, closure | worst error, closure "
-        "| worst error, not closure | verdict mismatches |",
-        "|---|---|---|---|---|---|---|",
-    ]
-    for s in stats:
-        lines.append(
-            f"| {s['method']} | {s['sets']} | {s['median_ms']:.1f} "
-            f"| {_fmt(s['median_ms_closure'], '.1f')} | {_fmt(s['worst_closure'])} "
-            f"| {_fmt(s['worst_not_closure'])} | {_fmt(s['mismatches'], 'd')} |"
-        )
-    unconverged = stats[-1]["unconverged"]
+    """One Markdown table per family (contact sets: rho; element sets: rho_hat)."""
+    lines = []
+    families = (("contacts", "rho of contact sets"), ("elements", "rho_hat of element sets"))
+    for family, what in families:
+        mine = [r for r in rows if r["family"] == family]
+        if not mine:
+            continue
+        stats = summary(mine)
+        n = len({(r["kind"], r["m"], r["seed"]) for r in mine})
+        closure = sum(r["certified"] is True for r in mine if r["method"] == "certified")
+        lines += [
+            f"**{what}**: {n} sets ({closure} certified force closure / eligible)",
+            "",
+            "| method | sets | median ms | median ms, closure | worst error, closure "
+            "| worst error, not closure | verdict mismatches |",
+            "|---|---|---|---|---|---|---|",
+        ]
+        for s in stats:
+            lines.append(
+                f"| {s['method']} | {s['sets']} | {s['median_ms']:.1f} "
+                f"| {_fmt(s['median_ms_closure'], '.1f')} | {_fmt(s['worst_closure'])} "
+                f"| {_fmt(s['worst_not_closure'])} | {_fmt(s['mismatches'], 'd')} |"
+            )
+        budget = stats[-1]["unconverged"]
+        lines += ["", f"Certified bounds stopped at the refinement budget: {budget}.", ""]
     lines += [
-        "",
-        f"{n} sets ({closure} certified force closure). Error: distance of a method's rho "
-        "outside the certified [lo, hi]; for the certified bounds row, the gap hi - lo "
-        f"({unconverged} sets stopped at the refinement budget with a wider gap). The bounds "
-        "start at IPOPT's direction. The GraspIt!/Dex-Net row measures a slightly different set "
-        "(hull of the union of 8-edge cone wrenches, not the union of Minkowski sums), so its "
-        "error is the modelling difference, not a solver error. cvxpy SOCP: sets certified not "
-        "force closure only.",
+        "Error: distance of a method's value outside the certified [lo, hi]; for the certified "
+        "bounds row, the gap hi - lo. The bounds start at IPOPT's direction. The GraspIt!/Dex-Net "
+        "row measures a slightly different set (hull of the union of 8-edge cone wrenches, not "
+        "the union of Minkowski sums), so its error is the modelling difference, not a solver "
+        "error. cvxpy SOCP: sets certified not force closure only. Element sets: random ids on "
+        "the example models, mu = 0.2, mu_s = 0.2 mm.",
     ]
     return "\n".join(lines) + "\n"
 
 
 def chart(rows: list[dict], path: Path) -> None:
-    stats = summary(rows)
-    labels = [s["method"] for s in stats]
-    fig, (left, right) = plt.subplots(1, 2, figsize=(12, 4), sharey=True)
+    stats, labels = [], []
+    for family in ("contacts", "elements"):
+        mine = summary([r for r in rows if r["family"] == family])
+        stats += mine
+        labels += [f"{s['method']} [{family}]" for s in mine]
+    fig, (left, right) = plt.subplots(1, 2, figsize=(13, 6), sharey=True)
     left.barh(labels, [s["median_ms"] for s in stats], color="tab:blue")
     left.set_xscale("log")
     left.set_xlabel("median ms per set")
@@ -248,7 +304,7 @@ def main(argv=None) -> int:
     rows = run(args.small, args.seeds)
     markdown = table(rows)
     buffer = io.StringIO()
-    fields = ["kind", "m", "seed", "method", "rho", "ms", "lo", "hi", "error", "verdict",
+    fields = ["family", "kind", "m", "seed", "method", "rho", "ms", "lo", "hi", "error", "verdict",
               "certified", "converged"]  # fmt: skip
     writer = csv.DictWriter(buffer, fieldnames=fields, extrasaction="ignore")
     writer.writeheader()

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from closure_nlp import cli
+from closure_nlp.certify import certified_bounds
 from closure_nlp.contacts import ContactSet, contact_specs
 from closure_nlp.elements import Element, Model, save_model
 from closure_nlp.eligibility import Eligibility
@@ -39,9 +40,13 @@ def test_box_placement_beats_centroids_and_is_consistent():
     assert result.force_closure
     assert result.rho <= result.start_rho  # never above the centroid start
     assert result.rho < result.start_rho - 0.1  # and clearly better on this box
-    # The final rho is the rho solver's, recomputed from the final positions ...
-    again = rho(result.contact_set)
-    assert result.rho == pytest.approx(again.rho, abs=1e-9)
+    # The final rho is recomputed from the final positions and certified ...
+    lo, hi = certified_bounds(result.contact_set)
+    tol = 1e-6 * max(1.0, abs(result.rho))
+    assert lo - tol <= result.rho <= hi + tol
+    assert result.bounds[0] <= result.rho <= result.bounds[1]
+    # ... never below what a fresh search finds (a search can only over-state -rho) ...
+    assert result.rho >= rho(result.contact_set).rho - tol
     # ... agrees with the independent reference at its direction ...
     slots = reference.from_contact_set(result.contact_set)
     assert -result.rho == pytest.approx(reference.support(result.direction, slots), abs=1e-9)
