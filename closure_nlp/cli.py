@@ -457,19 +457,6 @@ def _cmd_show(args) -> None:
 COMMANDS.extend([_add_characterize, _add_show])
 
 
-def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    try:
-        args.run(args)
-    except (ValueError, TypeError) as exc:
-        sys.stderr.write(f"error: {exc}\n")
-        return 2
-    except MethodError as exc:
-        sys.stderr.write(f"error: {exc}\n")
-        return 1
-    return 0
-
-
 # --- study: grids of plans on Dask (closure_nlp.study) ----------------------------------------
 
 
@@ -560,6 +547,19 @@ def _cmd_study(args) -> None:
 
 
 COMMANDS.append(_add_study)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        args.run(args)
+    except (ValueError, TypeError) as exc:
+        sys.stderr.write(f"error: {exc}\n")
+        return 2
+    except MethodError as exc:
+        sys.stderr.write(f"error: {exc}\n")
+        return 1
+    return 0
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -1,0 +1,390 @@
+"""Studies (closure_nlp.study): validation, task ids, serial and Dask runs, resume, the CLI.
+
+The tiny study plans 4 PCwFs on a box (4 tasks of about 1.5 s). Fake runners (no solver) test the
+driver's bookkeeping fast; the slow tests run real tasks on one shared 2-worker LocalCluster.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import os
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from closure_nlp.cli import main
+from closure_nlp.elements import save_model
+from closure_nlp.study import (
+    clear_cache,
+    load_study,
+    read_results,
+    run_study,
+    run_task,
+    task_row,
+)
+from tests.shapes import box_model
+
+PLACEMENT = """
+[placement]
+starts = 1
+extra_starts = 0
+neighbour_moves = 0
+max_rounds = 10
+"""
+
+
+def write_study(folder: Path, body: str, name: str = "tiny.toml") -> Path:
+    """A study file in ``folder`` next to ``box.model.json``."""
+    folder.mkdir(parents=True, exist_ok=True)
+    if not (folder / "box.model.json").exists():
+        save_model(box_model(), folder / "box.model.json")
+    path = folder / name
+    path.write_text(body)
+    return path
+
+
+TINY = 'name = "tiny"\nmodels = ["box.model.json"]\ncontacts = 4\nmu = [0.2, 0.4]\nseeds = 2\n'
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory) -> Path:
+    return write_study(tmp_path_factory.mktemp("tiny"), TINY + PLACEMENT)
+
+
+# --- validation, before anything runs ---------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "body,needles",
+    [
+        (TINY + "colour = 'red'\n", ["colour", "unknown key"]),
+        (TINY.replace("box.model.json", "nowhere.model.json"), ["models[0]", "nowhere"]),
+        (TINY.replace("mu = [0.2, 0.4]", "mu = [0.2, -0.4]"), ["mu[1]", "-0.4"]),
+        (TINY.replace("contacts = 4", "contacts = 0"), ["contacts", "0"]),
+        (TINY.replace("contacts = 4", "contacts = 4.5"), ["contacts", "4.5"]),
+        (TINY + "type = 'glue'\n", ["type", "glue"]),
+        (TINY + "f_max = 0\n", ["f_max", "0"]),
+        (TINY.replace("seeds = 2", "seeds = 0"), ["seeds", "0"]),
+        (TINY.replace("seeds = 2", "seeds = [1, 1]"), ["seeds[1]", "repeated"]),
+        (TINY + "[placement]\nstarts = 0\n", ["placement.starts", "0"]),
+        (TINY + "[placement]\nbogus = 1\n", ["placement", "bogus", "unknown key"]),
+        (TINY + "[selection]\ninitial = 4\n", ["selection.initial", "4"]),
+        (TINY.replace("contacts = 4\n", ""), ["contacts", "missing"]),
+        (TINY + "mu = 0.3\n", ["malformed TOML"]),
+        ('models = "."\ncontacts = 3\n', []),  # a folder of models: valid
+    ],
+)
+def test_bad_study_is_refused_before_anything_runs(tmp_path, body, needles):
+    path = write_study(tmp_path, body)
+    if not needles:
+        assert [t.model for t in load_study(path).tasks] == ["box"]
+        return
+    with pytest.raises((ValueError, TypeError)) as info:
+        load_study(path)
+    for needle in needles:
+        assert needle in str(info.value)
+
+
+def test_bad_model_file_names_the_entry(tmp_path):
+    path = write_study(tmp_path, TINY)
+    (tmp_path / "box.model.json").write_text('{"elements": [{"kind": "facet"}]}')
+    with pytest.raises(ValueError, match=r"models\[0\].*box.model.json.*elements\[0\]"):
+        load_study(path)
+
+
+def test_cli_bad_study_exits_2_and_writes_nothing(tmp_path, capsys):
+    path = write_study(tmp_path, TINY.replace("mu = [0.2, 0.4]", "mu = 'high'"))
+    out = tmp_path / "out"
+    code = main(["study", str(path), "--out", str(out), "--json"])
+    captured = capsys.readouterr()
+    assert code == 2 and captured.out == ""
+    [line] = captured.err.splitlines()
+    assert line.startswith("error: ") and str(path) in line and "mu" in line and "high" in line
+    assert not out.exists()
+
+
+# --- tasks --------------------------------------------------------------------------------------
+
+
+def test_tasks_and_stable_ids(tiny, tmp_path):
+    study = load_study(tiny)
+    assert len(study.tasks) == 4 and study.duplicates == 0
+    assert [(t.mu, t.seed) for t in study.tasks] == [
+        (mu, seed) for mu in (0.2, 0.4) for seed in range(2)
+    ]
+    ids = [t.task_id for t in study.tasks]
+    assert len(set(ids)) == 4 and all(len(i) == 16 for i in ids)
+    # the same inputs elsewhere give the same ids; a changed option gives new ones
+    moved = tmp_path / "moved"
+    shutil.copytree(tiny.parent, moved)
+    assert [t.task_id for t in load_study(moved / tiny.name).tasks] == ids
+    other = PLACEMENT.replace("starts = 1", "starts = 2")
+    changed = write_study(tmp_path / "changed", TINY + other)
+    assert not set(ids) & {t.task_id for t in load_study(changed).tasks}
+    # FPC has no friction and PCwF no spin: grid points differing only there are one task
+    fpc = load_study(
+        write_study(tmp_path / "fpc", TINY + "type = ['fpc', 'pcwf']\nmu_s = [0.1, 0.2]\n")
+    )
+    assert len(fpc.tasks) == 2 + 4 and fpc.duplicates == 16 - 6
+    assert {(t.mu, t.mu_s) for t in fpc.tasks if t.type == "fpc"} == {(None, None)}
+
+
+def test_model_changed_after_loading_is_an_error_row(tmp_path):
+    study = load_study(write_study(tmp_path, TINY))
+    save_model(box_model(2.0), tmp_path / "box.model.json")
+    clear_cache()
+    row = run_task(study.tasks[0])
+    assert row["status"] == "error" and "changed" in row["error"]
+
+
+# --- the driver, with fake runners (no solver) --------------------------------------------------
+
+
+def fake_runner(task, model_text, fail_seed: int = -1):
+    """A row without planning: rho = -seed; raises for ``fail_seed``."""
+    if task.seed == fail_seed:
+        raise RuntimeError(f"seed {task.seed} fails")
+    assert model_text is not None
+    row = task_row(task)
+    row.update(status="ok", elements=[0, 1], rho=-float(task.seed), force_closure=task.seed > 0)
+    row.update(seconds=0.01, iterative_rho_hat=-1.0)
+    return row
+
+
+def test_failing_task_is_recorded_and_the_study_goes_on(tiny, tmp_path):
+    study = load_study(tiny)
+    seen = []
+    runner = functools.partial(fake_runner, fail_seed=0)
+    result = run_study(
+        study, tmp_path, serial=True, runner=runner, progress=lambda *a: seen.append(a[:2])
+    )
+    assert (result.run, result.failed, result.skipped, result.remaining) == (4, 2, 0, 0)
+    assert seen == [(k, 4) for k in range(5)]
+    rows = read_results(tmp_path / "results")
+    assert len(rows) == 4 and sorted(rows.task_id) == sorted(t.task_id for t in study.tasks)
+    errors = rows[rows.status == "error"]
+    assert set(errors.seed) == {0} and all("seed 0 fails" in e for e in errors.error)
+    summary = {(r["mu"]): r for r in result.summary}
+    assert summary[0.2]["errors"] == 1 and summary[0.2]["force_closure"] == 1
+    assert summary[0.2]["rho_best"] == -1.0 and summary[0.2]["success_rate"] == 1 / 2
+    text = (tmp_path / "summary.md").read_text()
+    assert "## Errors" in text and "seed 0 fails" in text
+    for name in ("summary.csv", "results.csv", "rho.png", "seconds.png", "study.json"):
+        assert (tmp_path / name).stat().st_size > 0
+    # run again: nothing to do; with retry_failed only the failed tasks run (and now pass)
+    again = run_study(study, tmp_path, serial=True, runner=runner)
+    assert (again.run, again.skipped) == (0, 4)
+    retry = run_study(study, tmp_path, serial=True, runner=fake_runner, retry_failed=True)
+    assert (retry.run, retry.failed, retry.skipped) == (2, 0, 2)
+    rows = read_results(tmp_path / "results")
+    assert len(rows) == 4 and set(rows.status) == {"ok"}
+
+
+def test_serial_resume_runs_every_task_once(tiny, tmp_path):
+    study = load_study(tiny)
+    first = run_study(study, tmp_path, serial=True, runner=fake_runner, limit=3)
+    assert (first.run, first.remaining) == (3, 1)
+    kept = {p.name: p.stat().st_mtime_ns for p in (tmp_path / "results").iterdir()}
+    second = run_study(study, tmp_path, serial=True, runner=fake_runner)
+    assert (second.run, second.skipped, second.remaining) == (1, 3, 0)
+    files = sorted(p.name for p in (tmp_path / "results").iterdir())
+    assert files == sorted(f"{t.task_id}.parquet" for t in study.tasks)
+    assert all((tmp_path / "results" / n).stat().st_mtime_ns == t for n, t in kept.items())
+
+
+# --- real tasks: serial against a 2-worker cluster ----------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def serial_rows(tiny, tmp_path_factory):
+    out = tmp_path_factory.mktemp("serial")
+    clear_cache()
+    study = load_study(tiny)
+    result = run_study(study, out, serial=True)
+    assert result.run == 4 and result.failed == 0
+    rows = read_results(out / "results").set_index("task_id")
+    # one process, two parameter sets (mu): only the first task of each met an empty cache
+    built = rows.loc[[t.task_id for t in study.tasks], "solvers_built"]
+    assert list(built) == [True, False, True, False]
+    return rows
+
+
+@pytest.fixture(scope="module")
+def client():
+    import dask
+    from distributed import Client
+
+    from closure_nlp.study import local_cluster
+
+    # A dead worker fails its task at once (KilledWorker) and holds only that one task.
+    config = {
+        "distributed.scheduler.allowed-failures": 0,
+        "distributed.scheduler.worker-saturation": 1.0,
+    }
+    with dask.config.set(config):
+        cluster = local_cluster(2)
+        client = Client(cluster)
+    yield client
+    client.close()
+    cluster.close()
+
+
+def same_rows(a, b) -> None:
+    """Equal elements of all three steps; rho and rho_hat to 1e-9."""
+    assert sorted(a.index) == sorted(b.index)
+    for task_id in a.index:
+        x, y = a.loc[task_id], b.loc[task_id]
+        assert x.status == y.status == "ok"
+        for column in ("heuristic_elements", "iterative_elements", "elements"):
+            assert list(x[column]) == list(y[column]), (task_id, column)
+        for column in ("heuristic_rho_hat", "iterative_rho_hat", "rho"):
+            assert abs(x[column] - y[column]) <= 1e-9, (task_id, column)
+        assert x.force_closure == y.force_closure
+
+
+@pytest.mark.slow
+def test_serial_run_matches_plan(tiny, serial_rows):
+    from closure_nlp.elements import load_model
+    from closure_nlp.eligibility import Eligibility
+    from closure_nlp.planning import plan
+
+    task = load_study(tiny).tasks[3]
+    eligibility = Eligibility(load_model(task.model_file), task.specs(), task.torque_scale)
+    result = plan(
+        eligibility,
+        seed=task.seed,
+        selection=task.selection_options(),
+        placement=task.placement_options(),
+    )
+    row = serial_rows.loc[task.task_id]
+    assert list(row.elements) == list(result.placement.elements)
+    assert abs(row.rho - result.placement.rho) <= 1e-9
+    assert abs(row.iterative_rho_hat - result.iterative.rho_hat) <= 1e-9
+    assert row.rho < 0 and row.force_closure
+
+
+@pytest.mark.slow
+def test_solvers_are_built_once_per_process(tiny, monkeypatch):
+    import casadi
+
+    task = load_study(tiny).tasks[0]
+    clear_cache()
+    first = run_task(task)
+    built = []
+    real = casadi.nlpsol
+    monkeypatch.setattr(casadi, "nlpsol", lambda *a, **k: built.append(a[0]) or real(*a, **k))
+    again = run_task(task)
+    assert first["solvers_built"] and not again["solvers_built"]
+    assert built == []  # no CasADi solver built for the second task
+    assert again["elements"] == first["elements"] and again["rho"] == first["rho"]
+    clear_cache()
+    run_task(task)
+    assert "support_min" in built and "exchange" in built  # the count above can see builds
+
+
+@pytest.mark.slow
+def test_cluster_matches_serial_one_row_per_task(tiny, serial_rows, client, tmp_path):
+    result = run_study(load_study(tiny), tmp_path, client=client)
+    assert (result.run, result.failed, result.workers) == (4, 0, 2)
+    files = list((tmp_path / "results").glob("*.parquet"))
+    assert len(files) == 4
+    rows = read_results(tmp_path / "results").set_index("task_id")
+    same_rows(rows, serial_rows)
+    # 2 parameter sets (mu) on 2 workers: at most 4 tasks met an empty cache
+    assert rows.worker.nunique() >= 1 and rows.solvers_built.sum() <= 2 * 2
+
+
+def crash_once(task, model_text, marker: str, task_id: str):
+    """Kill the worker the first time task ``task_id`` runs (``marker`` remembers it)."""
+    if task.task_id == task_id and not os.path.exists(marker):
+        Path(marker).write_text("crashed")
+        os._exit(1)
+    return run_task(task, model_text)
+
+
+@pytest.mark.slow
+def test_killed_worker_then_resume_every_task_once(tiny, serial_rows, client, tmp_path):
+    study = load_study(tiny)
+    out = tmp_path / "out"
+
+    def stop_after_two(done, total, row):
+        if done == 2:
+            raise KeyboardInterrupt  # the driver is stopped (Ctrl-C) after 2 finished tasks
+
+    with pytest.raises(KeyboardInterrupt):
+        run_study(study, out, client=client, progress=stop_after_two)
+    assert len(list((out / "results").glob("*.parquet"))) == 2
+    done = set(read_results(out / "results").task_id)
+    # resumed: a worker dies on one of the 2 tasks left (its row records the error)
+    marker = tmp_path / "marker"
+    [_, crashed] = [t.task_id for t in study.tasks if t.task_id not in done]
+    runner = functools.partial(crash_once, marker=str(marker), task_id=crashed)
+    second = run_study(study, out, client=client, runner=runner)
+    assert (second.skipped, second.run) == (2, 2)
+    rows = read_results(out / "results").set_index("task_id")
+    failed = rows[rows.status == "error"]
+    assert second.failed == len(failed) >= 1 and len(rows) == 4
+    assert all("KilledWorker" in e for e in failed.error)
+    assert marker.exists() and crashed in failed.index
+    # retried, joining the cluster by its address: only the failed tasks run, every task now
+    # has exactly one good row
+    address = client.scheduler_info()["address"]
+    third = run_study(study, out, scheduler=address, retry_failed=True)
+    assert (third.run, third.failed, third.skipped) == (len(failed), 0, 4 - len(failed))
+    assert len(list((out / "results").glob("*.parquet"))) == 4
+    same_rows(read_results(out / "results").set_index("task_id"), serial_rows)
+
+
+@pytest.mark.slow
+def test_cli_end_to_end(tmp_path, capsys):
+    path = write_study(tmp_path, TINY.replace("seeds = 2", "seeds = [1]") + PLACEMENT)
+    out = tmp_path / "out"
+    code = main(["study", str(path), "--out", str(out), "--workers", "2", "--json"])
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    payload = json.loads(captured.out)
+    assert payload["tasks"] == {"total": 2, "run": 2, "skipped": 0, "failed": 0, "remaining": 0}
+    assert payload["workers"] == 2 and payload["tasks_per_second"] > 0
+    for name in ("summary.md", "summary.csv", "results.csv", "rho.png", "seconds.png"):
+        assert Path(payload["out"][name]).stat().st_size > 0
+    assert [r["tasks"] for r in payload["summary"]] == [1, 1]
+    assert all(np.isfinite(r["rho_median"]) and r["rho_median"] < 0 for r in payload["summary"])
+    # again: everything is done, nothing runs, no cluster is started
+    code = main(["study", str(path), "--out", str(out), "--json"])
+    payload = json.loads(capsys.readouterr().out)
+    assert code == 0 and payload["tasks"]["run"] == 0 and payload["tasks"]["skipped"] == 2
+    # text output
+    code = main(["study", str(path), "--out", str(out), "--quiet"])
+    assert code == 0 and "2 done before" in capsys.readouterr().out
+
+
+# --- the example script, small (what CI runs) ----------------------------------------------------
+
+
+@pytest.mark.slow
+def test_fixture_study_example_small(tmp_path):  # about 40 s
+    import subprocess
+    import sys
+
+    root = Path(__file__).resolve().parents[1]
+    command = [sys.executable, str(root / "examples" / "fixture_study.py"), "--small"]
+    command += ["--out", str(tmp_path), "--workers", "2"]
+    env = {**os.environ, "MPLBACKEND": "Agg"}
+    proc = subprocess.run(command, capture_output=True, text=True, timeout=600, env=env)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    for name, tasks in (("fixtures-small", 3), ("grasps-small", 4)):
+        folder = tmp_path / name
+        assert f"{name}: {tasks} tasks ({tasks} run, 0 failed, 0 done before)" in proc.stdout
+        assert json.loads((folder / "study.json").read_text())["tasks"] == tasks
+        rows = read_results(folder / "results")
+        assert len(rows) == tasks and set(rows.status) == {"ok"}
+        assert (folder / "summary.md").read_text() in proc.stdout
+        for picture in ("rho.png", "seconds.png"):
+            assert (folder / picture).stat().st_size > 0
+    # run again (without a cluster): everything is done
+    command[-2:] = ["--serial"]
+    proc = subprocess.run(command, capture_output=True, text=True, timeout=600, env=env)
+    assert proc.returncode == 0 and "(0 run, 0 failed, 3 done before)" in proc.stdout
