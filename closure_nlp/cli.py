@@ -214,8 +214,11 @@ def _placement_options(args) -> PlacementOptions:
 
 def _placement_text(result) -> str:
     verdict = "force closure" if result.force_closure else "not force closure"
+    bounds = ""
+    if result.bounds is not None:
+        bounds = f"; certified {result.bounds[0]:.6g} <= rho <= {result.bounds[1]:.6g}"
     lines = [
-        f"rho = {result.rho:.9g} ({verdict}); centroids gave {result.start_rho:.6g}; "
+        f"rho = {result.rho:.9g} ({verdict}){bounds}; centroids gave {result.start_rho:.6g}; "
         f"{result.seconds:.2f} s"
     ]
     for i, c in enumerate(result.contacts):

@@ -54,12 +54,21 @@ def plan(
     selection: SelectionOptions = SelectionOptions(),
     placement: PlacementOptions = PlacementOptions(),
     progress: Progress | None = None,
+    placer: Placer | None = None,
 ) -> PlanResult:
-    """Heuristic from ``seed`` (or ``start``), iterative from its result, then placement."""
+    """Heuristic from ``seed`` (or ``start``), iterative from its result, then placement.
+
+    ``placer`` (built on the same ``eligibility``) replaces ``placement``: loops over many runs
+    pass one, so that its NLPs are built once.
+    """
     t0 = time.perf_counter()
+    if placer is None:
+        placer = Placer(eligibility, placement)
+    elif placer.eligibility is not eligibility:
+        raise ValueError("placer: must be built on the same Eligibility as the plan")
     first = heuristic(eligibility, start=start, seed=seed, options=selection, progress=progress)
     second = iterative(eligibility, first.elements, options=selection, progress=progress)
-    placed = Placer(eligibility, placement)(second.elements)
+    placed = placer(second.elements)
     return PlanResult(first, second, placed, time.perf_counter() - t0)
 
 

@@ -74,8 +74,9 @@ from .elements import load_model, model_from_dict
 from .eligibility import Eligibility
 from .files import write_atomic, write_json
 from .placement import PlacementOptions, Placer
+from .planning import plan
 from .quality import SupportMinimizer
-from .selection import SelectionOptions, heuristic, iterative
+from .selection import SelectionOptions
 from .validation import as_number, check_keys
 
 log = logging.getLogger(__name__)
@@ -486,14 +487,12 @@ def run_task(task: Task, model_text: str | None = None) -> dict:
     try:
         eligibility, placer, built = _solvers(task, model_text)
         setup = time.perf_counter() - t0
-        options = task.selection_options()
-        # planning.plan()'s three steps, but with this worker's Placer: plan() makes a new one
-        # per call, which would build the placement NLPs again for every task.
-        t1 = time.perf_counter()
-        first = heuristic(eligibility, seed=task.seed, options=options)
-        second = iterative(eligibility, first.elements, options=options)
-        placed = placer(second.elements)
-        seconds = time.perf_counter() - t1
+        result = plan(
+            eligibility, seed=task.seed, selection=task.selection_options(), placer=placer
+        )
+        first, second, placed, seconds = (
+            result.heuristic, result.iterative, result.placement, result.seconds
+        )
     except Exception as exc:  # noqa: BLE001 - a failing task is recorded, the study goes on
         row.update(status="error", error=f"{type(exc).__name__}: {exc}")
         row["wall_seconds"] = time.perf_counter() - t0
