@@ -72,15 +72,12 @@ class SearchOptions:
     max_iter: int = 300
 
     def __post_init__(self) -> None:
-        counts = ("samples", "descent_iterations", "smoothing_iterations")
-        for name in (*counts, "ipopt_starts", "element_ipopt_starts"):
+        may_be_zero = ("samples", "descent_iterations", "smoothing_iterations")
+        for name in (*may_be_zero, "ipopt_starts", "element_ipopt_starts", "max_iter"):
             value = getattr(self, name)
-            least = 0 if name in counts else 1
+            least = 0 if name in may_be_zero else 1
             if isinstance(value, bool) or not isinstance(value, int) or value < least:
                 raise ValueError(f"search.{name}: must be an integer >= {least}, got {value!r}")
-        value = self.max_iter
-        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-            raise ValueError(f"search.max_iter: must be an integer >= 1, got {value!r}")
         taus = self.smoothing
         if not isinstance(taus, tuple) or not all(
             isinstance(t, (int, float)) and not isinstance(t, bool) and t > 0 for t in taus
