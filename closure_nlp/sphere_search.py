@@ -36,29 +36,24 @@ def smoothed_support(slots: WrenchSlots, U: np.ndarray, tau: float):
     ``p_tau`` it runs into the basin, and lowering ``tau`` sharpens the basins again.
     """
     rows, wrench = slots.row_support(U)
-    if slots.m == rows.shape[1]:  # contacts: one row per slot, no max over vertices
-        P, grad_P = rows, wrench
-    else:
-        counts = np.asarray(slots.rows_per_slot)
-        top = np.maximum.reduceat(rows, slots.starts, axis=1)
-        e = np.exp((rows - np.repeat(top, counts, axis=1)) / tau)
-        total = np.add.reduceat(e, slots.starts, axis=1)
-        P = top + tau * np.log(total)
-        weights = e / np.repeat(total, counts, axis=1)
-        grad_P = np.add.reduceat(weights[..., None] * wrench, slots.starts, axis=1)
+    P, weights = _soft_max(rows, tau, slots.starts)  # each slot's max over its vertex rows
+    grad_P = np.add.reduceat(weights[..., None] * wrench, slots.starts, axis=1)
     # sum_i max(P_i, 0) + min(max_i P_i, 0), both smoothed: softplus and -softplus(-softmax).
-    top, weights = _soft_max(P, tau)
+    top, weights = _soft_max(P, tau, [0])
+    top = top[:, 0]
     value = tau * np.logaddexp(0.0, P / tau).sum(axis=1) - tau * np.logaddexp(0.0, -top / tau)
     outer = _sigmoid(P / tau) + _sigmoid(-top / tau)[:, None] * weights
     return value, np.einsum("nm,nmr->nr", outer, grad_P)
 
 
-def _soft_max(X: np.ndarray, tau: float):
-    """``tau log sum exp(X / tau)`` along axis 1 and its gradient (softmax weights)."""
-    top = X.max(axis=1, keepdims=True)
-    e = np.exp((X - top) / tau)
-    total = e.sum(axis=1, keepdims=True)
-    return (top + tau * np.log(total))[:, 0], e / total
+def _soft_max(X: np.ndarray, tau: float, starts):
+    """``tau log sum exp(X / tau)`` over each group of columns starting at ``starts``, and its
+    gradient (softmax weights within each group): (N, K) -> (N, len(starts)), (N, K)."""
+    counts = np.diff(np.append(starts, X.shape[1]))
+    top = np.maximum.reduceat(X, starts, axis=1)
+    e = np.exp((X - np.repeat(top, counts, axis=1)) / tau)
+    total = np.add.reduceat(e, starts, axis=1)
+    return top + tau * np.log(total), e / np.repeat(total, counts, axis=1)
 
 
 def _sigmoid(x: np.ndarray) -> np.ndarray:
