@@ -261,7 +261,7 @@ def certified_bounds(
         lo, hi, iterations = _inside(slots, found.direction, hints, tol, options, rng, evaluated)
     if lo > hi:  # roundoff of two exact bounds of the same number
         hi = lo
-    converged = hi - lo <= tol * max(1.0, abs(lo), abs(hi))
+    converged = _done(lo, hi, tol)
     verdict = True if hi < 0 else (False if lo >= 0 else None)
     return CertifiedBounds(
         float(lo),
