@@ -1,0 +1,304 @@
+"""The study file: a TOML grid of planning runs, validated and expanded into tasks."""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import asdict, dataclass, field, fields
+from itertools import product
+from pathlib import Path
+
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10
+    import tomli as tomllib
+
+from ..contacts import DEFAULT_F_MAX, DEFAULT_MU, DEFAULT_MU_S, ContactType
+from ..elements import load_model
+from ..placement import PlacementOptions
+from ..selection import SelectionOptions
+from ..validation import as_number, check_keys
+from .tasks import Task
+
+STUDY_KEYS = {
+    "name",
+    "description",
+    "models",
+    "type",
+    "contacts",
+    "mu",
+    "mu_s",
+    "f_max",
+    "torque_scale",
+    "seeds",
+    "selection",
+    "placement",
+}
+REQUIRED_KEYS = {"models", "contacts"}
+MODEL_SUFFIX = ".model.json"
+
+
+@dataclass(frozen=True)
+class ModelRef:
+    """A model of a study: its label, file, content digest and text (shipped to workers)."""
+
+    label: str
+    path: Path
+    digest: str
+    text: str = field(repr=False, compare=False)
+
+
+@dataclass(frozen=True)
+class Study:
+    """A validated study: its grid and the tasks it expands into.
+
+    Attributes
+    ----------
+    name, description : str
+    source : Path or None
+        The study file.
+    models : tuple of ModelRef
+    grid : dict
+        ``type``, ``contacts``, ``mu``, ``mu_s``, ``f_max``, ``torque_scale``: tuples of values.
+    seeds : tuple of int
+    selection : SelectionOptions
+    placement : PlacementOptions
+    tasks : tuple of Task
+        Grid order (models, types, counts, parameters, then seeds innermost), without repeats.
+    duplicates : int
+        Grid points dropped because they repeat a task (e.g. several ``mu`` for FPC).
+    """
+
+    name: str
+    description: str
+    source: Path | None
+    models: tuple[ModelRef, ...]
+    grid: dict
+    seeds: tuple[int, ...]
+    selection: SelectionOptions
+    placement: PlacementOptions
+    tasks: tuple[Task, ...]
+    duplicates: int
+
+    def to_dict(self) -> dict:
+        """The resolved study as JSON values (written as ``OUT/study.json``)."""
+        return {
+            "name": self.name,
+            "description": self.description,
+            "source": str(self.source) if self.source else None,
+            "models": [
+                {"label": m.label, "path": str(m.path), "digest": m.digest} for m in self.models
+            ],
+            "grid": {k: list(v) for k, v in self.grid.items()},
+            "seeds": list(self.seeds),
+            "selection": asdict(self.selection),
+            "placement": asdict(self.placement),
+            "tasks": len(self.tasks),
+            "duplicates": self.duplicates,
+        }
+
+
+def load_study(path) -> Study:
+    """Read and validate a study file (TOML) and expand its grid.
+
+    Raises
+    ------
+    ValueError, TypeError
+        For an unreadable or malformed file, an unknown or missing key, a missing or invalid
+        model, or a bad value; the message names the key and the value.
+    """
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ValueError("file not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ValueError(f"cannot read file: {exc.__class__.__name__}: {exc}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"malformed TOML: {exc}") from None
+    name = path.name.removesuffix(".toml").removesuffix(".study")
+    return study_from_dict(data, path.resolve().parent, default_name=name, source=path)
+
+
+def study_from_dict(
+    data: dict, base_dir, *, default_name: str = "study", source: Path | None = None
+) -> Study:
+    """Validate a study given as a dict (the TOML layout); model paths are relative to
+    ``base_dir``. See :func:`load_study`."""
+    check_keys(data, "study", STUDY_KEYS, REQUIRED_KEYS)
+    name = _text(data, "name", default_name)
+    description = _text(data, "description", "")
+    grid = {
+        "type": _axis(data, "type", "pcwf", lambda v, f: ContactType.parse(v, f).value),
+        "contacts": _axis(data, "contacts", None, _count),
+        "mu": _axis(data, "mu", DEFAULT_MU, _number(strict=False)),
+        "mu_s": _axis(data, "mu_s", DEFAULT_MU_S, _number(strict=False)),
+        "f_max": _axis(data, "f_max", DEFAULT_F_MAX, _number(strict=True)),
+        "torque_scale": _axis(data, "torque_scale", 1.0, _number(strict=True)),
+    }
+    seeds = _seeds(data.get("seeds", 1))
+    selection = _options(data, "selection", SelectionOptions)
+    placement = _options(data, "placement", PlacementOptions)
+    if not selection.initial < min(grid["contacts"]):
+        raise ValueError(
+            f"selection.initial: must be < every contact count {list(grid['contacts'])}, "
+            f"got {selection.initial}"
+        )
+    models = _models(data["models"], Path(base_dir))
+    tasks, duplicates = _expand(models, grid, seeds, selection, placement)
+    return Study(
+        name, description, source, models, grid, seeds, selection, placement, tasks, duplicates
+    )
+
+
+def _text(data: dict, key: str, default: str) -> str:
+    value = data.get(key, default)
+    if not isinstance(value, str):
+        raise TypeError(f"{key}: expected text, got {value!r}")
+    return value
+
+
+def _axis(data: dict, key: str, default, convert) -> tuple:
+    """A grid axis: one value or a non-empty list of distinct values."""
+    value = data.get(key, default)
+    values = value if isinstance(value, list) else [value]
+    if not values:
+        raise ValueError(f"{key}: expected a value or a non-empty list, got []")
+    out = []
+    for i, item in enumerate(values):
+        where = f"{key}[{i}]" if isinstance(value, list) else key
+        converted = convert(item, where)
+        if converted in out:
+            raise ValueError(f"{where}: repeated value {item!r}")
+        out.append(converted)
+    return tuple(out)
+
+
+def _integer(value, where: str, least: int, what: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or value < least:
+        raise ValueError(f"{where}: expected {what} >= {least}, got {value!r}")
+    return value
+
+
+def _count(value, where: str) -> int:
+    return _integer(value, where, 1, "a number of contacts")
+
+
+def _number(strict: bool):
+    """A finite number ``>= 0`` (``> 0`` when ``strict``)."""
+    return lambda value, where: as_number(value, where, minimum=0.0, strict=strict)
+
+
+def _seeds(value) -> tuple[int, ...]:
+    """``seeds``: a count N (seeds 0..N-1) or a non-empty list of distinct integers >= 0."""
+    if not isinstance(value, list):
+        return tuple(range(_integer(value, "seeds", 1, "a count (or a list of seeds)")))
+    return _axis({"seeds": value}, "seeds", None, lambda v, f: _integer(v, f, 0, "a seed"))
+
+
+def _options(data: dict, key: str, cls):
+    """A ``[selection]`` or ``[placement]`` table as its options dataclass."""
+    table = data.get(key, {})
+    check_keys(table, key, {f.name for f in fields(cls)})
+    try:
+        return cls(**table)
+    except (TypeError, ValueError) as exc:
+        raise type(exc)(f"{key}.{exc}") from None
+
+
+def _models(value, base_dir: Path) -> tuple[ModelRef, ...]:
+    """Resolve ``models`` (a path or a list of paths: files, or folders of ``*.model.json``)."""
+    entries = value if isinstance(value, list) else [value]
+    if not entries:
+        raise ValueError("models: expected a model file, a folder or a list of them, got []")
+    refs: list[ModelRef] = []
+    for i, entry in enumerate(entries):
+        where = f"models[{i}]" if isinstance(value, list) else "models"
+        if not isinstance(entry, str) or not entry:
+            raise ValueError(f"{where}: expected a path, got {entry!r}")
+        path = (base_dir / entry).resolve()
+        if path.is_dir():
+            files = sorted(path.glob(f"*{MODEL_SUFFIX}"))
+            if not files:
+                raise ValueError(f"{where}: no *{MODEL_SUFFIX} file in folder {entry!r}")
+        elif path.is_file():
+            files = [path]
+        else:
+            raise ValueError(f"{where}: model {entry!r} not found (no such file or folder)")
+        for file in files:
+            refs.append(_model_ref(file, where))
+    labels: dict[str, Path] = {}
+    for ref in refs:
+        if ref.label in labels and labels[ref.label] != ref.path:
+            raise ValueError(
+                f"models: two models labelled {ref.label!r}: {labels[ref.label]} and {ref.path}"
+            )
+        labels[ref.label] = ref.path
+    unique = list({ref.path: ref for ref in refs}.values())
+    return tuple(unique)
+
+
+def _model_ref(path: Path, where: str) -> ModelRef:
+    try:
+        raw = path.read_bytes()
+        load_model(path)  # validates every element now, not in a worker later
+    except OSError as exc:
+        raise ValueError(f"{where}: cannot read {str(path)!r}: {exc.strerror or exc}") from None
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{where}: {str(path)!r}: {exc}") from None
+    label = path.name.removesuffix(MODEL_SUFFIX).removesuffix(".json")
+    digest = hashlib.sha256(raw).hexdigest()[:16]
+    return ModelRef(label, path, digest, raw.decode("utf-8"))
+
+
+def _expand(models, grid, seeds, selection, placement) -> tuple[tuple[Task, ...], int]:
+    """Tasks in grid order, seeds innermost (so a worker meets the same solvers in a row)."""
+    sel = tuple(sorted(asdict(selection).items()))
+    plc = tuple(sorted(asdict(placement).items()))
+    tasks: dict[str, Task] = {}
+    points = 0
+    axes = [grid[k] for k in ("type", "contacts", "mu", "mu_s", "f_max", "torque_scale")]
+    for ref, (kind, m, mu, mu_s, f_max, scale), seed in product(models, product(*axes), seeds):
+        points += 1
+        task = Task(
+            ref.label,
+            str(ref.path),
+            ref.digest,
+            kind,
+            m,
+            None if kind == "fpc" else mu,  # FPC has no friction, PCwF no spin
+            mu_s if kind in ("sfcl", "sfce") else None,
+            f_max,
+            scale,
+            seed,
+            sel,
+            plc,
+        )
+        tasks.setdefault(task.task_id, task)
+    return tuple(tasks.values()), points - len(tasks)
+
+
+# --- summary, plots -----------------------------------------------------------------------------
+
+GROUP_KEYS = ("model", "type", "contacts")
+VARYING_KEYS = ("mu", "mu_s", "f_max", "torque_scale")
+
+
+def group_keys(study: Study) -> list[str]:
+    """Model, type, count, and each parameter that takes several values in the study's tasks
+    (``None``, a parameter without effect on a contact type, does not count)."""
+    values = {k: {getattr(t, k) for t in study.tasks} - {None} for k in VARYING_KEYS}
+    varying = [k for k in VARYING_KEYS if len(values[k]) > 1]
+    return list(GROUP_KEYS) + varying
+
+
+def task_groups(study: Study, frame) -> list[tuple[dict, int, object]]:
+    """Per group of :func:`group_keys`, in task order: its key values, its number of tasks and
+    the rows of ``frame`` of its tasks."""
+    keys = group_keys(study)
+    ids: dict[tuple, list[str]] = {}
+    for task in study.tasks:
+        ids.setdefault(tuple(getattr(task, k) for k in keys), []).append(task.task_id)
+    return [
+        (dict(zip(keys, values)), len(group), frame[frame.task_id.isin(group)])
+        for values, group in ids.items()
+    ]

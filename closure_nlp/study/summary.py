@@ -1,0 +1,132 @@
+"""Summaries of a study: the table per group, its Markdown, the CSV files."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from ..files import write_atomic
+from .grid import Study, group_keys, task_groups
+from .plots import plot_study
+
+
+def summarize(study: Study, frame):
+    """The summary table: one row per group of :func:`group_keys`.
+
+    Columns: the group keys, ``tasks`` (of the study), ``done``, ``errors``, ``force_closure``
+    (count), ``success_rate`` (force closure among the tasks done), ``rho_median``, ``rho_best``
+    (most negative rho), ``rho_hat_median`` (iterative selection), ``seconds_median`` (the three
+    steps of one task).
+    """
+    import pandas as pd
+
+    out = []
+    for values, tasks, mine in task_groups(study, frame):
+        ok = mine[mine.status == "ok"]
+        fc = int(ok.force_closure.fillna(False).astype(bool).sum())
+        out.append(
+            values
+            | {
+                "tasks": tasks,
+                "done": len(mine),
+                "errors": int((mine.status != "ok").sum()),
+                "force_closure": fc,
+                "success_rate": fc / len(mine) if len(mine) else float("nan"),
+                "rho_median": _stat(ok.rho, "median"),
+                "rho_best": _stat(ok.rho, "min"),
+                "rho_hat_median": _stat(ok.iterative_rho_hat, "median"),
+                "seconds_median": _stat(ok.seconds, "median"),
+            }
+        )
+    return pd.DataFrame(out, columns=group_keys(study) + SUMMARY_COLUMNS)
+
+
+SUMMARY_COLUMNS = [
+    "tasks",
+    "done",
+    "errors",
+    "force_closure",
+    "success_rate",
+    "rho_median",
+    "rho_best",
+    "rho_hat_median",
+    "seconds_median",
+]
+
+
+def _stat(series, how: str) -> float:
+    series = series.dropna()
+    return float(getattr(series, how)()) if len(series) else float("nan")
+
+
+def summary_markdown(study: Study, summary, frame) -> str:
+    """``summary.md``: the table, the counts and the first errors."""
+    rows = frame[frame.task_id.isin({t.task_id for t in study.tasks})]
+    errors = rows[rows.status != "ok"]
+    lines = [f"# Study {study.name}", ""]
+    if study.description:
+        lines += [study.description, ""]
+    lines += [
+        f"{len(study.tasks)} tasks ({len(study.models)} models, seeds "
+        f"{_range_text(study.seeds)}); {len(rows)} done, {len(errors)} with errors. "
+        "rho < 0 is force closure (best = most negative); success = force closure; seconds = "
+        "heuristic + iterative + placement of one task (median).",
+        "",
+        "| " + " | ".join(summary.columns) + " |",
+        "|" + "---|" * len(summary.columns),
+    ]
+    for record in summary.to_dict("records"):
+        lines.append("| " + " | ".join(_cell(k, v) for k, v in record.items()) + " |")
+    if len(errors):
+        lines += ["", "## Errors", ""]
+        for record in errors.head(20).to_dict("records"):
+            lines.append(
+                f"- {record['task_id']} ({record['model']}, {record['type']} x "
+                f"{record['contacts']}, seed {record['seed']}): {record['error']}"
+            )
+        if len(errors) > 20:
+            lines.append(f"- ... and {len(errors) - 20} more (see results.csv)")
+    lines += ["", "Plots: rho.png (rho over seeds), seconds.png (time per task).", ""]
+    return "\n".join(lines)
+
+
+def _range_text(seeds: Sequence[int]) -> str:
+    if list(seeds) == list(range(seeds[0], seeds[0] + len(seeds))) and len(seeds) > 2:
+        return f"{seeds[0]}..{seeds[-1]}"
+    return ",".join(str(s) for s in seeds)
+
+
+def _cell(key: str, value) -> str:
+    if value is None or (isinstance(value, float) and np.isnan(value)):
+        return "-"
+    if key == "success_rate":
+        return f"{100 * value:.0f}%"
+    if key in ("rho_median", "rho_best", "rho_hat_median"):
+        return f"{value:.4f}"
+    if key == "seconds_median":
+        return f"{value:.2f}"
+    if isinstance(value, float):
+        return f"{value:g}"
+    return str(value)
+
+
+def write_outputs(study: Study, frame, summary, out) -> dict:
+    """Write ``results.csv``, ``summary.md``, ``summary.csv``, ``rho.png`` and ``seconds.png``."""
+    out = Path(out)
+    order = {t.task_id: i for i, t in enumerate(study.tasks)}
+    rows = frame[frame.task_id.isin(order)].copy()
+    rows["_order"] = rows.task_id.map(order)
+    rows = rows.sort_values("_order").drop(columns="_order")
+    for column in ("heuristic_elements", "iterative_elements", "elements"):
+        rows[column] = rows[column].map(
+            lambda ids: " ".join(str(int(i)) for i in ids) if ids is not None else None
+        )
+    paths = {
+        "results.csv": write_atomic(out / "results.csv", rows.to_csv(index=False)),
+        "summary.csv": write_atomic(out / "summary.csv", summary.to_csv(index=False)),
+        "summary.md": write_atomic(out / "summary.md", summary_markdown(study, summary, frame)),
+    }
+    paths.update(plot_study(study, frame, out))
+    return {k: str(v) for k, v in paths.items()}

@@ -1,0 +1,234 @@
+"""One task of a study, and running it on a worker (solvers cached per thread)."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import socket
+import threading
+import time
+from collections import OrderedDict
+from collections.abc import Callable
+from dataclasses import dataclass, field, fields
+from datetime import datetime, timezone
+from pathlib import Path
+
+from .. import __version__
+from ..contacts import contact_specs
+from ..elements import model_from_dict
+from ..eligibility import Eligibility
+from ..placement import PlacementOptions, Placer
+from ..planning import plan
+from ..quality import SupportMinimizer
+from ..selection import SelectionOptions
+from .store import ROW_COLUMNS
+
+TASK_VERSION = 1  # part of every task_id: bump when a task's meaning changes
+
+# runner(task, model_text) -> row: what a worker runs for one task (tests swap it).
+Runner = Callable[["Task", "str | None"], dict]
+
+
+@dataclass(frozen=True)
+class Task:
+    """One planning run: a model, ``contacts`` contacts of one type and parameters, one seed.
+
+    Parameters that do not act on the contact type are ``None`` (``mu`` and ``mu_s`` of FPC,
+    ``mu_s`` of PCwF), so grid points that differ only in them are one task.
+
+    Attributes
+    ----------
+    model : str
+        Label of the model (its file name without ``.model.json``).
+    model_file : str
+        Absolute path of the model file (not part of :attr:`task_id`: moving a study keeps it).
+    model_digest : str
+        Hash of the model file's content (part of :attr:`task_id`: an edited model is new work).
+    type : str
+        ``fpc``, ``pcwf``, ``sfcl`` or ``sfce``.
+    contacts : int
+        Number of contacts m.
+    mu, mu_s : float or None
+    f_max, torque_scale : float
+    seed : int
+        Seed of the heuristic's random start element.
+    selection, placement : tuple of (str, object)
+        Every field of :class:`SelectionOptions` and :class:`PlacementOptions`, sorted by name.
+    """
+
+    model: str
+    model_file: str = field(compare=False)
+    model_digest: str
+    type: str
+    contacts: int
+    mu: float | None
+    mu_s: float | None
+    f_max: float
+    torque_scale: float
+    seed: int
+    selection: tuple[tuple[str, object], ...]
+    placement: tuple[tuple[str, object], ...]
+
+    def inputs(self) -> dict:
+        """Everything the result depends on, as plain JSON values (the model by its digest)."""
+        data = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "model_file"}
+        data["selection"] = dict(self.selection)
+        data["placement"] = dict(self.placement)
+        return {"version": TASK_VERSION, **data}
+
+    @property
+    def task_id(self) -> str:
+        """16 hex digits of the SHA-256 of the canonical JSON of :meth:`inputs`."""
+        text = json.dumps(self.inputs(), sort_keys=True, separators=(",", ":"), allow_nan=False)
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+    def specs(self):
+        """The contact specs of this task (defaults for the parameters that are ``None``)."""
+        given = {"mu": self.mu, "mu_s": self.mu_s}
+        return contact_specs(
+            self.contacts,
+            type=self.type,
+            f_max=self.f_max,
+            **{k: v for k, v in given.items() if v is not None},
+        )
+
+    def selection_options(self) -> SelectionOptions:
+        """The options of the heuristic and iterative algorithms."""
+        return SelectionOptions(**dict(self.selection))
+
+    def placement_options(self) -> PlacementOptions:
+        """The options of the contact placement."""
+        return PlacementOptions(**dict(self.placement))
+
+
+_CACHE_SIZE = 8
+# Per thread: CasADi solvers must not be called from two threads at once, and a joined cluster's
+# workers may run several tasks at a time (the local cluster's have one thread each).
+_local = threading.local()
+
+
+def _solvers(task: Task, model_text: str | None) -> tuple[Eligibility, Placer, bool]:
+    """The :class:`Eligibility` and :class:`Placer` of ``task``, from this thread's cache.
+
+    Returns them and whether a solver object was made now. One :class:`SupportMinimizer` serves
+    every task (its CasADi NLPs are cached by shape, the numbers are parameters); the last few
+    (model, specs, torque scale) combinations keep their eligibility and placers, so the
+    placement NLPs are built once per worker too.
+    """
+    if not hasattr(_local, "cache"):
+        _local.cache, _local.minimizer = OrderedDict(), SupportMinimizer()
+    cache = _local.cache
+    key = (task.model_digest, task.type, task.contacts, task.mu, task.mu_s, task.f_max)
+    key += (task.torque_scale,)
+    built = key not in cache
+    if built:
+        if model_text is None:
+            raw = Path(task.model_file).read_bytes()
+            if hashlib.sha256(raw).hexdigest()[:16] != task.model_digest:
+                raise ValueError(f"{task.model_file}: model file changed since the study was read")
+            model_text = raw.decode("utf-8")
+        model = model_from_dict(json.loads(model_text), Path(task.model_file).parent)
+        cache[key] = (Eligibility(model, task.specs(), task.torque_scale, _local.minimizer), {})
+        while len(cache) > _CACHE_SIZE:
+            cache.popitem(last=False)
+    cache.move_to_end(key)
+    eligibility, placers = cache[key]
+    if task.placement not in placers:
+        placers[task.placement] = Placer(eligibility, task.placement_options())
+        built = True
+    return eligibility, placers[task.placement], built
+
+
+def clear_cache() -> None:
+    """Forget this thread's solvers (tests; memory)."""
+    _local.__dict__.clear()
+
+
+def run_task(task: Task, model_text: str | None = None) -> dict:
+    """Run one task: heuristic, iterative selection and placement; never raises for a failure
+    of the method or bad input, which is recorded in the row's ``error``.
+
+    Parameters
+    ----------
+    task : Task
+    model_text : str, optional
+        The model file's content (sent by the driver, so workers need no shared file system);
+        read from ``task.model_file`` when omitted.
+
+    Returns
+    -------
+    dict
+        One result row (the columns of :data:`ROW_COLUMNS`).
+    """
+    t0 = time.perf_counter()
+    row = task_row(task)
+    try:
+        eligibility, placer, built = _solvers(task, model_text)
+        setup = time.perf_counter() - t0
+        result = plan(
+            eligibility, seed=task.seed, selection=task.selection_options(), placer=placer
+        )
+        first, second, placed, seconds = (
+            result.heuristic,
+            result.iterative,
+            result.placement,
+            result.seconds,
+        )
+    except Exception as exc:  # noqa: BLE001 - a failing task is recorded, the study goes on
+        row.update(status="error", error=f"{type(exc).__name__}: {exc}")
+        row["wall_seconds"] = time.perf_counter() - t0
+        return row
+    for prefix, result in (("heuristic", first), ("iterative", second)):
+        row[f"{prefix}_elements"] = [int(e) for e in result.elements]
+        row[f"{prefix}_rho_hat"] = float(result.rho_hat)
+        row[f"{prefix}_eligible"] = bool(result.eligible)
+        row[f"{prefix}_evaluations"] = int(result.evaluations)
+        row[f"{prefix}_seconds"] = float(result.seconds)
+    row.update(
+        status="ok",
+        heuristic_rounds=int(first.rounds),
+        elements=[int(e) for e in placed.elements],
+        rho=float(placed.rho),
+        force_closure=bool(placed.force_closure),
+        start_rho=float(placed.start_rho),
+        placement_rounds=int(placed.rounds),
+        placement_moves=len(placed.moves),
+        placement_seconds=float(placed.seconds),
+        placed_contacts=json.dumps([c.to_dict() for c in placed.contacts]),
+        seconds=seconds,
+        setup_seconds=setup,
+        solvers_built=built,
+        wall_seconds=time.perf_counter() - t0,
+    )
+    return row
+
+
+def task_row(task: Task) -> dict:
+    """A result row with the task's inputs filled in and every result column empty."""
+    row = dict.fromkeys(ROW_COLUMNS)
+    row.update(
+        task_id=task.task_id,
+        model=task.model,
+        model_digest=task.model_digest,
+        type=task.type,
+        contacts=task.contacts,
+        mu=task.mu,
+        mu_s=task.mu_s,
+        f_max=task.f_max,
+        torque_scale=task.torque_scale,
+        seed=task.seed,
+        selection=json.dumps(dict(task.selection), sort_keys=True),
+        placement=json.dumps(dict(task.placement), sort_keys=True),
+        worker=f"{socket.gethostname()}:{os.getpid()}",
+        finished=datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        closure_nlp=__version__,
+    )
+    return row
+
+
+def error_row(task: Task, message: str) -> dict:
+    """The row of a task that failed outside :func:`run_task` (a dead worker, say)."""
+    row = task_row(task)
+    row.update(status="error", error=message, worker=None)
+    return row
