@@ -28,6 +28,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import breadth_first_order, connected_components, dijkstra
 
 from .elements import Element, ElementKind, Model
+from .files import read_mesh
 
 
 @dataclass(frozen=True)
@@ -115,26 +116,10 @@ def load_mesh(mesh_or_path, source: str | None = None):
     elif isinstance(mesh_or_path, (str, Path)):
         path = Path(mesh_or_path)
         source = source or str(path)
-        mesh = _read_mesh(path, source)
+        mesh = read_mesh(path, source)
     else:
         raise TypeError(f"mesh: expected a trimesh.Trimesh or a path, got {mesh_or_path!r}")
     return repair_mesh(mesh, source)
-
-
-def _read_mesh(path: Path, source: str):
-    import trimesh
-
-    if not path.is_file():
-        raise ValueError(f"{source}: file not found")
-    try:
-        loaded = trimesh.load(str(path), force="mesh", process=True)
-    except Exception as exc:  # trimesh raises many kinds for a bad file
-        raise ValueError(
-            f"{source}: cannot read mesh: {exc.__class__.__name__}: {exc}".rstrip(": ")
-        ) from None
-    if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
-        raise ValueError(f"{source}: no triangles found (not a mesh file, or an empty mesh)")
-    return loaded
 
 
 def repair_mesh(mesh, source: str = "mesh"):

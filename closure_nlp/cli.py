@@ -19,6 +19,7 @@ from .placement import PlacementOptions, Placer
 from .planning import plan, write_report
 from .quality import rho
 from .selection import run_selection
+from .validation import MAX_ELEMENT_CONTACTS, as_count, as_torque_scale
 
 
 class InputError(ValueError):
@@ -98,12 +99,13 @@ def _add_contact_options(parser) -> None:
     g.add_argument("--torque-scale", default="1", help="factor on every torque row (default 1)")
 
 
-def _eligibility(args, m: int):
+def _eligibility(args, m: int, field: str = "--contacts"):
     """The model of ``args.model`` with ``m`` contacts of the requested specs."""
+    as_count(m, field, MAX_ELEMENT_CONTACTS, "contacts")  # the limit, before any work
     model = _load_each([args.model], load_model)[0][1]
-    if m < 1:
-        raise ValueError(f"--contacts: expected a positive number of contacts, got {m}")
-    torque_scale = _values(args.torque_scale, "--torque-scale", 1, float)
+    torque_scale = as_torque_scale(
+        _values(args.torque_scale, "--torque-scale", 1, float), "--torque-scale"
+    )
     try:
         specs = contact_specs(
             m,
@@ -149,7 +151,7 @@ def _add_eligibility(sub, common) -> None:
 
 def _cmd_eligibility(args) -> None:
     ids = _ids(args.elements, "--elements")
-    eligibility = _eligibility(args, len(ids))
+    eligibility = _eligibility(args, len(ids), "--elements")
     result = eligibility(eligibility.check_elements(ids, "--elements"))
     verdict = "eligible" if result.eligible else "not eligible"
     _emit(
@@ -229,7 +231,7 @@ def _placement_text(result) -> str:
 
 def _cmd_place(args) -> None:
     ids = _ids(args.elements, "--elements")
-    eligibility = _eligibility(args, len(ids))
+    eligibility = _eligibility(args, len(ids), "--elements")
     ids = eligibility.check_elements(ids, "--elements")
     result = Placer(eligibility, _placement_options(args))(ids)
     _emit(args, result.to_dict(), f"{args.model}: {_placement_text(result)}")

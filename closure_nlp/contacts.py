@@ -15,7 +15,19 @@ from enum import Enum
 import numpy as np
 
 from .files import load_json
-from .validation import as_number, as_unit_vector, as_vector, check_keys, parse_choice
+from .validation import (
+    MAX_ELEMENT_CONTACTS,
+    MAX_SET_CONTACTS,
+    as_coordinates,
+    as_count,
+    as_f_max,
+    as_mu,
+    as_mu_s,
+    as_torque_scale,
+    as_unit_vector,
+    check_keys,
+    parse_choice,
+)
 
 DEFAULT_MU = 0.2
 DEFAULT_MU_S = 0.2
@@ -103,9 +115,9 @@ def _check_parameters(obj, name: str) -> None:
     """Validate and normalise the ``type, mu, mu_s, f_max`` fields of a frozen dataclass."""
     set_ = object.__setattr__
     set_(obj, "type", ContactType.parse(obj.type, f"{name}.type"))
-    set_(obj, "mu", as_number(obj.mu, f"{name}.mu", minimum=0.0))
-    set_(obj, "mu_s", as_number(obj.mu_s, f"{name}.mu_s", minimum=0.0))
-    set_(obj, "f_max", as_number(obj.f_max, f"{name}.f_max", minimum=0.0, strict=True))
+    set_(obj, "mu", as_mu(obj.mu, f"{name}.mu"))
+    set_(obj, "mu_s", as_mu_s(obj.mu_s, f"{name}.mu_s"))
+    set_(obj, "f_max", as_f_max(obj.f_max, f"{name}.f_max"))
 
 
 @dataclass(frozen=True)
@@ -131,7 +143,11 @@ class ContactSpec:
 def contact_specs(
     count: int, *, type=ContactType.PCWF, mu=DEFAULT_MU, mu_s=DEFAULT_MU_S, f_max=DEFAULT_F_MAX
 ) -> tuple[ContactSpec, ...]:
-    """``count`` specs; each parameter is one value for all or a sequence of ``count`` values."""
+    """``count`` specs; each parameter is one value for all or a sequence of ``count`` values.
+
+    ``count`` is at most ``MAX_ELEMENT_CONTACTS``: these specs are for element sets.
+    """
+    count = as_count(count, "contacts", MAX_ELEMENT_CONTACTS, "contacts of an element set")
     columns = {}
     for key, value in (("type", type), ("mu", mu), ("mu_s", mu_s), ("f_max", f_max)):
         if isinstance(value, (list, tuple, np.ndarray)):
@@ -173,7 +189,7 @@ class Contact:
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
-        set_(self, "position", as_vector(self.position, f"{self.name}.position", 3))
+        set_(self, "position", as_coordinates(self.position, f"{self.name}.position"))
         set_(
             self, "inward_normal", as_unit_vector(self.inward_normal, f"{self.name}.inward_normal")
         )
@@ -205,6 +221,7 @@ class ContactSet:
         contacts = tuple(self.contacts)
         if not contacts:
             raise ValueError("contacts: at least one contact is needed, got an empty list")
+        as_count(len(contacts), "contacts", MAX_SET_CONTACTS, "contacts")
         for i, c in enumerate(contacts):
             if not isinstance(c, Contact):
                 raise TypeError(f"contacts[{i}]: expected a Contact, got {type(c).__name__}")
@@ -212,7 +229,7 @@ class ContactSet:
         object.__setattr__(
             self,
             "torque_scale",
-            as_number(self.torque_scale, "torque_scale", minimum=0.0, strict=True),
+            as_torque_scale(self.torque_scale),
         )
 
     def __len__(self) -> int:
@@ -257,6 +274,7 @@ def contact_set_from_dict(data) -> ContactSet:
         raise TypeError(f"contacts: expected a list, got {type(entries).__name__}")
     if not entries:
         raise ValueError("contacts: at least one contact is needed, got an empty list")
+    as_count(len(entries), "contacts", MAX_SET_CONTACTS, "contacts")  # before building any
     contacts = []
     for i, entry in enumerate(entries):
         name = f"contacts[{i}]"

@@ -17,7 +17,7 @@ import numpy as np
 from .contacts import grasp_matrices, local_frame
 from .files import load_json, write_json
 from .tolerances import DEFAULT_TOLERANCES, Tolerances
-from .validation import as_unit_vector, as_vector, check_keys, parse_choice
+from .validation import as_points, as_unit_vector, as_vector, check_keys, parse_choice
 
 
 class ElementKind(str, Enum):
@@ -58,7 +58,7 @@ class Element:
         set_ = object.__setattr__
         kind = ElementKind.parse(self.kind, f"{self.name}.kind")
         set_(self, "kind", kind)
-        set_(self, "vertices", _as_vertices(self.vertices, f"{self.name}.vertices"))
+        set_(self, "vertices", as_points(self.vertices, f"{self.name}.vertices"))
         set_(
             self, "inward_normal", as_unit_vector(self.inward_normal, f"{self.name}.inward_normal")
         )
@@ -111,18 +111,6 @@ def simplex_weights(weights, count: int, field: str, slack: float = 1e-9) -> np.
         raise ValueError(f"{field}: weights must be >= 0 and sum to 1, got {c.tolist()!r}")
     c = np.maximum(c, 0.0)
     return c / c.sum()
-
-
-def _as_vertices(value, field: str) -> np.ndarray:
-    try:
-        arr = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        raise TypeError(f"{field}: expected a list of [x, y, z] points, got {value!r}") from None
-    if arr.ndim != 2 or arr.shape[1] != 3 or len(arr) == 0:
-        raise ValueError(f"{field}: expected a list of [x, y, z] points, got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{field}: numbers must be finite")
-    return arr
 
 
 def _diameter(vertices: np.ndarray) -> float:

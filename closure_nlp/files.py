@@ -7,6 +7,8 @@ import os
 import tempfile
 from pathlib import Path
 
+import numpy as np
+
 
 def load_json(path) -> object:
     """Read a JSON file; a missing, unreadable or malformed file is a ``ValueError``."""
@@ -23,6 +25,10 @@ def load_json(path) -> object:
         raise ValueError(
             f"malformed JSON at line {exc.lineno} column {exc.colno}: {exc.msg}"
         ) from None
+    except RecursionError:
+        raise ValueError("JSON nested too deeply to read") from None
+    except ValueError as exc:  # e.g. an integer of more than 4300 digits
+        raise ValueError(f"malformed JSON: {exc}") from None
 
 
 def write_atomic(path, data: str | bytes) -> Path:
@@ -57,3 +63,66 @@ def _umask() -> int:
 def write_json(path, data) -> Path:
     """Write ``data`` as indented JSON, atomically; NaN and infinity are refused."""
     return write_atomic(path, json.dumps(data, indent=1, allow_nan=False) + "\n")
+
+
+def read_mesh(path, source: str | None = None):
+    """A ``trimesh.Trimesh`` from a mesh file (STL, OBJ, PLY, GLB, OFF...).
+
+    Every way a file can fail is a ``ValueError`` that names it: missing, a format trimesh does
+    not read, bytes that are not a mesh of that format (trimesh's own errors for those are
+    ``ModuleNotFoundError`` or ``NotImplementedError``), no triangles, coordinates out of range.
+    """
+    import trimesh
+
+    from .validation import MAX_COORDINATE
+
+    path = Path(path)
+    source = source or str(path)
+    if not path.is_file():
+        raise ValueError(f"{source}: file not found")
+    suffix = path.suffix.lower().lstrip(".")
+    if suffix not in trimesh.available_formats():
+        raise ValueError(
+            f"{source}: not a mesh file (unknown suffix {path.suffix!r}; "
+            "use .stl, .obj, .ply, .glb, .off...)"
+        )
+    if suffix == "stl":
+        _check_stl(path, source)
+    try:
+        loaded = trimesh.load(str(path), force="mesh", process=True)
+    except Exception as exc:  # trimesh raises many kinds for a bad file
+        # A text format that is not text ends in trimesh's search for a charset module.
+        detail = "bytes that are not text" if isinstance(exc, ImportError) else str(exc)
+        raise ValueError(
+            f"{source}: not a valid {suffix.upper()} mesh: {detail[:100] or type(exc).__name__}"
+        ) from None
+    if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
+        raise ValueError(f"{source}: no triangles found (not a mesh file, or an empty mesh)")
+    vertices = np.asarray(loaded.vertices)
+    if not np.all(np.isfinite(vertices)):
+        raise ValueError(f"{source}: vertices: numbers must be finite")
+    if float(np.abs(vertices).max()) > MAX_COORDINATE:
+        raise ValueError(
+            f"{source}: vertices: |coordinate| {float(np.abs(vertices).max()):.3g} is beyond "
+            f"the accepted range [-{MAX_COORDINATE:g}, {MAX_COORDINATE:g}]"
+        )
+    return loaded
+
+
+def _check_stl(path: Path, source: str) -> None:
+    """Binary STL: 80-byte header, triangle count, 50 bytes per triangle; or ASCII 'solid'."""
+    size = path.stat().st_size
+    with path.open("rb") as handle:
+        head = handle.read(84)
+    if size >= 84 and size == 84 + 50 * int.from_bytes(head[80:84], "little"):
+        return
+    if head.lstrip().lower().startswith(b"solid"):
+        try:
+            head.decode("ascii")
+            return
+        except UnicodeDecodeError:
+            pass
+    raise ValueError(
+        f"{source}: not an STL file (neither ASCII 'solid ...' nor a binary STL whose "
+        f"triangle count matches its {size} bytes)"
+    )

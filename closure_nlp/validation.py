@@ -1,4 +1,23 @@
-"""Checks at the public boundary: each failure names the field and the offending value."""
+"""Checks at the public boundary: each failure names the field and the offending value.
+
+Accepted magnitudes and limits
+------------------------------
+Every number the method uses must be representable in every product the engine forms, so the
+ranges below are checked on input, not discovered as a NaN answer:
+
+- coordinates (positions, vertices, reference points): ``|x| <= MAX_COORDINATE`` (1e12);
+- ``f_max`` and ``torque_scale``: in ``SCALE_RANGE`` [1e-12, 1e12];
+- ``mu`` in [0, MAX_MU] (1e6), ``mu_s`` (a length) in [0, MAX_COORDINATE];
+- a normal: any finite non-zero 3-vector (it is normalised without overflow);
+- at most ``MAX_SET_CONTACTS`` (2000) contacts in a contact set, ``MAX_ELEMENT_CONTACTS`` (32)
+  in an element set (one per listed element id), where every selection step solves many sets.
+
+With these bounds a grasp-matrix entry is at most ``torque_scale * |x|`` ~ 2e24, a local
+component ``d = G^T u`` of a unit direction at most ~2e24, a friction square ``mu^2 d^2`` at
+most ~4e60 and a support value (times ``f_max``) at most ~2e42: squared once more (norms,
+Hessians) that is ~4e84, far from the 1.8e308 of a double. At the small end, products of the
+smallest scales (1e-12 each) stay far above the 2.2e-308 where doubles lose precision.
+"""
 
 from __future__ import annotations
 
@@ -6,52 +25,179 @@ import numbers
 
 import numpy as np
 
+MAX_COORDINATE = 1e12
+SCALE_RANGE = (1e-12, 1e12)
+MAX_MU = 1e6
+MAX_MU_S = MAX_COORDINATE
 
-def as_vector(value, field: str, length: int) -> np.ndarray:
-    """Return ``value`` as a finite float vector of ``length`` entries.
+# Limits on the size of the work, checked before any of it starts.
+MAX_SET_CONTACTS = 2000  # contacts of one contact set (rho): time grows with the count
+MAX_ELEMENT_CONTACTS = 32  # contacts of an element set (eligibility, select, place, plan)
+
+
+def _check_numbers(value, field: str, depth: int) -> None:
+    """Refuse strings, booleans and other non-numbers anywhere in a nested list of ``depth``
+    levels (``np.asarray`` would turn ``"25"`` or ``true`` into a number silently)."""
+    if isinstance(value, np.ndarray):
+        if value.dtype.kind not in "iuf":
+            raise TypeError(f"{field}: expected numbers, got an array of {value.dtype}")
+        return
+    if depth == 0:
+        if isinstance(value, (bool, np.bool_)) or not isinstance(
+            value, (numbers.Real, np.floating, np.integer)
+        ):
+            raise TypeError(f"{field}: expected a number, got {_short(value)}")
+        return
+    if not isinstance(value, (list, tuple)):
+        raise TypeError(f"{field}: expected a list of numbers, got {_short(value)}")
+    for i, item in enumerate(value):
+        _check_numbers(item, f"{field}[{i}]", depth - 1)
+
+
+def _short(value, limit: int = 60) -> str:
+    """``repr`` cut to ``limit`` characters: an error line stays one readable line."""
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def _as_float_array(value, field: str, depth: int) -> np.ndarray:
+    _check_numbers(value, field, depth)
+    try:
+        return np.asarray(value, dtype=float)
+    except OverflowError:  # an integer beyond the float range, e.g. 10**400 in a JSON file
+        raise ValueError(f"{field}: a number is too large for a float") from None
+    except (TypeError, ValueError):  # ragged nesting
+        raise ValueError(f"{field}: expected a regular list of numbers") from None
+
+
+def as_vector(value, field: str, length: int, *, limit: float | None = None) -> np.ndarray:
+    """Return ``value`` as a finite float vector of ``length`` entries, each ``|x| <= limit``.
 
     Raises
     ------
     TypeError
-        If ``value`` is not a sequence of numbers.
+        If ``value`` is not a sequence of numbers (strings and booleans included).
     ValueError
-        If it has the wrong length or a NaN/infinite entry.
+        If it has the wrong length, a NaN/infinite entry, or one beyond ``limit``.
     """
-    if isinstance(value, (str, bytes, dict)) or value is None:
-        raise TypeError(f"{field}: expected {length} numbers, got {value!r}")
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise TypeError(f"{field}: expected {length} numbers, got {value!r}") from None
+    arr = _as_float_array(value, field, 1)
     if arr.shape != (length,):
-        raise ValueError(f"{field}: expected {length} numbers, got {value!r}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{field}: numbers must be finite, got {value!r}")
+        raise ValueError(f"{field}: expected {length} numbers, got {_short(value)}")
+    _check_finite(arr, field, limit)
     return arr
 
 
+def as_points(value, field: str) -> np.ndarray:
+    """Return ``value`` as a (k, 3) float array of coordinates (k >= 1), each within range."""
+    arr = _as_float_array(value, field, 2)
+    if arr.ndim != 2 or arr.shape[1] != 3 or len(arr) == 0:
+        raise ValueError(f"{field}: expected a list of [x, y, z] points, got shape {arr.shape}")
+    _check_finite(arr, field, MAX_COORDINATE)
+    return arr
+
+
+def as_coordinates(value, field: str) -> np.ndarray:
+    """A point [x, y, z] with every ``|x| <= MAX_COORDINATE``."""
+    return as_vector(value, field, 3, limit=MAX_COORDINATE)
+
+
+def _check_finite(arr: np.ndarray, field: str, limit: float | None) -> None:
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{field}: numbers must be finite")
+    if limit is not None and arr.size and float(np.abs(arr).max()) > limit:
+        raise ValueError(
+            f"{field}: |coordinate| {float(np.abs(arr).max()):.3g} is beyond the accepted "
+            f"range [-{limit:g}, {limit:g}]"
+        )
+
+
 def as_unit_vector(value, field: str) -> np.ndarray:
-    """Return a 3-vector normalised to unit length; reject a zero or non-finite one."""
+    """Return a 3-vector normalised to unit length; reject a zero or non-finite one.
+
+    Divided by its largest component first, so a normal of length 1e200 (whose length
+    overflows) or 1e-200 (whose square underflows) keeps its direction exactly.
+    """
     arr = as_vector(value, field, 3)
-    norm = float(np.linalg.norm(arr))
-    if not norm > 1e-12:
-        raise ValueError(f"{field}: zero vector {value!r} has no direction")
-    return arr / norm
+    largest = float(np.abs(arr).max())
+    if largest == 0.0:
+        raise ValueError(f"{field}: zero vector {_short(value)} has no direction")
+    if not 1e-150 < largest < 1e150:  # the squares would under/overflow: scale them first
+        arr = arr / largest
+    return arr / np.linalg.norm(arr)
 
 
-def as_number(value, field: str, *, minimum: float | None = None, strict: bool = False) -> float:
-    """Return a finite float, optionally ``>= minimum`` (``> minimum`` when ``strict``)."""
-    if isinstance(value, bool) or not isinstance(value, (numbers.Real, np.floating, np.integer)):
-        raise TypeError(f"{field}: expected a number, got {value!r}")
-    number = float(value)
+def as_number(
+    value,
+    field: str,
+    *,
+    minimum: float | None = None,
+    strict: bool = False,
+    maximum: float | None = None,
+) -> float:
+    """Return a finite float, optionally ``>= minimum`` (``> minimum`` when ``strict``) and
+    ``<= maximum``."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(
+        value, (numbers.Real, np.floating, np.integer)
+    ):
+        raise TypeError(f"{field}: expected a number, got {_short(value)}")
+    try:
+        number = float(value)
+    except OverflowError:
+        raise ValueError(f"{field}: {_short(value)} is too large for a float") from None
     if not np.isfinite(number):
-        raise ValueError(f"{field}: must be finite, got {value!r}")
+        raise ValueError(f"{field}: must be finite, got {_short(value)}")
     if minimum is not None:
         if strict and not number > minimum:
-            raise ValueError(f"{field}: must be > {minimum:g}, got {value!r}")
+            raise ValueError(f"{field}: must be > {minimum:g}, got {_short(value)}")
         if not strict and not number >= minimum:
-            raise ValueError(f"{field}: must be >= {minimum:g}, got {value!r}")
+            raise ValueError(f"{field}: must be >= {minimum:g}, got {_short(value)}")
+    if maximum is not None and number > maximum:
+        low = "" if minimum is None else f"{minimum:g}"
+        raise ValueError(
+            f"{field}: {number:g} is beyond the accepted range [{low}, {maximum:g}]"
+        )
     return number
+
+
+def in_range(value, field: str, bounds: tuple[float, float]) -> float:
+    """A finite number in ``[bounds[0], bounds[1]]``; the message names the range."""
+    number = as_number(value, field)
+    lo, hi = bounds
+    if not lo <= number <= hi:
+        side = f">= {lo:g}" if number < lo else f"<= {hi:g}"
+        raise ValueError(
+            f"{field}: must be {side} (accepted range [{lo:g}, {hi:g}]), got {_short(value)}"
+        )
+    return number
+
+
+def as_f_max(value, field: str) -> float:
+    """``f_max``: the normal-force bound, in ``SCALE_RANGE``."""
+    return in_range(value, field, SCALE_RANGE)
+
+
+def as_torque_scale(value, field: str = "torque_scale") -> float:
+    """``torque_scale``: the factor on every torque row, in ``SCALE_RANGE``."""
+    return in_range(value, field, SCALE_RANGE)
+
+
+def as_mu(value, field: str) -> float:
+    """Coulomb coefficient in [0, MAX_MU]."""
+    return in_range(value, field, (0.0, MAX_MU))
+
+
+def as_mu_s(value, field: str) -> float:
+    """Spin coefficient (a length) in [0, MAX_MU_S]."""
+    return in_range(value, field, (0.0, MAX_MU_S))
+
+
+def as_count(value, field: str, limit: int, what: str = "items") -> int:
+    """A whole number in [1, limit]; the message names the limit."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (numbers.Integral)):
+        raise TypeError(f"{field}: expected a whole number, got {_short(value)}")
+    if not 1 <= value <= limit:
+        raise ValueError(f"{field}: {value} {what} is outside the limit 1..{limit}")
+    return int(value)
 
 
 def check_keys(mapping: dict, field: str, allowed: set[str], required: set[str] = frozenset()):
@@ -61,7 +207,7 @@ def check_keys(mapping: dict, field: str, allowed: set[str], required: set[str] 
     unknown = sorted(set(mapping) - allowed)
     if unknown:
         raise ValueError(
-            f"{field}: unknown key {unknown[0]!r} (allowed: {', '.join(sorted(allowed))})"
+            f"{field}: unknown key {_short(unknown[0])} (allowed: {', '.join(sorted(allowed))})"
         )
     missing = sorted(required - set(mapping))
     if missing:
@@ -78,4 +224,4 @@ def parse_choice(cls, value, field: str, what: str):
         except ValueError:
             pass
     names = ", ".join(member.value for member in cls)
-    raise ValueError(f"{field}: unknown {what} {value!r} (expected one of {names})")
+    raise ValueError(f"{field}: unknown {what} {_short(value)} (expected one of {names})")
