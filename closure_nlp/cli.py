@@ -11,6 +11,7 @@ import argparse
 import json
 import sys
 
+from .contact_count import require_closure_count
 from .contacts import contact_specs, load_contact_set
 from .elements import load_model
 from .eligibility import Eligibility
@@ -175,6 +176,7 @@ def _add_select(sub, common) -> None:
 
 def _cmd_select(args) -> None:
     eligibility = _eligibility(args, args.contacts)
+    require_closure_count(eligibility.specs, "--contacts")
     start = _ids(args.start, "--start") if args.start else None
     progress, close = _progress(args)
     try:
@@ -233,6 +235,7 @@ def _cmd_place(args) -> None:
     ids = _ids(args.elements, "--elements")
     eligibility = _eligibility(args, len(ids), "--elements")
     ids = eligibility.check_elements(ids, "--elements")
+    require_closure_count(eligibility.specs, "--elements")
     result = Placer(eligibility, _placement_options(args))(ids)
     _emit(args, result.to_dict(), f"{args.model}: {_placement_text(result)}")
     if not result.force_closure:
@@ -254,6 +257,7 @@ def _add_plan(sub, common) -> None:
 
 def _cmd_plan(args) -> None:
     eligibility = _eligibility(args, args.contacts)
+    require_closure_count(eligibility.specs, "--contacts")
     placement_options = _placement_options(args)
     progress, close = _progress(args)
     try:

@@ -23,6 +23,7 @@ import casadi as ca
 import numpy as np
 from scipy.optimize import nnls
 
+from .contact_count import require_closure_count
 from .contacts import ContactSet
 from .elements import simplex_weights
 from .eligibility import Eligibility, padded_rows
@@ -312,6 +313,7 @@ class Placer:
     """Contact placement on element sets of one model, solvers reused across calls."""
 
     def __init__(self, eligibility: Eligibility, options: PlacementOptions = PlacementOptions()):
+        require_closure_count(eligibility.specs)
         self.eligibility = eligibility
         self.options = options
         self._problems: dict[tuple, ExchangeProblem] = {}

@@ -15,6 +15,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from .contact_count import require_closure_count
 from .eligibility import Eligibility, EligibilityResult
 from .errors import MethodError
 
@@ -122,7 +123,13 @@ def heuristic(
     SelectionResult
         The first eligible set found, else (after ``options.restarts`` rounds) the set with the
         lowest rho_hat, with ``eligible`` False.
+
+    Raises
+    ------
+    ValueError
+        When the contact specs can never give force closure (:mod:`closure_nlp.contact_count`).
     """
+    require_closure_count(eligibility.specs)
     t0 = time.perf_counter()
     m, n = eligibility.m, len(eligibility.model)
     evaluations0 = eligibility.evaluations
@@ -175,7 +182,9 @@ def iterative(
     Position ``i`` (cyclically) is replaced by the neighbour that lowers rho_hat most, if any
     does; the run ends after ``m`` consecutive positions without descent. Each candidate set's
     rho_hat is warm-started from the current ``u*`` and remembered, so no set is solved twice.
+    Contact specs that can never give force closure raise ``ValueError`` before any search.
     """
+    require_closure_count(eligibility.specs)
     t0 = time.perf_counter()
     evaluations0 = eligibility.evaluations
     current = list(eligibility.check_elements(start, "start"))

@@ -25,6 +25,14 @@ def box_model(half: float = 1.0) -> Model:
     return Model(tuple(elements), tuple(adjacency), "box", "unit")
 
 
+def corner_model(half: float = 1.0) -> Model:
+    """Three facets of the box meeting at one corner (normals +x, +y, +z): no set of contacts
+    on it is force closure or eligible, whatever their number, since none pushes along -x."""
+    box = box_model(half)
+    elements = tuple(box.elements[i] for i in (0, 2, 4))
+    return Model(elements, ((0, 1), (0, 2), (1, 2)), "corner", "unit")
+
+
 def random_element(rng, kind: str, radius: float = 1.0) -> Element:
     """An element near the sphere of ``radius``, its normal pointing roughly at the centre."""
     centre = rng.standard_normal(3)

@@ -13,7 +13,7 @@ from closure_nlp.contacts import contact_specs
 from closure_nlp.elements import Element, Model, save_model
 from closure_nlp.eligibility import Eligibility
 from closure_nlp.selection import SelectionOptions, heuristic, iterative, run_selection
-from tests.shapes import box_model
+from tests.shapes import corner_model
 
 
 def _ring_model(count: int = 12) -> Model:
@@ -82,8 +82,9 @@ def test_run_selection_chains_heuristic_then_iterative(ring):
 
 
 def test_heuristic_restarts_and_reports_failure():
-    """Two FPCs can never hold a box: every round fails, the best set comes back not eligible."""
-    eligibility = Eligibility(box_model(), contact_specs(2, type="fpc"))
+    """No contacts on three facets around a corner are eligible: every round fails, the best
+    set comes back not eligible."""
+    eligibility = Eligibility(corner_model(), contact_specs(7, type="fpc"))
     result = heuristic(eligibility, seed=0, options=SelectionOptions(restarts=3))
     assert not result.eligible and result.rounds == 3
     assert result.rho_hat >= 0
@@ -161,6 +162,6 @@ def test_cli_bad_input(capsys, ring_file, argv, message):
 
 def test_cli_select_failure_is_exit_1(capsys, tmp_path):
     path = tmp_path / "box.model.json"
-    save_model(box_model(), path)
-    code, out, err = _run(capsys, "select", str(path), "--contacts", "2", "--type", "fpc")
+    save_model(corner_model(), path)
+    code, out, err = _run(capsys, "select", str(path), "--contacts", "7", "--type", "fpc")
     assert code == 1 and "no eligible element set" in err

@@ -126,7 +126,11 @@ def test_tasks_and_stable_ids(tiny, tmp_path):
     assert not set(ids) & {t.task_id for t in load_study(changed).tasks}
     # FPC has no friction and PCwF no spin: grid points differing only there are one task
     fpc = load_study(
-        write_study(tmp_path / "fpc", TINY + "type = ['fpc', 'pcwf']\nmu_s = [0.1, 0.2]\n")
+        write_study(
+            tmp_path / "fpc",
+            TINY.replace("contacts = 4", "contacts = 7") + "type = ['fpc', 'pcwf']\n"
+            "mu_s = [0.1, 0.2]\n",
+        )
     )
     assert len(fpc.tasks) == 2 + 4 and fpc.duplicates == 16 - 6
     assert {(t.mu, t.mu_s) for t in fpc.tasks if t.type == "fpc"} == {(None, None)}

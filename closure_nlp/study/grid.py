@@ -12,7 +12,8 @@ try:
 except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib
 
-from ..contacts import DEFAULT_F_MAX, DEFAULT_MU, DEFAULT_MU_S, ContactType
+from ..contact_count import closure_count_problem
+from ..contacts import DEFAULT_F_MAX, DEFAULT_MU, DEFAULT_MU_S, ContactType, contact_specs
 from ..elements import load_model
 from ..placement import PlacementOptions
 from ..selection import SelectionOptions
@@ -143,11 +144,21 @@ def study_from_dict(
             f"selection.initial: must be < every contact count {list(grid['contacts'])}, "
             f"got {selection.initial}"
         )
+    _check_counts(grid)
     models = _models(data["models"], Path(base_dir))
     tasks, duplicates = _expand(models, grid, seeds, selection, placement)
     return Study(
         name, description, source, models, grid, seeds, selection, placement, tasks, duplicates
     )
+
+
+def _check_counts(grid: dict) -> None:
+    """Refuse a grid point whose contacts can never give force closure (before any model)."""
+    for kind, m, mu, mu_s in product(grid["type"], grid["contacts"], grid["mu"], grid["mu_s"]):
+        problem = closure_count_problem(contact_specs(m, type=kind, mu=mu, mu_s=mu_s))
+        if problem is not None:
+            point = "" if kind == "fpc" else f" (grid point mu = {mu:g}, mu_s = {mu_s:g})"
+            raise ValueError(f"contacts: {problem}{point}")
 
 
 def _text(data: dict, key: str, default: str) -> str:
