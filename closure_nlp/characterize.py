@@ -328,13 +328,64 @@ def _characterize_mesh(mesh, options: CharacterizeOptions):
     sharp = np.radians(options.sharp_angle)
     flat = np.radians(options.flat_angle)
     regions = _face_components(mesh, mesh.face_adjacency_angles < sharp)
-    patches = _face_components(mesh, mesh.face_adjacency_angles < flat)
+    patches = _planar_patches(mesh, flat)
     drafts: list[_Draft] = []
     curved: list[np.ndarray] = []
-    for r in range(regions.max() + 1):
-        faces = np.flatnonzero(regions == r)
+    for faces in _groups(regions):
         drafts += _characterize_region(mesh, faces, patches, curved, options)
     return drafts, curved
+
+
+def _groups(labels: np.ndarray, among: np.ndarray | None = None) -> list[np.ndarray]:
+    """Ids (of ``among``, default all) sharing each label, by ascending label: O(n log n)."""
+    ids = np.arange(len(labels)) if among is None else among
+    keys = labels[ids]
+    order = np.argsort(keys, kind="stable")
+    cuts = np.flatnonzero(np.diff(keys[order])) + 1
+    return np.split(ids[order], cuts)
+
+
+def _planar_patches(mesh, flat: float) -> np.ndarray:
+    """(F,) int: planar patch of each face.
+
+    Faces join across edges flatter than ``flat``; a component whose normals then spread wider
+    than ``flat`` from its mean (a fine tessellation of a curved surface, where every edge is
+    nearly flat) is regrown from its largest faces, each patch keeping the faces within ``flat``
+    of its seed's normal.
+    """
+    keep = mesh.face_adjacency_angles < flat
+    labels = _face_components(mesh, keep)
+    normals, areas = mesh.face_normals, mesh.area_faces
+    mean = np.zeros((labels.max() + 1, 3))
+    np.add.at(mean, labels, normals * areas[:, None])
+    mean /= np.maximum(np.linalg.norm(mean, axis=1), 1e-300)[:, None]
+    bent = np.flatnonzero((normals * mean[labels]).sum(1) < np.cos(flat))
+    if len(bent) == 0:
+        return labels
+    spread = np.isin(labels, np.unique(labels[bent]))
+    pairs = mesh.face_adjacency[keep & spread[mesh.face_adjacency].all(axis=1)]
+    n = len(mesh.faces)
+    graph = coo_matrix((np.ones(2 * len(pairs)), (pairs.ravel(), pairs[:, ::-1].ravel())), (n, n))
+    graph = graph.tocsr()
+    out = labels.copy()
+    done = ~spread
+    next_label = labels.max() + 1
+    cos_flat = np.cos(flat)
+    for seed in np.flatnonzero(spread)[np.argsort(-areas[spread], kind="stable")]:
+        if done[seed]:
+            continue
+        done[seed] = True
+        out[seed] = next_label
+        stack = [seed]
+        while stack:
+            f = stack.pop()
+            for g in graph.indices[graph.indptr[f] : graph.indptr[f + 1]]:
+                if not done[g] and normals[g] @ normals[seed] >= cos_flat:
+                    done[g] = True
+                    out[g] = next_label
+                    stack.append(g)
+        next_label += 1
+    return out
 
 
 def _face_components(mesh, keep: np.ndarray) -> np.ndarray:
@@ -353,8 +404,7 @@ def _characterize_region(mesh, faces, patches, curved, options) -> list[_Draft]:
     of a coarsely tessellated cylinder) they are tested like any curved patch. ``curved``
     collects the faces of each curved patch; drafts refer to it by index.
     """
-    labels = patches[faces]
-    groups = [faces[labels == g] for g in np.unique(labels)]
+    groups = _groups(patches, faces)
     if len(groups) <= 2:
         return [d for g in groups for d in _facets(mesh, g)]
     areas = np.array([mesh.area_faces[g].sum() for g in groups])
@@ -383,7 +433,7 @@ def _curved(mesh, faces, patches, curved, options, fallback: str = "points") -> 
     rulings = None if len(groups) <= 2 else _rulings(mesh, faces, np.radians(options.flat_angle))
     faceted = fallback == "facets" or len(groups) <= options.faceted_limit
     if len(groups) <= 2 or (rulings is None and faceted):
-        return [d for g in groups for d in _facets(mesh, faces[patches[faces] == g])]
+        return [d for g in _groups(patches, faces) for d in _facets(mesh, g)]
     region = len(curved)
     singular = np.zeros(0, np.int64)
     if rulings is not None:  # a cone's apex ends every ruling: it stands for none of them
@@ -613,7 +663,7 @@ def _rulings(mesh, faces: np.ndarray, tol: float) -> list[np.ndarray] | None:
 def _normal_circle(normals: np.ndarray) -> tuple[np.ndarray, float, float]:
     """Fit ``n . axis = offset`` to unit normals (k, 3): a circle on the Gauss sphere."""
     centre = normals.mean(axis=0)
-    _, sing, vt = np.linalg.svd(normals - centre)
+    _, sing, vt = np.linalg.svd(normals - centre, full_matrices=False)  # (k, 3): no k x k U
     axis = vt[2]
     offset = float(centre @ axis)
     residual = float(np.abs(normals @ axis - offset).max())
@@ -709,7 +759,7 @@ def _ruling_order(midpoints: np.ndarray) -> np.ndarray:
     centred = midpoints - midpoints.mean(axis=0)
     if len(midpoints) < 3:
         return np.arange(len(midpoints))
-    _, _, vt = np.linalg.svd(centred)
+    _, _, vt = np.linalg.svd(centred, full_matrices=False)
     xy = centred @ vt[:2].T
     return np.argsort(np.arctan2(xy[:, 1], xy[:, 0]), kind="stable")
 

@@ -113,9 +113,55 @@ def simplex_weights(weights, count: int, field: str, slack: float = 1e-9) -> np.
     return c / c.sum()
 
 
-def _diameter(vertices: np.ndarray) -> float:
-    diff = vertices[:, None, :] - vertices[None, :, :]
-    return float(np.sqrt((diff**2).sum(-1)).max())
+def _diameter(vertices: np.ndarray, block: int = 256) -> float:
+    """Largest distance between two vertices, in O(k log k) time and O(k) memory for a planar
+    set (rotating calipers on its convex hull), else by pairwise blocks of ``block`` rows."""
+    v = np.asarray(vertices, dtype=float)
+    if len(v) > block:
+        hull = _planar_hull(v)
+        if hull is not None:
+            return _caliper_diameter(hull)
+    best = 0.0
+    for start in range(0, len(v), block):
+        diff = v[start : start + block, None, :] - v[None, :, :]
+        best = max(best, float((diff**2).sum(-1).max()))
+    return float(np.sqrt(best))
+
+
+def _planar_hull(v: np.ndarray) -> np.ndarray | None:
+    """Counter-clockwise 2-D hull vertices of points that lie in one plane, else None."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    centred = v - v.mean(axis=0)
+    _, sing, vt = np.linalg.svd(centred, full_matrices=False)
+    if not sing[2] <= 1e-12 * sing[0] * np.sqrt(len(v)):
+        return None
+    xy = centred @ vt[:2].T
+    try:
+        return xy[ConvexHull(xy).vertices]
+    except (QhullError, ValueError):
+        return None
+
+
+def _caliper_diameter(xy: np.ndarray) -> float:
+    """Diameter of a convex polygon (h, 2), counter-clockwise: for each edge, the vertex
+    farthest from its line (advanced monotonically) is a candidate for both of its ends."""
+    h = len(xy)
+    if h <= 3:
+        diff = xy[:, None, :] - xy[None, :, :]
+        return float(np.sqrt((diff**2).sum(-1).max()))
+
+    def area(a, b, c):
+        return abs((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]))
+
+    best, j = 0.0, 1
+    for i in range(h):
+        a, b = xy[i], xy[(i + 1) % h]
+        while area(a, b, xy[(j + 1) % h]) > area(a, b, xy[j]):
+            j = (j + 1) % h
+        for end in (a, b):
+            best = max(best, float(((end - xy[j]) ** 2).sum()))
+    return float(np.sqrt(best))
 
 
 def _check_point(vertices, normal, name, tol) -> None:
@@ -143,7 +189,7 @@ def _check_facet(vertices, normal, name, tol) -> None:
         raise ValueError(f"{name}: a facet needs at least 3 vertices, got {k}")
     size = _diameter(vertices)
     centred = vertices - vertices.mean(axis=0)
-    _, sing, vt = np.linalg.svd(centred)
+    _, sing, vt = np.linalg.svd(centred, full_matrices=False)
     if not sing[1] > tol * size * np.sqrt(k):
         raise ValueError(f"{name}: the facet's vertices are collinear (no area)")
     plane = vt[2]
