@@ -12,12 +12,13 @@ import json
 import sys
 
 from .contact_count import require_closure_count
-from .contacts import contact_specs, load_contact_set
+from .contacts import contact_specs
 from .elements import load_model
 from .eligibility import Eligibility
 from .errors import MethodError
+from .files import write_json
 from .placement import PlacementOptions, Placer
-from .planning import plan, write_report
+from .planning import load_contacts, plan, write_report
 from .quality import rho
 from .selection import run_selection
 from .validation import MAX_ELEMENT_CONTACTS, as_count, as_torque_scale
@@ -53,7 +54,9 @@ def _load_each(paths, loader):
 
 def _add_rho(sub, common) -> None:
     p = sub.add_parser("rho", parents=[common], help="rho(0, W_c^M) of contact-set files")
-    p.add_argument("files", nargs="+", metavar="FILE", help="*.contacts.json")
+    p.add_argument(
+        "files", nargs="+", metavar="FILE", help="*.contacts.json (or a plan's report.json)"
+    )
     p.add_argument(
         "--certify",
         action="store_true",
@@ -63,7 +66,7 @@ def _add_rho(sub, common) -> None:
 
 
 def _cmd_rho(args) -> None:
-    for path, contact_set in _load_each(args.files, load_contact_set):
+    for path, contact_set in _load_each(args.files, load_contacts):
         result = rho(contact_set, certify=args.certify)
         payload = {"file": path, **result.to_dict()}
         verdict = "force closure" if result.force_closure else "not force closure"
@@ -205,6 +208,7 @@ def _add_place(sub, common) -> None:
     p.add_argument("--elements", required=True, help="element ids, one per contact: I,J,...")
     p.add_argument("--starts", type=int, default=4, help="start weights tried (default 4)")
     p.add_argument("--seed", type=int, default=0, help="random start weights after the first")
+    p.add_argument("--out", metavar="FILE", help="write the placed contacts as a contact-set file")
     _add_contact_options(p)
     p.set_defaults(run=_cmd_place)
 
@@ -237,7 +241,16 @@ def _cmd_place(args) -> None:
     ids = eligibility.check_elements(ids, "--elements")
     require_closure_count(eligibility.specs, "--elements")
     result = Placer(eligibility, _placement_options(args))(ids)
-    _emit(args, result.to_dict(), f"{args.model}: {_placement_text(result)}")
+    payload, text = result.to_dict(), f"{args.model}: {_placement_text(result)}"
+    if args.out:
+        model = eligibility.model
+        try:
+            write_json(args.out, result.contact_file(model.name, model.units))
+        except OSError as exc:
+            raise InputError(args.out, f"cannot write: {exc.strerror or exc}") from None
+        payload["out"] = {"contacts": str(args.out)}
+        text += f"\ncontacts in {args.out}"
+    _emit(args, payload, text)
     if not result.force_closure:
         raise MethodError(
             f"{args.model}: the placed contacts are not force closure (rho = {result.rho:.6g})"
@@ -250,7 +263,9 @@ def _add_plan(sub, common) -> None:
     p.add_argument("--contacts", type=int, required=True, metavar="M", help="number of contacts")
     p.add_argument("--seed", type=int, default=0, help="random start of the heuristic")
     p.add_argument("--starts", type=int, default=4, help="placement start weights (default 4)")
-    p.add_argument("--out", metavar="DIR", help="write report.json, pictures and summary.md")
+    p.add_argument(
+        "--out", metavar="DIR", help="write report.json, contacts.json, pictures and summary.md"
+    )
     _add_contact_options(p)
     p.set_defaults(run=_cmd_plan)
 
@@ -395,7 +410,9 @@ def _cmd_characterize(args) -> None:
 def _add_show(sub, common) -> None:
     p = sub.add_parser("show", parents=[common], help="picture (or 3-D scene) of a model")
     p.add_argument("model", metavar="MODEL", help="*.model.json")
-    p.add_argument("--contacts", metavar="FILE", help="*.contacts.json to draw as balls")
+    p.add_argument(
+        "--contacts", metavar="FILE", help="*.contacts.json (or a plan's report.json) to draw"
+    )
     p.add_argument(
         "--out",
         required=True,
@@ -418,6 +435,8 @@ def _contact_elements(path: str) -> list[int]:
     from .files import load_json
 
     data = load_json(path)
+    if isinstance(data, dict) and isinstance(data.get("contact_set"), dict):
+        data = data["contact_set"]  # a plan's report.json
     entries = data.get("contacts", []) if isinstance(data, dict) else []
     ids = [e.get("element") for e in entries if isinstance(e, dict)]
     return [i for i in ids if isinstance(i, int) and not isinstance(i, bool)]
@@ -431,7 +450,7 @@ def _cmd_show(args) -> None:
     [(_, model)] = _load_each([args.model], load_model)
     contacts, highlight = None, []
     if args.contacts:
-        [(_, contacts)] = _load_each([args.contacts], load_contact_set)
+        [(_, contacts)] = _load_each([args.contacts], load_contacts)
         highlight = _contact_elements(args.contacts)
     if args.highlight:
         try:

@@ -187,6 +187,25 @@ class PlacementResult:
             **({"bounds": list(self.bounds)} if self.bounds is not None else {}),
         }
 
+    def contact_file(self, name: str = "", units: str = "") -> dict:
+        """The placed contacts as a contact-set file (INTERFACE.md), each with its ``element``
+        and ``weights``; :func:`closure_nlp.load_contact_set` reads it back to the same set."""
+        data = {"torque_scale": self.contact_set.torque_scale}
+        reference = getattr(self.contact_set, "reference_point", None)
+        if reference is not None:  # models with a reference point (issue 13)
+            data["reference_point"] = np.asarray(reference, float).tolist()
+        if name:
+            data["name"] = name
+        if units:
+            data["units"] = units
+        verdict = "force closure" if self.force_closure else "not force closure"
+        data["description"] = f"placed contacts: rho = {self.rho:.9g} ({verdict})"
+        data["contacts"] = [
+            {**c.to_dict(), "element": p.element, "weights": p.weights.tolist()}
+            for c, p in zip(self.contact_set.contacts, self.contacts)
+        ]
+        return data
+
 
 class ExchangeProblem:
     """``max r`` over weights ``c`` s.t. a smooth lower bound of ``p(u_k; c)`` is ``>= r``.

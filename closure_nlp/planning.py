@@ -22,8 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
+from .contacts import ContactSet, contact_set_from_dict
 from .eligibility import Eligibility
-from .files import write_atomic, write_json
+from .files import load_json, write_atomic, write_json
 from .placement import PlacementOptions, PlacementResult, Placer
 from .selection import Progress, SelectionOptions, SelectionResult, heuristic, iterative
 
@@ -150,16 +151,29 @@ def _ids(ids) -> str:
     return ",".join(str(i) for i in ids)
 
 
+def load_contacts(path) -> ContactSet:
+    """A contact-set file, or the placed contacts of a plan's ``report.json``."""
+    data = load_json(path)
+    if isinstance(data, dict) and "placement" in data and "contacts" not in data:
+        if "contact_set" not in data:
+            raise ValueError("contact_set: missing from this report (written by an older version)")
+        data = data["contact_set"]
+    return contact_set_from_dict(data)
+
+
 def write_report(model, result: PlanResult, out_dir, options: dict) -> dict:
-    """Write ``report.json``, ``placement.png``, ``history.png`` and ``summary.md`` in
-    ``out_dir``; returns their paths by name."""
+    """Write ``report.json``, ``contacts.json`` (a contact-set file of the placed contacts),
+    ``placement.png``, ``history.png`` and ``summary.md`` in ``out_dir``; returns their paths
+    by name."""
     from .drawing import draw_contacts, draw_model, model_extent, pyplot, save_figure
 
     out = Path(out_dir)
     paths = {}
+    contacts = result.placement.contact_file(model.name, model.units)
     report = {
         "model": model.name,
         **result.to_dict(),
+        "contact_set": contacts,
         "options": options,
         "versions": versions(),
     }
@@ -200,8 +214,9 @@ def write_report(model, result: PlanResult, out_dir, options: dict) -> dict:
     paths["history.png"] = save_figure(fig, out / "history.png")
     plt.close(fig)
     paths["summary.md"] = write_atomic(out / "summary.md", summary_markdown(model, result, options))
+    paths["contacts.json"] = write_json(out / "contacts.json", contacts)
     paths["report.json"] = write_json(out / "report.json", report)
     return {name: str(p) for name, p in paths.items()}
 
 
-__all__ = ["PlanResult", "plan", "summary_markdown", "versions", "write_report"]
+__all__ = ["PlanResult", "load_contacts", "plan", "summary_markdown", "versions", "write_report"]
