@@ -213,9 +213,11 @@ def _add_place(sub, common) -> None:
     p.set_defaults(run=_cmd_place)
 
 
-def _placement_options(args) -> PlacementOptions:
+def _placement_options(args, seeded: bool) -> PlacementOptions:
+    """``--starts`` (and ``--seed`` when it seeds the placement, as in ``place``; in ``plan`` it
+    seeds the heuristic only, like the API's ``plan(seed=...)``: one seed, one answer)."""
     try:
-        return PlacementOptions(starts=args.starts, seed=args.seed)
+        return PlacementOptions(starts=args.starts, **({"seed": args.seed} if seeded else {}))
     except ValueError as exc:
         raise ValueError(f"--{exc}") from None
 
@@ -240,7 +242,7 @@ def _cmd_place(args) -> None:
     eligibility = _eligibility(args, len(ids), "--elements")
     ids = eligibility.check_elements(ids, "--elements")
     require_closure_count(eligibility.specs, "--elements")
-    result = Placer(eligibility, _placement_options(args))(ids)
+    result = Placer(eligibility, _placement_options(args, seeded=True))(ids)
     payload, text = result.to_dict(), f"{args.model}: {_placement_text(result)}"
     if args.out:
         model = eligibility.model
@@ -273,7 +275,7 @@ def _add_plan(sub, common) -> None:
 def _cmd_plan(args) -> None:
     eligibility = _eligibility(args, args.contacts)
     require_closure_count(eligibility.specs, "--contacts")
-    placement_options = _placement_options(args)
+    placement_options = _placement_options(args, seeded=False)
     progress, close = _progress(args)
     try:
         result = plan(eligibility, seed=args.seed, placement=placement_options, progress=progress)
