@@ -1,14 +1,20 @@
 """The ``closure-nlp`` command line: a thin layer over the API (INTERFACE.md).
 
 Each command is a ``_cmd_<name>(args)`` function that returns one JSON-able dict per input and a
-human-readable line for it. Bad input raises ``ValueError``/``TypeError`` (exit 2); a failure of
-the method itself raises :class:`MethodError` (exit 1). Both become one ``error:`` line on stderr.
+human-readable line for it. Exit status (README, "Exit status"): 2 for bad input, which the
+commands check before any work and raise as :class:`InputError` naming the file and the field;
+1 when the method cannot answer (:class:`MethodError`, out of memory, a non-finite result);
+3 for an internal error (a bug: any other exception once the work has started, printed as
+``internal error:``, never as bad input); 130 for Ctrl-C. No traceback reaches the user
+(``CLOSURE_NLP_TRACEBACK=1`` prints it, for bug reports).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
+import os
 import sys
 
 from .contact_count import require_closure_count
@@ -16,7 +22,7 @@ from .contacts import contact_specs
 from .elements import load_model
 from .eligibility import Eligibility
 from .errors import MethodError
-from .files import write_json
+from .files import non_finite_key, write_json
 from .placement import PlacementOptions, Placer
 from .planning import load_contacts, plan, write_report
 from .quality import rho
@@ -31,7 +37,27 @@ class InputError(ValueError):
         super().__init__(f"{source}: {message}")
 
 
+@contextlib.contextmanager
+def _reading(source: str):
+    """Checks of a command's inputs, before any work: ``ValueError``/``TypeError`` raised in
+    them is bad input of ``source`` (exit 2); the same raised later is an internal error."""
+    try:
+        yield
+    except InputError:
+        raise
+    except (ValueError, TypeError) as exc:
+        raise InputError(source, str(exc)) from None
+
+
+def _check_finite(payload: dict, source: str) -> None:
+    """Every number printed or written is finite: a NaN is the method's failure, not an answer."""
+    key = non_finite_key(payload)
+    if key is not None:
+        raise MethodError(f"{source}: the method produced a non-finite {key}; nothing reported")
+
+
 def _emit(args, payload: dict, text: str) -> None:
+    _check_finite(payload, str(payload.get("file", getattr(args, "model", ""))))
     if args.json:
         print(json.dumps(payload, allow_nan=False))
     else:
@@ -105,8 +131,16 @@ def _add_contact_options(parser) -> None:
 
 def _eligibility(args, m: int, field: str = "--contacts"):
     """The model of ``args.model`` with ``m`` contacts of the requested specs."""
-    as_count(m, field, MAX_ELEMENT_CONTACTS, "contacts")  # the limit, before any work
+    with _reading(args.model):
+        as_count(m, field, MAX_ELEMENT_CONTACTS, "contacts")  # the limit, before any work
     model = _load_each([args.model], load_model)[0][1]
+    with _reading(args.model):
+        specs, torque_scale = _specs(args, m)
+    return Eligibility(model, specs, torque_scale)
+
+
+def _specs(args, m: int):
+    """The ``m`` contact specs and the torque scale of the contact options."""
     torque_scale = as_torque_scale(
         _values(args.torque_scale, "--torque-scale", 1, float), "--torque-scale"
     )
@@ -120,14 +154,14 @@ def _eligibility(args, m: int, field: str = "--contacts"):
         )
     except ValueError as exc:
         raise ValueError(f"contact options: {exc}") from None
-    return Eligibility(model, specs, torque_scale)
+    return specs, torque_scale
 
 
 def _ids(text: str, flag: str) -> list[int]:
     try:
         return [int(p) for p in text.split(",")]
     except ValueError:
-        raise ValueError(f"{flag}: expected comma-separated element ids, got {text!r}") from None
+        raise InputError(flag, f"expected comma-separated element ids, got {text!r}") from None
 
 
 def _progress(args):
@@ -156,7 +190,9 @@ def _add_eligibility(sub, common) -> None:
 def _cmd_eligibility(args) -> None:
     ids = _ids(args.elements, "--elements")
     eligibility = _eligibility(args, len(ids), "--elements")
-    result = eligibility(eligibility.check_elements(ids, "--elements"))
+    with _reading(args.model):
+        ids = eligibility.check_elements(ids, "--elements")
+    result = eligibility(ids)
     verdict = "eligible" if result.eligible else "not eligible"
     _emit(
         args,
@@ -179,8 +215,11 @@ def _add_select(sub, common) -> None:
 
 def _cmd_select(args) -> None:
     eligibility = _eligibility(args, args.contacts)
-    require_closure_count(eligibility.specs, "--contacts")
-    start = _ids(args.start, "--start") if args.start else None
+    with _reading(args.model):
+        require_closure_count(eligibility.specs, "--contacts")
+        start = _ids(args.start, "--start") if args.start else None
+        if start is not None:
+            eligibility.check_elements(start, "--start", partial=True)
     progress, close = _progress(args)
     try:
         result = run_selection(
@@ -240,11 +279,14 @@ def _placement_text(result) -> str:
 def _cmd_place(args) -> None:
     ids = _ids(args.elements, "--elements")
     eligibility = _eligibility(args, len(ids), "--elements")
-    ids = eligibility.check_elements(ids, "--elements")
-    require_closure_count(eligibility.specs, "--elements")
-    result = Placer(eligibility, _placement_options(args, seeded=True))(ids)
+    with _reading(args.model):
+        ids = eligibility.check_elements(ids, "--elements")
+        require_closure_count(eligibility.specs, "--elements")
+        options = _placement_options(args, seeded=True)
+    result = Placer(eligibility, options)(ids)
     payload, text = result.to_dict(), f"{args.model}: {_placement_text(result)}"
     if args.out:
+        _check_finite(payload, args.model)  # before anything is written
         model = eligibility.model
         try:
             write_json(args.out, result.contact_file(model.name, model.units))
@@ -274,14 +316,16 @@ def _add_plan(sub, common) -> None:
 
 def _cmd_plan(args) -> None:
     eligibility = _eligibility(args, args.contacts)
-    require_closure_count(eligibility.specs, "--contacts")
-    placement_options = _placement_options(args, seeded=False)
+    with _reading(args.model):
+        require_closure_count(eligibility.specs, "--contacts")
+        placement_options = _placement_options(args, seeded=False)
     progress, close = _progress(args)
     try:
         result = plan(eligibility, seed=args.seed, placement=placement_options, progress=progress)
     finally:
         close()
     payload = result.to_dict()
+    _check_finite(payload, args.model)  # before anything is written
     if args.out:
         options = {
             "contacts": args.contacts,
@@ -580,16 +624,98 @@ COMMANDS.append(_add_study)
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    """Run one command; returns the exit status (module docstring), never raises but SystemExit."""
     try:
-        args.run(args)
-    except (ValueError, TypeError) as exc:
+        args = build_parser().parse_args(argv)
+        with _one_line_warnings(), _interruptible():
+            args.run(args)
+    except KeyboardInterrupt:
+        sys.stderr.write("interrupted: stopped by Ctrl-C; finished output is kept\n")
+        return 130
+    except InputError as exc:
         sys.stderr.write(f"error: {exc}\n")
         return 2
     except MethodError as exc:
         sys.stderr.write(f"error: {exc}\n")
         return 1
+    except MemoryError:
+        sys.stderr.write("error: out of memory: the input is too large for this machine\n")
+        return 1
+    except BrokenPipeError:  # stdout closed early (``| head``): nothing more to say
+        with contextlib.suppress(OSError):
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1
+    except Exception as exc:  # a bug: said as one, never dressed as bad input
+        if os.environ.get("CLOSURE_NLP_TRACEBACK"):
+            import traceback
+
+            traceback.print_exc()
+        text = " ".join(str(exc).split())[:300]
+        sys.stderr.write(
+            f"internal error: {type(exc).__name__}: {text} (a bug in closure_nlp, not in the "
+            "input; CLOSURE_NLP_TRACEBACK=1 shows where)\n"
+        )
+        return 3
     return 0
+
+
+@contextlib.contextmanager
+def _one_line_warnings():
+    """Each warning is one ``warning:`` line on stderr (Python's format adds a source line)."""
+    import warnings
+
+    saved = warnings.showwarning
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        sys.stderr.write(f"warning: {' '.join(str(message).split())}\n")
+
+    warnings.showwarning = show
+    try:
+        yield
+    finally:
+        warnings.showwarning = saved
+
+
+@contextlib.contextmanager
+def _interruptible():
+    """Ctrl-C raises ``KeyboardInterrupt`` in Python code, never inside a CasADi call.
+
+    CasADi polls Python's signal handlers during IPOPT and, when one raises, stops the solver and
+    returns its last iterate as if it were the answer (with a warning on stderr). So inside a
+    CasADi call the handler only notes the interrupt and polls with a short timer until Python
+    code runs again, and raises there.
+    """
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    import casadi
+
+    casadi_dir = os.path.dirname(casadi.__file__)
+
+    def inside_casadi(frame) -> bool:
+        return frame is not None and frame.f_code.co_filename.startswith(casadi_dir)
+
+    def on_signal(signum, frame):
+        if signum == signal.SIGINT or interrupted:
+            if inside_casadi(frame):
+                interrupted.append(signum)
+                signal.setitimer(signal.ITIMER_REAL, 0.002)
+                return
+            signal.setitimer(signal.ITIMER_REAL, 0)
+            raise KeyboardInterrupt
+
+    interrupted: list[int] = []
+    saved = signal.signal(signal.SIGINT, on_signal), signal.signal(signal.SIGALRM, on_signal)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGINT, saved[0])
+        signal.signal(signal.SIGALRM, saved[1])
 
 
 if __name__ == "__main__":  # pragma: no cover

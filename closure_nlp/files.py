@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import os
 import tempfile
 from pathlib import Path
@@ -61,8 +62,30 @@ def _umask() -> int:
 
 
 def write_json(path, data) -> Path:
-    """Write ``data`` as indented JSON, atomically; NaN and infinity are refused."""
+    """Write ``data`` as indented JSON, atomically; NaN and infinity are refused, naming the key
+    (json's own "Out of range float values are not JSON compliant" names none)."""
+    key = non_finite_key(data)
+    if key is not None:
+        raise ValueError(f"{path}: refusing to write the non-finite number at {key}")
     return write_atomic(path, json.dumps(data, indent=1, allow_nan=False) + "\n")
+
+
+def non_finite_key(value, key: str = "") -> str | None:
+    """The key path (``placement.rho``, ``history[3]``) of the first NaN or infinity in a
+    JSON-able value, or None when every number is finite."""
+    if isinstance(value, float):
+        return None if math.isfinite(value) else key or "value"
+    if isinstance(value, dict):
+        items = value.items()
+    elif isinstance(value, (list, tuple)):
+        items = enumerate(value)
+    else:
+        return None
+    for k, v in items:
+        found = non_finite_key(v, f"{key}.{k}" if isinstance(k, str) else f"{key}[{k}]")
+        if found:
+            return found.lstrip(".")
+    return None
 
 
 def read_mesh(path, source: str | None = None):
