@@ -22,7 +22,13 @@ from .contacts import contact_specs
 from .elements import load_model
 from .eligibility import Eligibility
 from .errors import MethodError
-from .files import non_finite_key, write_json
+from .files import (
+    check_output_dir,
+    check_output_file,
+    non_finite_key,
+    staged_folder,
+    write_json,
+)
 from .placement import PlacementOptions, Placer
 from .planning import load_contacts, plan, write_report
 from .quality import rho
@@ -283,6 +289,9 @@ def _cmd_place(args) -> None:
         ids = eligibility.check_elements(ids, "--elements")
         require_closure_count(eligibility.specs, "--elements")
         options = _placement_options(args, seeded=True)
+    if args.out:
+        with _reading(args.out):
+            check_output_file(args.out)
     result = Placer(eligibility, options)(ids)
     payload, text = result.to_dict(), f"{args.model}: {_placement_text(result)}"
     if args.out:
@@ -319,6 +328,9 @@ def _cmd_plan(args) -> None:
     with _reading(args.model):
         require_closure_count(eligibility.specs, "--contacts")
         placement_options = _placement_options(args, seeded=False)
+    if args.out:
+        with _reading(args.out):
+            check_output_dir(args.out)
     progress, close = _progress(args)
     try:
         result = plan(eligibility, seed=args.seed, placement=placement_options, progress=progress)
@@ -337,7 +349,9 @@ def _cmd_plan(args) -> None:
             "torque_scale": args.torque_scale,
             "placement": vars(placement_options),
         }
-        payload["out"] = write_report(eligibility.model, result, args.out, options)
+        with staged_folder(args.out) as staged:  # all files of this run, or none
+            written = write_report(eligibility.model, result, staged, options)
+        payload["out"] = {name: os.path.join(args.out, name) for name in written}
     h, it = result.heuristic, result.iterative
     text = (
         f"{args.model}: heuristic {_join(h.elements)} rho_hat = {h.rho_hat:.6g} "
@@ -423,7 +437,8 @@ def _cmd_characterize(args) -> None:
     from .characterize import characterize
     from .elements import save_model
 
-    out = Path(args.out)
+    with _reading(args.out):
+        out = check_output_file(args.out)
     mesh_ref = Path(os.path.relpath(Path(args.mesh).resolve(), out.resolve().parent)).as_posix()
     try:
         model = characterize(
@@ -493,6 +508,8 @@ def _cmd_show(args) -> None:
 
     from .drawing import PICTURE_SUFFIXES, SCENE_SUFFIXES, save_view
 
+    with _reading(args.out):
+        check_output_file(args.out)
     [(_, model)] = _load_each([args.model], load_model)
     contacts, highlight = None, []
     if args.contacts:
@@ -678,7 +695,7 @@ def _one_line_warnings():
 
 @contextlib.contextmanager
 def _interruptible():
-    """Ctrl-C raises ``KeyboardInterrupt`` in Python code, never inside a CasADi call.
+    """Ctrl-C (or SIGTERM) raises ``KeyboardInterrupt`` in Python code, never inside CasADi.
 
     CasADi polls Python's signal handlers during IPOPT and, when one raises, stops the solver and
     returns its last iterate as if it were the answer (with a warning on stderr). So inside a
@@ -700,7 +717,7 @@ def _interruptible():
         return frame is not None and frame.f_code.co_filename.startswith(casadi_dir)
 
     def on_signal(signum, frame):
-        if signum == signal.SIGINT or interrupted:
+        if signum != signal.SIGALRM or interrupted:
             if inside_casadi(frame):
                 interrupted.append(signum)
                 signal.setitimer(signal.ITIMER_REAL, 0.002)
@@ -709,13 +726,15 @@ def _interruptible():
             raise KeyboardInterrupt
 
     interrupted: list[int] = []
-    saved = signal.signal(signal.SIGINT, on_signal), signal.signal(signal.SIGALRM, on_signal)
+    # SIGTERM too: a polite kill also removes the temporary files of what was being written.
+    signums = (signal.SIGINT, signal.SIGTERM, signal.SIGALRM)
+    saved = [signal.signal(signum, on_signal) for signum in signums]
     try:
         yield
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGINT, saved[0])
-        signal.signal(signal.SIGALRM, saved[1])
+        for signum, handler in zip(signums, saved):
+            signal.signal(signum, handler)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import contextlib
+import glob
 import json
 import math
 import os
+import shutil
 import tempfile
 from pathlib import Path
 
@@ -41,7 +44,10 @@ def write_atomic(path, data: str | bytes) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     mode = "wb" if isinstance(data, bytes) else "w"
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    _remove_stale(path, ".tmp")
+    fd, tmp = tempfile.mkstemp(
+        prefix=f".{path.name}.partial-{os.getpid()}-", suffix=".tmp", dir=path.parent
+    )
     try:
         with os.fdopen(fd, mode, **({} if mode == "wb" else {"encoding": "utf-8"})) as handle:
             handle.write(data)
@@ -149,3 +155,100 @@ def _check_stl(path: Path, source: str) -> None:
         f"{source}: not an STL file (neither ASCII 'solid ...' nor a binary STL whose "
         f"triangle count matches its {size} bytes)"
     )
+
+
+# --- output paths: checked before any work, folders written as a set ------------------------
+
+
+def check_output_file(path, field: str = "--out") -> Path:
+    """Refuse, before any work, an output file that could not be written: a folder of that
+    name, a path under a file, or a place this process cannot write."""
+    path = Path(path)
+    if path.is_dir():
+        raise ValueError(f"{field}: is a folder, not a file")
+    _check_writable_parent(path, field)
+    return path
+
+
+def check_output_dir(path, field: str = "--out", marker: str = "report.json") -> Path:
+    """Refuse, before any work, an output folder that could not be written as a set: an existing
+    file, a path under a file, an unwritable place, or a folder holding files of something else
+    (a rerun replaces the whole folder, so only an empty one or a previous run's, recognised by
+    ``marker``, is accepted)."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise ValueError(f"{field}: exists and is not a folder")
+    if path.is_dir():
+        entries = [p.name for p in path.iterdir()]
+        if entries and marker not in entries:
+            raise ValueError(
+                f"{field}: the folder holds other files ({', '.join(sorted(entries)[:3])}...); "
+                f"use a new or empty folder, or one with a previous {marker}, which is replaced"
+            )
+    _check_writable_parent(path, field)
+    return path
+
+
+def _check_writable_parent(path: Path, field: str) -> None:
+    ancestor = path.absolute().parent
+    while not ancestor.exists():
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():
+        raise ValueError(f"{field}: is under {ancestor}, which is a file")
+    try:  # a real probe: permissions, read-only file systems, /proc all answer the same way
+        fd, probe = tempfile.mkstemp(prefix=".closure_nlp-probe-", dir=ancestor)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise ValueError(f"{field}: cannot write in {ancestor}: {exc.strerror or exc}") from None
+
+
+@contextlib.contextmanager
+def staged_folder(path):
+    """Write a folder as a set: yields a temporary folder beside ``path`` that replaces it (by
+    renames) only when the block ends without an exception, so readers never see a mix of two
+    runs or a partial set. Stale temporary folders of killed runs are removed on the next one."""
+    out = Path(path).absolute()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    _remove_stale(out)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-{os.getpid()}-", dir=out.parent))
+    try:
+        yield tmp
+        os.chmod(tmp, 0o777 & ~_umask())  # mkdtemp makes 0700
+        if out.exists():
+            old = out.parent / f".{out.name}.old-{os.getpid()}"
+            os.rename(out, old)
+            try:
+                os.rename(tmp, out)
+            except BaseException:
+                os.rename(old, out)
+                raise
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.rename(tmp, out)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _remove_stale(out: Path, suffix: str = "") -> None:
+    """Temporary files or folders ``.NAME.partial-PID-*`` / ``.NAME.old-PID`` of processes that
+    are gone (killed while writing): a kill -9 cannot clean up, so the next writer does."""
+    for entry in out.parent.glob(f".{glob.escape(out.name)}.*{suffix}"):
+        rest = entry.name[len(out.name) + 2 :]
+        kind, _, tail = rest.partition("-")
+        pid = tail.split("-", 1)[0]
+        if kind in ("partial", "old") and pid.isdigit() and not _alive(int(pid)):
+            if entry.is_dir():
+                shutil.rmtree(entry, ignore_errors=True)
+            else:
+                entry.unlink(missing_ok=True)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:
+        return True
+    return True
