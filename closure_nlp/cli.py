@@ -133,16 +133,41 @@ def _add_contact_options(parser) -> None:
     g.add_argument("--mu-s", default="0.2", help="spin coefficient, a length (default 0.2)")
     g.add_argument("--f-max", default="1", help="normal-force bound f^U (default 1)")
     g.add_argument("--torque-scale", default="1", help="factor on every torque row (default 1)")
+    _add_mesh_option(parser)
+
+
+def _add_mesh_option(parser) -> None:
+    parser.add_argument(
+        "--allow-outside-mesh",
+        action="store_true",
+        help="read the model's mesh even when its path leaves the model's folder",
+    )
 
 
 def _eligibility(args, m: int, field: str = "--contacts"):
     """The model of ``args.model`` with ``m`` contacts of the requested specs."""
     with _reading(args.model):
         as_count(m, field, MAX_ELEMENT_CONTACTS, "contacts")  # the limit, before any work
-    model = _load_each([args.model], load_model)[0][1]
+    model = _load_model(args)
     with _reading(args.model):
         specs, torque_scale = _specs(args, m)
     return Eligibility(model, specs, torque_scale)
+
+
+def _load_model(args):
+    """``args.model`` with its mesh checked: inside the model's folder (unless
+    ``--allow-outside-mesh``), facet and segment normals pointing into it; a missing or broken
+    mesh is one warning (it only serves pictures)."""
+    from dataclasses import replace
+
+    from .model_mesh import check_normals, read_model_mesh
+
+    [(_, model)] = _load_each([args.model], load_model)
+    if getattr(args, "allow_outside_mesh", False):
+        model = replace(model, allow_outside_mesh=True)
+    with _reading(args.model):
+        check_normals(model, read_model_mesh(model))
+    return model
 
 
 def _specs(args, m: int):
@@ -451,8 +476,8 @@ def _cmd_characterize(args) -> None:
             mesh_ref=mesh_ref,
         )
     except ValueError as exc:
-        text = str(exc)
-        raise (exc if text.startswith(args.mesh) else InputError(args.mesh, text)) from None
+        text, prefix = str(exc), f"{args.mesh}: "
+        raise InputError(args.mesh, text.removeprefix(prefix)) from None
     try:
         save_model(model, out)
     except OSError as exc:
@@ -488,6 +513,7 @@ def _add_show(sub, common) -> None:
     p.add_argument("--elev", type=float, default=22.0, help="view elevation, degrees")
     p.add_argument("--azim", type=float, default=-58.0, help="view azimuth, degrees")
     p.add_argument("--no-mesh", action="store_true", help="do not draw the model's mesh")
+    _add_mesh_option(p)
     p.set_defaults(run=_cmd_show)
 
 
@@ -510,7 +536,7 @@ def _cmd_show(args) -> None:
 
     with _reading(args.out):
         check_output_file(args.out)
-    [(_, model)] = _load_each([args.model], load_model)
+    model = _load_model(args)
     contacts, highlight = None, []
     if args.contacts:
         [(_, contacts)] = _load_each([args.contacts], load_contacts)
@@ -682,9 +708,13 @@ def _one_line_warnings():
     import warnings
 
     saved = warnings.showwarning
+    seen = set()
 
     def show(message, category, filename, lineno, file=None, line=None):
-        sys.stderr.write(f"warning: {' '.join(str(message).split())}\n")
+        text = " ".join(str(message).split())
+        if text not in seen:  # the same warning from two places is still one line
+            seen.add(text)
+            sys.stderr.write(f"warning: {text}\n")
 
     warnings.showwarning = show
     try:

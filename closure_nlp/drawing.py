@@ -136,17 +136,12 @@ def _ids(model: Model, kind: ElementKind) -> list[int]:
 
 
 def _draw_mesh(ax, model: Model) -> None:
-    path = model.mesh_path
-    if path is None or not path.is_file():
-        return
-    import trimesh
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
-    try:
-        mesh = trimesh.load(str(path), force="mesh")
-    except Exception:  # a drawing aid only: a broken mesh file must not stop the picture
-        return
-    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+    from .model_mesh import read_model_mesh
+
+    mesh = read_model_mesh(model)  # a drawing aid only: missing or broken is one warning
+    if mesh is None:
         return
     colours = _shade(-mesh.face_normals, np.array([0.85, 0.85, 0.85]))
     ax.add_collection3d(
@@ -312,9 +307,10 @@ def build_scene(model: Model, contacts=None, *, highlight: Sequence[int] = ()):
     chosen = {model.check_id(i, "highlight") for i in highlight}
     scene = trimesh.Scene()
     size = model_extent(model)
-    path = model.mesh_path
-    if path is not None and path.is_file():
-        mesh = trimesh.load(str(path), force="mesh")
+    from .model_mesh import read_model_mesh
+
+    mesh = read_model_mesh(model)
+    if mesh is not None:
         mesh.visual.face_colors = [200, 200, 200, 60]
         scene.add_geometry(mesh, geom_name="mesh")
     base = {

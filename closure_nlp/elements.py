@@ -242,6 +242,9 @@ class Model:
         Path of a mesh for drawing, relative to ``base_dir``.
     base_dir : Path or None
         Directory of the model file, if it came from one.
+    allow_outside_mesh : bool
+        Let ``mesh`` resolve outside ``base_dir`` (refused by default: a model file from
+        elsewhere must not make ``show`` read and embed any file of the machine).
     """
 
     elements: tuple[Element, ...]
@@ -251,6 +254,7 @@ class Model:
     mesh: str | None = None
     description: str = ""
     base_dir: Path | None = field(default=None, compare=False)
+    allow_outside_mesh: bool = field(default=False, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         elements = tuple(self.elements)
@@ -293,9 +297,18 @@ class Model:
 
     @property
     def mesh_path(self) -> Path | None:
+        """The mesh's path, resolved; ``ValueError`` if it leaves the model's folder (symbolic
+        links and ``..`` included) and ``allow_outside_mesh`` is not set."""
         if self.mesh is None:
             return None
-        return (self.base_dir or Path(".")) / self.mesh
+        base = (self.base_dir or Path(".")).resolve()
+        path = (base / self.mesh).resolve()
+        if not self.allow_outside_mesh and not path.is_relative_to(base):
+            raise ValueError(
+                f"mesh: {self.mesh!r} resolves outside the model's folder {base} "
+                "(refused; --allow-outside-mesh reads it)"
+            )
+        return path
 
     def to_dict(self) -> dict:
         out = {"name": self.name, "units": self.units}

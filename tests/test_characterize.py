@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -307,7 +308,9 @@ def test_cli_characterize_writes_a_model(tmp_path, capsys):
     assert payload["out"] == str(out)
     model = load_model(out)
     assert model.counts() == payload["elements"] and model.name == "shaft"
-    assert model.mesh_path.resolve() == mesh.resolve()
+    with pytest.raises(ValueError, match="outside the model's folder"):
+        model.mesh_path  # noqa: B018 - ../meshes/ is read only when allowed
+    assert replace(model, allow_outside_mesh=True).mesh_path == mesh.resolve()
     code, stdout, _ = run_cli(capsys, "characterize", mesh, "--out", out, "--segment-spacing", "1")
     assert code == 0 and "facets" in stdout and "segments" in stdout
 
