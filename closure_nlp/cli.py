@@ -619,6 +619,8 @@ def _cmd_study(args) -> None:
         study = load_study(args.study)
     except (ValueError, TypeError) as exc:
         raise InputError(args.study, str(exc)) from None
+    with _reading(args.out):
+        check_output_dir(args.out, marker=None)  # results are added to it (resume)
     bar = None
 
     def progress(done: int, total: int, row) -> None:
@@ -732,6 +734,7 @@ def _interruptible():
     CasADi call the handler only notes the interrupt and polls with a short timer until Python
     code runs again, and raises there.
     """
+    import logging
     import signal
     import threading
 
@@ -753,6 +756,7 @@ def _interruptible():
                 signal.setitimer(signal.ITIMER_REAL, 0.002)
                 return
             signal.setitimer(signal.ITIMER_REAL, 0)
+            logging.disable(logging.CRITICAL)  # Dask's teardown logs are not for the user now
             raise KeyboardInterrupt
 
     interrupted: list[int] = []

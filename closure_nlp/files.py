@@ -170,15 +170,15 @@ def check_output_file(path, field: str = "--out") -> Path:
     return path
 
 
-def check_output_dir(path, field: str = "--out", marker: str = "report.json") -> Path:
+def check_output_dir(path, field: str = "--out", marker: str | None = "report.json") -> Path:
     """Refuse, before any work, an output folder that could not be written as a set: an existing
     file, a path under a file, an unwritable place, or a folder holding files of something else
     (a rerun replaces the whole folder, so only an empty one or a previous run's, recognised by
-    ``marker``, is accepted)."""
+    ``marker``, is accepted; ``marker=None`` accepts any folder, for outputs that add to it)."""
     path = Path(path)
     if path.exists() and not path.is_dir():
         raise ValueError(f"{field}: exists and is not a folder")
-    if path.is_dir():
+    if path.is_dir() and marker is not None:
         entries = [p.name for p in path.iterdir()]
         if entries and marker not in entries:
             raise ValueError(

@@ -10,7 +10,8 @@ ranges below are checked on input, not discovered as a NaN answer:
 - ``mu`` in [0, MAX_MU] (1e6), ``mu_s`` (a length) in [0, MAX_COORDINATE];
 - a normal: any finite non-zero 3-vector (it is normalised without overflow);
 - at most ``MAX_SET_CONTACTS`` (2000) contacts in a contact set, ``MAX_ELEMENT_CONTACTS`` (32)
-  in an element set (one per listed element id), where every selection step solves many sets.
+  in an element set (one per listed element id), where every selection step solves many sets;
+  at most ``MAX_STUDY_TASKS`` (100,000) grid points in a study, seeds in [0, 2**63 - 1].
 
 With these bounds a grasp-matrix entry is at most ``torque_scale * |x|`` ~ 2e24, a local
 component ``d = G^T u`` of a unit direction at most ~2e24, a friction square ``mu^2 d^2`` at
@@ -33,6 +34,8 @@ MAX_MU_S = MAX_COORDINATE
 # Limits on the size of the work, checked before any of it starts.
 MAX_SET_CONTACTS = 2000  # contacts of one contact set (rho): time grows with the count
 MAX_ELEMENT_CONTACTS = 32  # contacts of an element set (eligibility, select, place, plan)
+MAX_STUDY_TASKS = 100_000  # grid points of a study (models x parameters x seeds), before expansion
+MAX_SEED = 2**63 - 1  # seeds are stored as 64-bit integers
 
 
 def _check_numbers(value, field: str, depth: int) -> None:

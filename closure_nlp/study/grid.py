@@ -17,7 +17,15 @@ from ..contacts import DEFAULT_F_MAX, DEFAULT_MU, DEFAULT_MU_S, ContactType, con
 from ..elements import load_model
 from ..placement import PlacementOptions
 from ..selection import SelectionOptions
-from ..validation import as_number, check_keys
+from ..validation import (
+    MAX_SEED,
+    MAX_STUDY_TASKS,
+    as_f_max,
+    as_mu,
+    as_mu_s,
+    as_torque_scale,
+    check_keys,
+)
 from .tasks import Task
 
 STUDY_KEYS = {
@@ -131,11 +139,12 @@ def study_from_dict(
     grid = {
         "type": _axis(data, "type", "pcwf", lambda v, f: ContactType.parse(v, f).value),
         "contacts": _axis(data, "contacts", None, _count),
-        "mu": _axis(data, "mu", DEFAULT_MU, _number(strict=False)),
-        "mu_s": _axis(data, "mu_s", DEFAULT_MU_S, _number(strict=False)),
-        "f_max": _axis(data, "f_max", DEFAULT_F_MAX, _number(strict=True)),
-        "torque_scale": _axis(data, "torque_scale", 1.0, _number(strict=True)),
+        "mu": _axis(data, "mu", DEFAULT_MU, as_mu),
+        "mu_s": _axis(data, "mu_s", DEFAULT_MU_S, as_mu_s),
+        "f_max": _axis(data, "f_max", DEFAULT_F_MAX, as_f_max),
+        "torque_scale": _axis(data, "torque_scale", 1.0, as_torque_scale),
     }
+    _check_size(data, grid)  # before the seeds or the tasks are built
     seeds = _seeds(data.get("seeds", 1))
     selection = _options(data, "selection", SelectionOptions)
     placement = _options(data, "placement", PlacementOptions)
@@ -150,6 +159,25 @@ def study_from_dict(
     return Study(
         name, description, source, models, grid, seeds, selection, placement, tasks, duplicates
     )
+
+
+def _check_size(data: dict, grid: dict) -> None:
+    """The number of grid points (models counted as given: a folder as one), against the limit;
+    a study of 10**12 seeds is refused here, not by a MemoryError while listing them."""
+    seeds = data.get("seeds", 1)
+    n_seeds = len(seeds) if isinstance(seeds, list) else seeds
+    models = data.get("models")
+    n_models = len(models) if isinstance(models, list) else 1
+    if isinstance(n_seeds, bool) or not isinstance(n_seeds, int) or n_seeds < 1:
+        return  # _seeds names the problem
+    size = n_seeds * n_models
+    for axis in grid.values():
+        size *= len(axis)
+    if size > MAX_STUDY_TASKS:
+        raise ValueError(
+            f"seeds: the grid has {size:,} points ({n_seeds:,} seeds x {size // n_seeds:,} "
+            f"parameter sets and models), over the limit of {MAX_STUDY_TASKS:,} per study"
+        )
 
 
 def _check_counts(grid: dict) -> None:
@@ -194,16 +222,18 @@ def _count(value, where: str) -> int:
     return _integer(value, where, 1, "a number of contacts")
 
 
-def _number(strict: bool):
-    """A finite number ``>= 0`` (``> 0`` when ``strict``)."""
-    return lambda value, where: as_number(value, where, minimum=0.0, strict=strict)
-
-
 def _seeds(value) -> tuple[int, ...]:
     """``seeds``: a count N (seeds 0..N-1) or a non-empty list of distinct integers >= 0."""
     if not isinstance(value, list):
         return tuple(range(_integer(value, "seeds", 1, "a count (or a list of seeds)")))
-    return _axis({"seeds": value}, "seeds", None, lambda v, f: _integer(v, f, 0, "a seed"))
+    return _axis({"seeds": value}, "seeds", None, _seed)
+
+
+def _seed(value, where: str) -> int:
+    seed = _integer(value, where, 0, "a seed")
+    if seed > MAX_SEED:
+        raise ValueError(f"{where}: a seed must be <= 2**63 - 1 (stored as int64), got {seed}")
+    return seed
 
 
 def _options(data: dict, key: str, cls):
