@@ -31,6 +31,7 @@ from .files import (
 )
 from .placement import PlacementOptions, Placer
 from .planning import load_contacts, plan, write_report
+from .progress import progress_line
 from .quality import rho
 from .selection import run_selection
 from .validation import MAX_ELEMENT_CONTACTS, as_count, as_torque_scale
@@ -195,19 +196,10 @@ def _ids(text: str, flag: str) -> list[int]:
         raise InputError(flag, f"expected comma-separated element ids, got {text!r}") from None
 
 
-def _progress(args):
-    """A tqdm bar on stderr for long runs, only on a terminal and without ``--quiet``."""
-    if args.quiet or not sys.stderr.isatty():
-        return None, lambda: None
-    from tqdm import tqdm
-
-    bar = tqdm(total=None, unit="step", file=sys.stderr, leave=False)
-
-    def update(algorithm: str, step: int, value: float) -> None:
-        bar.set_description(f"{algorithm} rho_hat={value:.5g}")
-        bar.update(1)
-
-    return update, bar.close
+def _progress(args, starts: int | None = None):
+    """``(callback, close)``: a progress line on stderr, only on a terminal and without
+    ``--quiet``; ``starts`` (placement starts) gives an ETA over the starts."""
+    return progress_line(args.quiet, {"placement start": starts} if starts else None)
 
 
 def _add_eligibility(sub, common) -> None:
@@ -317,7 +309,11 @@ def _cmd_place(args) -> None:
     if args.out:
         with _reading(args.out):
             check_output_file(args.out)
-    result = Placer(eligibility, options)(ids)
+    progress, close = _progress(args, options.starts)
+    try:
+        result = Placer(eligibility, options)(ids, progress=progress)
+    finally:
+        close()
     payload, text = result.to_dict(), f"{args.model}: {_placement_text(result)}"
     if args.out:
         _check_finite(payload, args.model)  # before anything is written
@@ -342,6 +338,13 @@ def _add_plan(sub, common) -> None:
     p.add_argument("--seed", type=int, default=0, help="random start of the heuristic")
     p.add_argument("--starts", type=int, default=4, help="placement start weights (default 4)")
     p.add_argument(
+        "--alternatives",
+        type=int,
+        default=4,
+        metavar="N",
+        help="further element sets placed when placement fails (default 4)",
+    )
+    p.add_argument(
         "--out", metavar="DIR", help="write report.json, contacts.json, pictures and summary.md"
     )
     _add_contact_options(p)
@@ -356,9 +359,15 @@ def _cmd_plan(args) -> None:
     if args.out:
         with _reading(args.out):
             check_output_dir(args.out)
-    progress, close = _progress(args)
+    progress, close = _progress(args, placement_options.starts)
     try:
-        result = plan(eligibility, seed=args.seed, placement=placement_options, progress=progress)
+        result = plan(
+            eligibility,
+            seed=args.seed,
+            placement=placement_options,
+            progress=progress,
+            alternatives=_alternatives_flag(args.alternatives),
+        )
     finally:
         close()
     payload = result.to_dict()
@@ -373,6 +382,7 @@ def _cmd_plan(args) -> None:
             "f_max": args.f_max,
             "torque_scale": args.torque_scale,
             "placement": vars(placement_options),
+            "alternatives": args.alternatives,
         }
         with staged_folder(args.out) as staged:  # all files of this run, or none
             written = write_report(eligibility.model, result, staged, options)
@@ -381,14 +391,24 @@ def _cmd_plan(args) -> None:
     text = (
         f"{args.model}: heuristic {_join(h.elements)} rho_hat = {h.rho_hat:.6g} "
         f"({h.seconds:.2f} s); iterative {_join(it.elements)} rho_hat = {it.rho_hat:.6g} "
-        f"({it.seconds:.2f} s)\n{_placement_text(result.placement)}\ntotal {result.seconds:.2f} s"
+        f"({it.seconds:.2f} s)\n"
+        + "".join(
+            f"placement on {_join(a.elements)} ({a.source}): rho = {a.rho:.6g}"
+            f"{' (force closure)' if a.force_closure else ''} ({a.seconds:.2f} s)\n"
+            for a in result.attempts[1:]
+        )
+        + f"{_placement_text(result.placement)}\ntotal {result.seconds:.2f} s"
         + (f"; report in {args.out}" if args.out else "")
     )
     _emit(args, payload, text)
-    if not result.placement.force_closure:
-        raise MethodError(
-            f"{args.model}: no force-closure placement found (rho = {result.placement.rho:.6g})"
-        )
+    if not result.force_closure:
+        raise MethodError(f"{args.model}: {result.failure()}")
+
+
+def _alternatives_flag(value: int) -> int:
+    if value < 0:
+        raise ValueError(f"--alternatives: expected an integer >= 0, got {value}")
+    return value
 
 
 def _join(ids) -> str:

@@ -27,6 +27,7 @@ from .contact_count import require_closure_count
 from .contacts import ContactSet
 from .elements import simplex_weights
 from .eligibility import Eligibility, padded_rows
+from .progress import Progress
 from .quality import SearchOptions, rho
 from .sphere_search import sphere_samples
 from .wrenches import WrenchSlots
@@ -360,7 +361,7 @@ class Placer:
             self.eligibility.torque_scale,
         )
 
-    def optimise(self, elements, weights):
+    def optimise(self, elements, weights, progress: Progress | None = None):
         """Trust-region exchange on fixed elements from ``weights``.
 
         Returns (weights, rho result, the model's last predicted ``-rho``, rounds).
@@ -400,11 +401,15 @@ class Placer:
                 radius = min(1.0, 2.0 * radius)
             else:
                 radius *= 0.25
-                if radius < 1e-9:
-                    break
+            if progress:
+                progress("placement round", rounds, best.rho)
+            if radius < 1e-9:
+                break
         return best_w, best, predicted, rounds
 
-    def __call__(self, elements, weights=None) -> PlacementResult:
+    def __call__(self, elements, weights=None, progress: Progress | None = None) -> PlacementResult:
+        """Place one contact on each of ``elements`` (from ``weights``, default the centroids);
+        ``progress`` sees every exchange round, start, neighbour move and the certification."""
         t0 = time.perf_counter()
         model = self.eligibility.model
         elements = list(self.eligibility.check_elements(elements))
@@ -418,23 +423,29 @@ class Placer:
         ]
         start = rho(self.contact_set(elements, weights), minimizer=self.eligibility.minimizer)
         rng = np.random.default_rng(self.options.seed)
-        best_w, best, predicted, rounds = self.optimise(elements, weights)
+        best_w, best, predicted, rounds = self.optimise(elements, weights, progress)
+        if progress:
+            progress("placement start", 1, best.rho)
         for k in range(1, self.options.starts + self.options.extra_starts):
             if k >= self.options.starts and best.force_closure:
                 break  # extra starts only while no start has reached force closure
             trial = [rng.dirichlet(np.ones(k)) for k in counts]
-            w, found, up, n_rounds = self.optimise(elements, trial)
+            w, found, up, n_rounds = self.optimise(elements, trial, progress)
             rounds += n_rounds
             if found.rho < best.rho:
                 best_w, best, predicted = w, found, up
+            if progress:
+                progress("placement start", k + 1, best.rho)
         moves = []
         for _ in range(self.options.neighbour_moves):
-            move = self._try_moves(elements, best_w, best)
+            move = self._try_moves(elements, best_w, best, progress)
             if move is None:
                 break
             (i, target, w_new, found, up, n_rounds) = move
             rounds += n_rounds
             moves.append(Move(i, elements[i], target, best.rho, found.rho))
+            if progress:
+                progress("neighbour move", len(moves), found.rho)
             elements[i] = target
             best_w, best, predicted = w_new, found, up
         placed = tuple(
@@ -444,6 +455,8 @@ class Placer:
         # The exchange kept the weights where the rho solver reported the lowest rho, so any
         # miss of its global search was selected for: recompute with a wider search (and certify).
         contact_set = self.contact_set(elements, best_w)
+        if progress:
+            progress("certification", 0, best.rho)
         final = rho(
             contact_set,
             minimizer=self.eligibility.minimizer.with_search(FINAL_SEARCH),
@@ -452,6 +465,8 @@ class Placer:
         )
         if best.rho > final.rho:  # the exchange's direction is weaker still: report it
             final = replace(best, bounds=final.bounds)
+        if progress:
+            progress("certification", 1, final.rho)
         return PlacementResult(
             placed,
             contact_set,
@@ -466,7 +481,7 @@ class Placer:
             final.bounds,
         )
 
-    def _try_moves(self, elements, weights, best):
+    def _try_moves(self, elements, weights, best, progress=None):
         """The first neighbour move (contact on its element's boundary) that lowers rho."""
         model = self.eligibility.model
         tol = self.eligibility.minimizer.tolerances.geometry
@@ -485,7 +500,7 @@ class Placer:
                 trial[i] = n
                 trial_w = list(weights)
                 trial_w[i] = w_n
-                w_new, found, up, n_rounds = self.optimise(trial, trial_w)
+                w_new, found, up, n_rounds = self.optimise(trial, trial_w, progress)
                 margin = self.options.gap * max(1.0, abs(best.rho))
                 if found.rho < best.rho - margin:
                     return i, n, w_new, found, up, n_rounds

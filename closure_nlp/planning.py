@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import itertools
 import json
 import os
 import platform
@@ -26,23 +27,79 @@ from .contacts import ContactSet, contact_set_from_dict
 from .eligibility import Eligibility
 from .files import load_json, write_atomic, write_json
 from .placement import PlacementOptions, PlacementResult, Placer
-from .selection import Progress, SelectionOptions, SelectionResult, heuristic, iterative
+from .progress import Progress
+from .selection import (
+    SelectionOptions,
+    SelectionResult,
+    _multiset,
+    heuristic,
+    iterative,
+)
+
+
+@dataclass(frozen=True)
+class Attempt:
+    """One element set the plan placed contacts on: where it came from and how it ended."""
+
+    elements: tuple[int, ...]
+    source: str
+    rho_hat: float
+    rho: float
+    force_closure: bool
+    seconds: float
+
+    def to_dict(self) -> dict:
+        return {
+            "elements": list(self.elements),
+            "source": self.source,
+            "rho_hat": self.rho_hat,
+            "rho": self.rho,
+            "force_closure": self.force_closure,
+            "seconds": self.seconds,
+        }
 
 
 @dataclass(frozen=True)
 class PlanResult:
-    """The three steps of one run."""
+    """The three steps of one run.
+
+    ``heuristic`` and ``iterative`` are the first selection; ``placement`` is the best placement
+    over every element set tried (the first that reached force closure), and ``attempts`` lists
+    those sets in the order tried.
+    """
 
     heuristic: SelectionResult
     iterative: SelectionResult
     placement: PlacementResult
     seconds: float
+    attempts: tuple[Attempt, ...] = ()
+
+    @property
+    def force_closure(self) -> bool:
+        return self.placement.force_closure
+
+    def failure(self) -> str | None:
+        """Why no force closure was reached, or ``None``."""
+        if self.placement.force_closure:
+            return None
+        tried = len(self.attempts)
+        eligible = sum(a.rho_hat < 0 for a in self.attempts)
+        if not eligible:
+            return (
+                f"no eligible element set found (best rho_hat = {self.iterative.rho_hat:.6g}), "
+                "so no placement can be force closure"
+            )
+        return (
+            f"no force-closure placement found on {tried} element set(s) tried ({eligible} "
+            f"eligible); best rho = {self.placement.rho:.6g}"
+        )
 
     def to_dict(self) -> dict:
         return {
             "heuristic": self.heuristic.to_dict(),
             "iterative": self.iterative.to_dict(),
             "placement": self.placement.to_dict(),
+            "attempts": [a.to_dict() for a in self.attempts],
             "seconds": self.seconds,
         }
 
@@ -56,12 +113,18 @@ def plan(
     placement: PlacementOptions = PlacementOptions(),
     progress: Progress | None = None,
     placer: Placer | None = None,
+    alternatives: int = 4,
 ) -> PlanResult:
     """Heuristic from ``seed`` (or ``start``), iterative from its result, then placement.
 
-    ``placer`` (built on the same ``eligibility``) replaces ``placement``: loops over many runs
-    pass one, so that its NLPs are built once.
+    When the placement on an eligible set is not force closure, up to ``alternatives`` further
+    element sets are placed, until one is: the next eligible sets the iterative run met (lowest
+    rho_hat first), alternating with the results of new heuristic and iterative runs (seeds
+    derived from ``seed``). ``placer`` (built on the same ``eligibility``) replaces
+    ``placement``: loops over many runs pass one, so that its NLPs are built once.
     """
+    if isinstance(alternatives, bool) or not isinstance(alternatives, int) or alternatives < 0:
+        raise ValueError(f"alternatives: expected an integer >= 0, got {alternatives!r}")
     t0 = time.perf_counter()
     if placer is None:
         placer = Placer(eligibility, placement)
@@ -69,8 +132,58 @@ def plan(
         raise ValueError("placer: must be built on the same Eligibility as the plan")
     first = heuristic(eligibility, start=start, seed=seed, options=selection, progress=progress)
     second = iterative(eligibility, first.elements, options=selection, progress=progress)
-    placed = placer(second.elements)
-    return PlanResult(first, second, placed, time.perf_counter() - t0)
+    best = placer(second.elements, progress=progress)
+    attempts = [_attempt(second.elements, "iterative", second.rho_hat, best)]
+    if not best.force_closure and alternatives and second.eligible:  # else 50 rounds failed
+        candidates = _alternatives(eligibility, seed, selection, second, progress)
+        for elements, source, value in itertools.islice(candidates, alternatives):
+            found = placer(elements, progress=progress)
+            attempts.append(_attempt(elements, source, value, found))
+            if progress:
+                progress("alternative", len(attempts) - 1, found.rho)
+            if found.rho < best.rho:
+                best = found
+            if found.force_closure:
+                break
+    return PlanResult(first, second, best, time.perf_counter() - t0, tuple(attempts))
+
+
+def _attempt(elements, source: str, rho_hat: float, placed: PlacementResult) -> Attempt:
+    return Attempt(
+        tuple(elements), source, rho_hat, placed.rho, placed.force_closure, placed.seconds
+    )
+
+
+FRESH_RUNS = 8  # new heuristic + iterative runs at most, when placements keep failing
+
+
+def _alternatives(eligibility, seed, selection, second, progress):
+    """Further eligible element sets to place, each multiset once: the next set of the pool
+    (eligible sets the iterative runs met, lowest rho_hat first), then the result of a new
+    heuristic + iterative run (seed derived from ``seed``), and so on alternately."""
+    tried = {_multiset(eligibility, second.elements)}
+    pool = list(second.eligible_sets)
+    runs = 0
+    while pool or runs < FRESH_RUNS:
+        while pool:
+            elements, value = pool.pop(0)
+            if _multiset(eligibility, elements) not in tried:
+                tried.add(_multiset(eligibility, elements))
+                yield elements, "iterative history", value
+                break
+        if runs == FRESH_RUNS:
+            continue
+        runs += 1
+        derived = (
+            None if seed is None else int(np.random.SeedSequence([seed, runs]).generate_state(1)[0])
+        )
+        found = heuristic(eligibility, seed=derived, options=selection, progress=progress)
+        fresh = iterative(eligibility, found.elements, options=selection, progress=progress)
+        pool = sorted(pool + list(fresh.eligible_sets), key=lambda item: item[1])
+        key = _multiset(eligibility, fresh.elements)
+        if fresh.eligible and key not in tried:
+            tried.add(key)
+            yield fresh.elements, f"new selection {runs} (heuristic + iterative)", fresh.rho_hat
 
 
 @lru_cache(maxsize=1)
@@ -139,6 +252,12 @@ def summary_markdown(model, result: PlanResult, options: dict) -> str:
     for i, c in enumerate(pl.contacts):
         pos = ", ".join(f"{x:.3f}" for x in c.position)
         rows.append(f"- contact {i}: element {c.element}, position ({pos})")
+    for a in result.attempts[1:]:
+        verdict = "force closure" if a.force_closure else "not force closure"
+        rows.append(
+            f"- also placed on {_ids(a.elements)} ({a.source}, rho_hat = {a.rho_hat:.4f}): "
+            f"rho = {a.rho:.4f} ({verdict})"
+        )
     for mv in pl.moves:
         rows.append(
             f"- contact {mv.contact} moved from element {mv.source} to its neighbour "
@@ -219,4 +338,12 @@ def write_report(model, result: PlanResult, out_dir, options: dict) -> dict:
     return {name: str(p) for name, p in paths.items()}
 
 
-__all__ = ["PlanResult", "load_contacts", "plan", "summary_markdown", "versions", "write_report"]
+__all__ = [
+    "Attempt",
+    "PlanResult",
+    "load_contacts",
+    "plan",
+    "summary_markdown",
+    "versions",
+    "write_report",
+]

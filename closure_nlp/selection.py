@@ -10,7 +10,6 @@ for the neighbour that lowers rho_hat most, until ``m`` consecutive positions gi
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -18,6 +17,7 @@ import numpy as np
 from .contact_count import require_closure_count
 from .eligibility import Eligibility, EligibilityResult
 from .errors import MethodError
+from .progress import Progress
 
 
 @dataclass(frozen=True)
@@ -70,6 +70,9 @@ class SelectionResult:
     seconds : float
     rounds : int
         Heuristic rounds used (1 if the first round was eligible); 0 for the iterative algorithm.
+    eligible_sets : tuple of (tuple of int, float)
+        Iterative algorithm: the other eligible sets it evaluated and their rho_hat, lowest
+        first (the next candidates when placement on the result fails).
     """
 
     elements: tuple[int, ...]
@@ -80,6 +83,7 @@ class SelectionResult:
     evaluations: int
     seconds: float
     rounds: int = 0
+    eligible_sets: tuple[tuple[tuple[int, ...], float], ...] = ()
 
     def to_dict(self) -> dict:
         return {
@@ -93,8 +97,6 @@ class SelectionResult:
         }
 
 
-# progress(algorithm, step, rho_hat): called after every step; must not raise.
-Progress = Callable[[str, int, float], None]
 
 
 def heuristic(
@@ -223,6 +225,7 @@ def iterative(
         history.append((step, best.rho_hat))
         if progress:
             progress("iterative", step, best.rho_hat)
+    others = sorted((r.rho_hat, r.elements) for r in seen.values() if r.eligible and r is not best)
     return SelectionResult(
         best.elements,
         best.rho_hat,
@@ -231,6 +234,7 @@ def iterative(
         tuple(history),
         eligibility.evaluations - evaluations0,
         time.perf_counter() - t0,
+        eligible_sets=tuple((elements, value) for value, elements in others),
     )
 
 

@@ -38,6 +38,7 @@ def _columns() -> list[tuple[str, str]]:
         ("start_rho", "real"),
         ("placement_rounds", "int"),
         ("placement_moves", "int"),
+        ("placement_attempts", "int"),
         ("placement_seconds", "real"),
         ("placed_contacts", "text"),
         ("seconds", "real"),

@@ -25,7 +25,7 @@ from ..quality import SupportMinimizer
 from ..selection import SelectionOptions
 from .store import ROW_COLUMNS
 
-TASK_VERSION = 1  # part of every task_id: bump when a task's meaning changes
+TASK_VERSION = 2  # part of every task_id: bump when a task's meaning changes (2: alternatives)
 
 # runner(task, model_text) -> row: what a worker runs for one task (tests swap it).
 Runner = Callable[["Task", "str | None"], dict]
@@ -170,11 +170,12 @@ def run_task(task: Task, model_text: str | None = None) -> dict:
         result = plan(
             eligibility, seed=task.seed, selection=task.selection_options(), placer=placer
         )
-        first, second, placed, seconds = (
+        first, second, placed, seconds, attempts = (
             result.heuristic,
             result.iterative,
             result.placement,
             result.seconds,
+            len(result.attempts),
         )
     except Exception as exc:  # noqa: BLE001 - a failing task is recorded, the study goes on
         row.update(status="error", error=f"{type(exc).__name__}: {exc}")
@@ -195,6 +196,7 @@ def run_task(task: Task, model_text: str | None = None) -> dict:
         start_rho=float(placed.start_rho),
         placement_rounds=int(placed.rounds),
         placement_moves=len(placed.moves),
+        placement_attempts=attempts,
         placement_seconds=float(placed.seconds),
         placed_contacts=json.dumps([c.to_dict() for c in placed.contacts]),
         seconds=seconds,

@@ -1,0 +1,81 @@
+"""plan() places further eligible element sets when placement fails, and says what it tried.
+
+A placer that declares its first placements failed (a test double around the real one) drives
+the fallback on a box, where every placement really is force closure.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import pytest
+
+from closure_nlp.contacts import contact_specs
+from closure_nlp.eligibility import Eligibility
+from closure_nlp.placement import PlacementOptions, Placer
+from closure_nlp.planning import plan
+from closure_nlp.selection import SelectionOptions, _multiset
+from tests.shapes import box_model, corner_model
+
+QUICK = PlacementOptions(starts=1, extra_starts=0, neighbour_moves=0, certify=False)
+
+
+class FailingFirst(Placer):
+    """The real placer, but its first ``failures`` results are reported as not force closure."""
+
+    def __init__(self, eligibility, failures: int):
+        super().__init__(eligibility, QUICK)
+        self.failures, self.calls = failures, []
+
+    def __call__(self, elements, weights=None, progress=None):
+        result = super().__call__(elements, weights, progress)
+        self.calls.append(tuple(elements))
+        if len(self.calls) <= self.failures:
+            return replace(result, force_closure=False, rho=abs(result.rho) + 1.0)
+        return result
+
+
+@pytest.fixture(scope="module")
+def hand():
+    return Eligibility(box_model(10.0), contact_specs(4, type="pcwf", mu=0.4), torque_scale=0.1)
+
+
+@pytest.mark.slow
+def test_next_sets_are_placed_until_one_is_force_closure(hand):
+    placer, events = FailingFirst(hand, failures=2), []
+    result = plan(hand, seed=1, placer=placer, alternatives=4, progress=lambda *e: events.append(e))
+    assert result.force_closure and result.failure() is None
+    assert [e[1:] for e in events if e[0] == "alternative"] == [
+        (k, a.rho) for k, a in enumerate(result.attempts[1:], 1)
+    ]
+    assert len(result.attempts) == 3 == len(placer.calls)
+    assert [a.force_closure for a in result.attempts] == [False, False, True]
+    assert result.attempts[0].source == "iterative"
+    assert result.attempts[0].elements == result.iterative.elements
+    assert result.placement.elements == result.attempts[2].elements
+    keys = {_multiset(hand, a.elements) for a in result.attempts}
+    assert len(keys) == 3  # never the same multiset twice
+    assert all(a.rho_hat < 0 for a in result.attempts)  # only eligible sets
+    assert [a["source"] for a in result.to_dict()["attempts"]] == [
+        a.source for a in result.attempts
+    ]
+
+
+@pytest.mark.slow
+def test_budget_and_reason_when_none_works(hand):
+    result = plan(hand, seed=1, placer=FailingFirst(hand, failures=10), alternatives=2)
+    assert not result.force_closure and len(result.attempts) == 3
+    assert "3 element set(s) tried (3 eligible)" in result.failure()
+    assert result.placement.rho == min(a.rho for a in result.attempts)
+    alone = plan(hand, seed=1, placer=FailingFirst(hand, failures=10), alternatives=0)
+    assert len(alone.attempts) == 1
+    with pytest.raises(ValueError, match="alternatives"):
+        plan(hand, seed=1, alternatives=-1)
+
+
+def test_no_eligible_set_is_the_reason():
+    """The heuristic's restarts already failed: no further runs, the reason says why."""
+    hand = Eligibility(corner_model(), contact_specs(7, type="fpc"))
+    result = plan(hand, seed=0, selection=SelectionOptions(restarts=3), placement=QUICK)
+    assert not result.force_closure and len(result.attempts) == 1
+    assert result.failure().startswith("no eligible element set found")

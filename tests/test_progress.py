@@ -1,0 +1,66 @@
+"""Progress: every long step reports to the API's callback; the CLI draws it on a terminal only."""
+
+from __future__ import annotations
+
+import io
+import sys
+
+import pytest
+
+from closure_nlp import cli
+from closure_nlp.contacts import contact_specs
+from closure_nlp.elements import save_model
+from closure_nlp.eligibility import Eligibility
+from closure_nlp.placement import PlacementOptions
+from closure_nlp.planning import plan
+from closure_nlp.progress import STAGES, ProgressLine
+from tests.shapes import box_model
+
+
+def test_plan_reports_every_long_step():
+    specs = contact_specs(2, type="sfce", mu=0.4, mu_s=0.5)
+    hand = Eligibility(box_model(10.0), specs, torque_scale=0.1)
+    events = []
+    options = PlacementOptions(starts=2, extra_starts=0, neighbour_moves=0)
+    result = plan(hand, seed=1, placement=options, progress=lambda *e: events.append(e))
+    stages = [e[0] for e in events]
+    assert set(stages) <= set(STAGES)
+    for stage in ("heuristic", "iterative", "placement round", "placement start"):
+        assert stage in stages, stage
+    assert [e[1] for e in events if e[0] == "placement start"] == [1, 2]
+    assert [e[1] for e in events if e[0] == "certification"] == [0, 1]
+    assert events[-1] == ("certification", 1, result.placement.rho)
+    rounds = [e for e in events if e[0] == "placement round"]
+    assert len(rounds) <= result.placement.rounds  # a round that predicts no gain ends silently
+    iterative = [e for e in events if e[0] == "iterative"]
+    assert [e[2] for e in iterative] == [v for _, v in result.iterative.history[1:]]
+
+
+def test_progress_line_gives_an_eta_when_the_total_is_known():
+    out = io.StringIO()
+    line = ProgressLine({"placement start": 4}, file=out)
+    line("placement start", 1, -0.5)
+    assert "placement start 1/4 (ETA" in line.bar.desc and "rho=-0.5" in line.bar.desc
+    line("iterative", 3, -0.25)
+    assert line.bar.desc.startswith("iterative 3 rho_hat=-0.25")
+    line.close()
+
+
+@pytest.fixture
+def box_file(tmp_path):
+    path = tmp_path / "box.model.json"
+    save_model(box_model(), path)
+    return str(path)
+
+
+@pytest.mark.parametrize(("terminal", "quiet"), [(True, False), (True, True), (False, False)])
+def test_cli_draws_progress_on_a_terminal_only(capsys, monkeypatch, box_file, terminal, quiet):
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: terminal)
+    argv = ["select", box_file, "--contacts", "4", "--json"]
+    code = cli.main(argv + (["--quiet"] if quiet else []))
+    captured = capsys.readouterr()
+    assert code == 0 and captured.out.startswith("{")
+    if terminal and not quiet:
+        assert "heuristic" in captured.err and "rho_hat=" in captured.err
+    else:
+        assert captured.err == ""
