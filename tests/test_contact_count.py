@@ -165,7 +165,8 @@ def test_cli_exits_2_with_the_reason(capsys, box_file, tmp_path, argv):
     code = cli.main([a.format(m=box_file, out=out) for a in argv])
     captured = capsys.readouterr()
     assert code == 2 and captured.out == "" and not out.exists()
-    assert captured.err.startswith("error: --") and "can never give force closure" in captured.err
+    assert captured.err.startswith("error: ") and "can never give force closure" in captured.err
+    assert f" {argv[2]}: " in captured.err  # the flag is named
     assert len(captured.err.strip().splitlines()) == 1
 
 
