@@ -25,10 +25,11 @@ from pathlib import Path
 
 import numpy as np
 from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import breadth_first_order, connected_components, dijkstra
+from scipy.sparse.csgraph import connected_components, dijkstra
 
+from .contacts import as_reference_point
 from .elements import Element, ElementKind, Model
-from .files import read_mesh
+from .meshes import load_mesh, repair_mesh
 
 
 @dataclass(frozen=True)
@@ -89,174 +90,6 @@ class CharacterizeOptions:
                 raise ValueError(f"{key}: must be a number >= 0, got {value!r}")
 
 
-# --- reading and repairing -------------------------------------------------------------------
-
-
-def load_mesh(mesh_or_path, source: str | None = None):
-    """A closed, consistently wound ``trimesh.Trimesh`` with outward normals.
-
-    Parameters
-    ----------
-    mesh_or_path : trimesh.Trimesh or str or Path
-        A mesh, or a file trimesh can read (STL, OBJ, PLY, GLB, OFF...).
-    source : str, optional
-        How errors name the input (default: the path, or ``"mesh"``).
-
-    Raises
-    ------
-    ValueError
-        Unreadable file, no triangles, or a mesh that is open or inconsistently wound and that
-        merging vertices, fixing normals and filling small holes does not close.
-    """
-    import trimesh
-
-    if isinstance(mesh_or_path, trimesh.Trimesh):
-        mesh = mesh_or_path.copy()
-        source = source or "mesh"
-    elif isinstance(mesh_or_path, (str, Path)):
-        path = Path(mesh_or_path)
-        source = source or str(path)
-        mesh = read_mesh(path, source)
-    else:
-        raise TypeError(f"mesh: expected a trimesh.Trimesh or a path, got {mesh_or_path!r}")
-    return repair_mesh(mesh, source)
-
-
-def repair_mesh(mesh, source: str = "mesh"):
-    """Merge vertices, drop degenerate faces, fill small holes and orient the normals outward.
-
-    Returns
-    -------
-    mesh : trimesh.Trimesh
-        Closed (watertight), consistently wound, positive volume.
-
-    Raises
-    ------
-    ValueError
-        When the mesh stays open or inconsistently wound.
-    """
-    import trimesh
-
-    faces = np.asarray(mesh.faces)
-    vertices = np.asarray(mesh.vertices, dtype=float)
-    if len(faces) == 0:
-        raise ValueError(f"{source}: the mesh has no triangles")
-    if not np.all(np.isfinite(vertices)):
-        raise ValueError(f"{source}: vertices must be finite")
-    mesh = trimesh.Trimesh(vertices, faces, process=True)
-    mesh.update_faces(mesh.nondegenerate_faces())
-    mesh.update_faces(mesh.unique_faces())
-    mesh.remove_unreferenced_vertices()
-    if len(mesh.faces) == 0:
-        raise ValueError(f"{source}: every triangle of the mesh is degenerate")
-    if not mesh.is_watertight:
-        _fill_small_holes(mesh)
-    if not mesh.is_watertight:
-        open_edges = _boundary_edge_count(mesh)
-        raise ValueError(
-            f"{source}: the mesh is not closed ({open_edges} open or non-manifold edges) "
-            "and could not be repaired; a closed surface is needed to tell inside from outside"
-        )
-    if not mesh.is_winding_consistent:
-        _fix_winding(mesh)
-    if not mesh.is_winding_consistent:
-        raise ValueError(
-            f"{source}: the mesh's triangles are inconsistently wound (not orientable)"
-        )
-    trimesh.repair.fix_normals(mesh)
-    if not mesh.volume > 0:
-        raise ValueError(f"{source}: the mesh encloses no volume")
-    return mesh
-
-
-def _fix_winding(mesh) -> None:
-    """Flip faces so that neighbours run their shared edge in opposite directions.
-
-    Breadth-first from one face per connected part (``trimesh.repair.fix_winding`` does the
-    same but needs networkx).
-    """
-    faces = np.asarray(mesh.faces).copy()
-    pairs, shared = mesh.face_adjacency, mesh.face_adjacency_edges
-    n = len(faces)
-
-    def runs_forward(f: int, a: int, b: int) -> bool:
-        tri = faces[f].tolist()
-        return tri[(tri.index(a) + 1) % 3] == b
-
-    same = {}
-    for (f, g), (a, b) in zip(pairs.tolist(), shared.tolist()):
-        same[(f, g)] = same[(g, f)] = runs_forward(f, a, b) == runs_forward(g, a, b)
-    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n)).tocsr()
-    flip = np.zeros(n, bool)
-    done = np.zeros(n, bool)
-    for root in range(n):
-        if done[root]:
-            continue
-        order, parent = breadth_first_order(graph, root, directed=False)
-        done[order] = True
-        for f in order[1:]:
-            flip[f] = flip[parent[f]] ^ same[(int(parent[f]), int(f))]
-    faces[flip] = faces[flip][:, ::-1]
-    mesh.faces = faces
-
-
-def _boundary_edge_count(mesh) -> int:
-    edges = np.sort(mesh.edges, axis=1)
-    _, counts = np.unique(edges, axis=0, return_counts=True)
-    return int((counts != 2).sum())
-
-
-def _fill_small_holes(mesh) -> None:
-    """Close holes bounded by 3 or 4 edges (what ``trimesh.repair.fill_holes`` fills)."""
-    import trimesh
-
-    try:
-        trimesh.repair.fill_holes(mesh)
-        return
-    except ImportError:  # trimesh's hole filling needs networkx, which is optional
-        pass
-    edges = mesh.edges  # directed, from the faces' winding
-    key = np.sort(edges, axis=1)
-    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    if np.any(counts > 2):
-        return  # non-manifold: not a hole
-    boundary = edges[counts[inverse.ravel()] == 1]
-    new_faces = []
-    for loop in _loops(boundary):
-        if len(loop) == 3:
-            new_faces.append(loop[::-1])
-        elif len(loop) == 4:
-            new_faces += [[loop[0], loop[3], loop[2]], [loop[0], loop[2], loop[1]]]
-        else:
-            return
-    if new_faces:
-        mesh.faces = np.vstack([mesh.faces, np.array(new_faces, dtype=np.int64)])
-
-
-def _loops(directed_edges: np.ndarray) -> list[list[int]]:
-    """Simple vertex loops of a set of directed boundary edges ([] if one is not simple)."""
-    nxt: dict[int, int] = {}
-    for a, b in directed_edges.tolist():
-        if a in nxt:
-            return []
-        nxt[a] = b
-    loops, seen = [], set()
-    for start in nxt:
-        if start in seen:
-            continue
-        loop, v = [], start
-        while v not in seen:
-            if v not in nxt:
-                return []
-            seen.add(v)
-            loop.append(v)
-            v = nxt[v]
-        if v != start:
-            return []
-        loops.append(loop)
-    return loops
-
-
 # --- characterization ------------------------------------------------------------------------
 
 
@@ -269,11 +102,46 @@ class _Draft:
     region: int  # index of the curved patch a segment or point belongs to; -1 for facets
 
 
-def characterize(
+SPACING_FRACTION = 0.2  # default point and ruling spacing: this fraction of the part's radius
+AUTO = "auto"
+
+
+@dataclass(frozen=True)
+class Characterization:
+    """A model and the settings that made it (what ``characterize`` prints and records)."""
+
+    model: Model
+    reference_point: np.ndarray
+    radius: float
+    segment_spacing: float
+    point_spacing: float
+    repairs: tuple[str, ...]
+    reference_source: str = "given"
+
+    def text(self) -> str:
+        unit = f" {self.model.units}" if self.model.units else ""
+        point = ", ".join(f"{x:.6g}" for x in self.reference_point)
+        return (
+            f"torques about [{point}]{unit} ({self.reference_source}); radius "
+            f"{self.radius:.6g}{unit}; spacing of points {self.point_spacing:.6g}{unit}, of "
+            f"rulings {self.segment_spacing:.6g}{unit}"
+            + "".join(f"\n  repaired: {r}" for r in self.repairs)
+        )
+
+
+def characterize(mesh_or_path, **options) -> Model:
+    """Describe a closed mesh by convex facets, line segments and discrete points.
+
+    Parameters are those of :func:`characterize_mesh`, which also returns the settings used.
+    """
+    return characterize_mesh(mesh_or_path, **options).model
+
+
+def characterize_mesh(
     mesh_or_path,
     *,
-    segment_spacing: float | None = None,
-    point_spacing: float | None = None,
+    segment_spacing: float | str | None = AUTO,
+    point_spacing: float | str | None = AUTO,
     sharp_angle: float = 30.0,
     flat_angle: float = 0.5,
     facet_area_ratio: float = 4.0,
@@ -281,15 +149,19 @@ def characterize(
     name: str | None = None,
     units: str = "",
     mesh_ref: str | None = None,
-) -> Model:
+    reference_point=None,
+    up: str = "z",
+) -> Characterization:
     """Describe a closed mesh by convex facets, line segments and discrete points.
 
     Parameters
     ----------
     mesh_or_path : trimesh.Trimesh or str or Path
         The object's surface.
-    segment_spacing, point_spacing : float, optional
-        Thinning distances for rulings and points (in the mesh's unit); None keeps them all.
+    segment_spacing, point_spacing : float or "auto", optional
+        Thinning distances for rulings and points (in the mesh's unit); ``"auto"`` (default) is
+        ``SPACING_FRACTION`` times the part's radius about the reference point; None or 0 keeps
+        them all (exact duplicates are always dropped).
     sharp_angle, flat_angle, facet_area_ratio, faceted_limit
         See :class:`CharacterizeOptions`.
     name : str, optional
@@ -298,16 +170,33 @@ def characterize(
         The mesh's length unit, recorded in the model.
     mesh_ref : str, optional
         Stored as the model's ``mesh`` (a path relative to where the model file will go).
+    reference_point : [x, y, z], optional
+        The point torques are taken about; default the centre of mass of the closed mesh.
+    up : str
+        The model's up axis for pictures (x, y or z).
 
     Returns
     -------
-    Model
-        Facets first, then segments, then points; adjacency from the mesh topology.
+    Characterization
+        The model (facets first, then segments, then points; adjacency from the mesh topology)
+        and the reference point, radius, spacings and repairs used.
     """
+    repairs: list[str] = []
+    mesh = load_mesh(mesh_or_path, None, repairs)
+    if reference_point is not None:
+        point, source = as_reference_point(reference_point, "reference_point"), "given"
+    elif mesh.is_volume:
+        point, source = np.asarray(mesh.center_mass), "the part's centre of mass"
+    else:
+        point, source = mesh.vertices.mean(axis=0), "the centroid of the mesh's vertices"
+    radius = float(np.linalg.norm(mesh.vertices - point, axis=1).max())
+    spacings = [
+        SPACING_FRACTION * radius if _is_auto(v) else (0.0 if v is None else v)
+        for v in (segment_spacing, point_spacing)
+    ]
     options = CharacterizeOptions(
-        sharp_angle, flat_angle, facet_area_ratio, segment_spacing, point_spacing, faceted_limit
+        sharp_angle, flat_angle, facet_area_ratio, *spacings, faceted_limit
     )
-    mesh = load_mesh(mesh_or_path)
     if name is None:
         name = Path(mesh_or_path).stem if isinstance(mesh_or_path, (str, Path)) else "mesh"
     drafts, curved = _characterize_mesh(mesh, options)
@@ -320,7 +209,20 @@ def characterize(
         for i, d in enumerate(drafts)
     )
     adjacency = _adjacency(mesh, drafts, curved)
-    return Model(elements, adjacency, name=name, units=units, mesh=mesh_ref)
+    model = Model(
+        elements,
+        adjacency,
+        name=name,
+        units=units,
+        mesh=mesh_ref,
+        reference_point=point,
+        up=up,
+    )
+    return Characterization(model, model.reference_point, radius, *spacings, tuple(repairs), source)
+
+
+def _is_auto(value) -> bool:
+    return isinstance(value, str) and value.strip().lower() == AUTO
 
 
 def _characterize_mesh(mesh, options: CharacterizeOptions):
@@ -451,6 +353,8 @@ def _curved(mesh, faces, patches, curved, options, fallback: str = "points") -> 
 def _facets(mesh, faces: np.ndarray) -> list[_Draft]:
     """Convex facets covering one planar patch (faces: (k,) int)."""
     areas = mesh.area_faces[faces]
+    if not areas.sum() > 0:
+        return []  # a patch of zero-area slivers
     normal = (mesh.face_normals[faces] * areas[:, None]).sum(0)
     normal /= np.linalg.norm(normal)
     centre = (mesh.triangles_center[faces] * areas[:, None]).sum(0) / areas.sum()
@@ -464,7 +368,10 @@ def _facets(mesh, faces: np.ndarray) -> list[_Draft]:
         loop = _drop_straight(loop, xy)
         if _area(xy[loop]) <= 1e-9 * areas.sum():
             continue  # a sliver left by collinear boundary vertices
-        element = Element(ElementKind.FACET, flat[loop], -normal)
+        try:
+            element = Element(ElementKind.FACET, flat[loop], -normal)
+        except ValueError:
+            continue  # a sliver too thin to be a facet (boolean unions leave some)
         drafts.append(_Draft(element, owned, -1))
     return drafts
 
@@ -766,8 +673,8 @@ def _ruling_order(midpoints: np.ndarray) -> np.ndarray:
 
 def _thin(points: np.ndarray, spacing: float | None, order=None) -> list[int]:
     """Greedy Poisson-disc thinning: ids (ascending) of points kept at least ``spacing`` apart."""
-    if spacing is None or spacing <= 0 or len(points) == 0:
-        return list(range(len(points)))
+    if spacing is None or spacing <= 0 or len(points) == 0:  # keep all, but once each
+        return sorted(np.unique(points, axis=0, return_index=True)[1].tolist())
     order = np.arange(len(points)) if order is None else order
     cells: dict[tuple[int, ...], list[int]] = {}
     kept = []

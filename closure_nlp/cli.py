@@ -33,6 +33,8 @@ from .placement import PlacementOptions, Placer
 from .planning import load_contacts, plan, write_report
 from .progress import progress_line
 from .quality import rho
+from .scale import is_auto, scale_warnings
+from .scale import resolve as resolve_scale
 from .selection import run_selection
 from .validation import MAX_ELEMENT_CONTACTS, as_count, as_torque_scale
 
@@ -64,6 +66,10 @@ def _check_finite(payload: dict, source: str) -> None:
 
 
 def _emit(args, payload: dict, text: str) -> None:
+    scale = getattr(args, "scale", None)
+    if scale is not None:  # a model command: the torque scale, mu_s and point it used
+        payload = {**payload, **scale.to_dict()}
+        text = f"{args.model}: {scale.text()}\n{text}"
     _check_finite(payload, str(payload.get("file", getattr(args, "model", ""))))
     if args.json:
         print(json.dumps(payload, allow_nan=False))
@@ -131,9 +137,19 @@ def _add_contact_options(parser) -> None:
     g = parser.add_argument_group("contact options (one value, or a comma list of one per contact)")
     g.add_argument("--type", default="pcwf", help="fpc, pcwf, sfcl or sfce (default pcwf)")
     g.add_argument("--mu", default="0.2", help="Coulomb friction coefficient (default 0.2)")
-    g.add_argument("--mu-s", default="0.2", help="spin coefficient, a length (default 0.2)")
+    g.add_argument(
+        "--mu-s",
+        default="auto",
+        help="spin coefficient of soft fingers, a length in the model's units "
+        "(default auto: 0.01 x the part's radius about its reference point)",
+    )
     g.add_argument("--f-max", default="1", help="normal-force bound f^U (default 1)")
-    g.add_argument("--torque-scale", default="1", help="factor on every torque row (default 1)")
+    g.add_argument(
+        "--torque-scale",
+        default="auto",
+        help="factor on every torque row (default auto: 1 / the part's radius, so that rho "
+        "does not depend on the model's unit)",
+    )
     _add_mesh_option(parser)
 
 
@@ -151,8 +167,11 @@ def _eligibility(args, m: int, field: str = "--contacts"):
         as_count(m, field, MAX_ELEMENT_CONTACTS, "contacts")  # the limit, before any work
     model = _load_model(args)
     with _reading(args.model):
-        specs, torque_scale = _specs(args, m)
-    return Eligibility(model, specs, torque_scale)
+        specs, scale = _specs(args, m, model)
+    for line in scale_warnings(scale, [s.type.value for s in specs]):
+        sys.stderr.write(f"warning: {args.model}: {line}\n")
+    args.scale = scale
+    return Eligibility(model, specs, scale.torque_scale)
 
 
 def _load_model(args):
@@ -171,22 +190,27 @@ def _load_model(args):
     return model
 
 
-def _specs(args, m: int):
-    """The ``m`` contact specs and the torque scale of the contact options."""
-    torque_scale = as_torque_scale(
-        _values(args.torque_scale, "--torque-scale", 1, float), "--torque-scale"
-    )
+def _specs(args, m: int, model):
+    """The ``m`` contact specs of the contact options, and the scale (torque scale, mu_s)."""
+    torque_scale = args.torque_scale
+    if not is_auto(torque_scale):
+        torque_scale = as_torque_scale(
+            _values(torque_scale, "--torque-scale", 1, float), "--torque-scale"
+        )
+    mu_s = args.mu_s if is_auto(args.mu_s) else _values(args.mu_s, "--mu-s", m, float)
+    types = _values(args.type, "--type", m, str)
+    scale = resolve_scale(model, torque_scale, mu_s)
     try:
         specs = contact_specs(
             m,
-            type=_values(args.type, "--type", m, str),
+            type=types,
             mu=_values(args.mu, "--mu", m, float),
-            mu_s=_values(args.mu_s, "--mu-s", m, float),
+            mu_s=list(scale.mu_s) if isinstance(scale.mu_s, tuple) else scale.mu_s,
             f_max=_values(args.f_max, "--f-max", m, float),
         )
     except ValueError as exc:
         raise ValueError(f"contact options: {exc}") from None
-    return specs, torque_scale
+    return specs, scale
 
 
 def _ids(text: str, flag: str) -> list[int]:
@@ -378,9 +402,8 @@ def _cmd_plan(args) -> None:
             "seed": args.seed,
             "type": args.type,
             "mu": args.mu,
-            "mu_s": args.mu_s,
             "f_max": args.f_max,
-            "torque_scale": args.torque_scale,
+            **args.scale.to_dict(),  # mu_s, torque scale, reference point: the values used
             "placement": vars(placement_options),
             "alternatives": args.alternatives,
         }
@@ -455,14 +478,44 @@ def _length(text: str) -> float:
     return value
 
 
+def _spacing(text: str):
+    """argparse type: ``auto`` or a finite number >= 0."""
+    return "auto" if text.strip().lower() == "auto" else _length(text)
+
+
+def _point3(text: str) -> list[float]:
+    """argparse type: ``x,y,z``."""
+    parts = text.split(",")
+    try:
+        values = [float(p) for p in parts]
+    except ValueError:
+        values = []
+    if len(values) != 3 or not all(abs(v) < float("inf") for v in values):
+        raise argparse.ArgumentTypeError(f"expected three numbers x,y,z, got {text!r}")
+    return values
+
+
 def _add_characterize(sub, common) -> None:
     p = sub.add_parser(
         "characterize", parents=[common], help="element model (facets, segments, points) of a mesh"
     )
-    p.add_argument("mesh", metavar="MESH", help="closed mesh file (STL, OBJ, PLY, GLB, OFF...)")
+    p.add_argument("mesh", metavar="MESH", help="mesh file (STL, OBJ, PLY, GLB, OFF...)")
     p.add_argument("--out", required=True, metavar="MODEL", help="*.model.json to write")
-    p.add_argument("--segment-spacing", type=_length, metavar="X", help="min. ruling spacing")
-    p.add_argument("--point-spacing", type=_length, metavar="Y", help="min. point spacing")
+    spacing = "(default auto: 0.2 x the part's radius; 0 keeps all)"
+    p.add_argument(
+        "--segment-spacing",
+        type=_spacing,
+        default="auto",
+        metavar="X",
+        help=f"ruling spacing {spacing}",
+    )
+    p.add_argument(
+        "--point-spacing",
+        type=_spacing,
+        default="auto",
+        metavar="Y",
+        help=f"point spacing {spacing}",
+    )
     p.add_argument(
         "--sharp-angle",
         type=_length,
@@ -471,7 +524,16 @@ def _add_characterize(sub, common) -> None:
         help="edges sharper than this separate surfaces (default 30)",
     )
     p.add_argument("--name", help="model name (default: the mesh file's stem)")
-    p.add_argument("--units", default="", help="length unit of the mesh, e.g. mm")
+    p.add_argument(
+        "--units", default="", choices=["", "m", "cm", "mm", "in"], help="length unit of the mesh"
+    )
+    p.add_argument(
+        "--reference-point",
+        type=_point3,
+        metavar="X,Y,Z",
+        help="point torques are taken about (default: the part's centre of mass)",
+    )
+    p.add_argument("--up", default="z", choices=["x", "y", "z"], help="up axis for pictures")
     p.set_defaults(run=_cmd_characterize)
 
 
@@ -479,14 +541,15 @@ def _cmd_characterize(args) -> None:
     import os
     from pathlib import Path
 
-    from .characterize import characterize
+    from .characterize import characterize_mesh
     from .elements import save_model
+    from .scale import units_warning
 
     with _reading(args.out):
         out = check_output_file(args.out)
     mesh_ref = Path(os.path.relpath(Path(args.mesh).resolve(), out.resolve().parent)).as_posix()
     try:
-        model = characterize(
+        found = characterize_mesh(
             args.mesh,
             segment_spacing=args.segment_spacing,
             point_spacing=args.point_spacing,
@@ -494,10 +557,16 @@ def _cmd_characterize(args) -> None:
             name=args.name,
             units=args.units,
             mesh_ref=mesh_ref,
+            reference_point=args.reference_point,
+            up=args.up,
         )
     except ValueError as exc:
         text, prefix = str(exc), f"{args.mesh}: "
         raise InputError(args.mesh, text.removeprefix(prefix)) from None
+    model = found.model
+    warning = units_warning(found.radius, args.units)
+    if warning:
+        sys.stderr.write(f"warning: {args.mesh}: {warning}\n")
     try:
         save_model(model, out)
     except OSError as exc:
@@ -509,8 +578,19 @@ def _cmd_characterize(args) -> None:
         "elements": counts,
         "adjacency": len(model.adjacency),
         "out": str(out),
+        "units": model.units,
+        "reference_point": model.reference_point.tolist(),
+        "radius": found.radius,
+        "segment_spacing": found.segment_spacing,
+        "point_spacing": found.point_spacing,
+        "repairs": list(found.repairs),
     }
-    _emit(args, payload, f"{args.mesh}: {summary}, {len(model.adjacency)} neighbour pairs -> {out}")
+    _emit(
+        args,
+        payload,
+        f"{args.mesh}: {found.text()}\n{args.mesh}: {summary}, {len(model.adjacency)} "
+        f"neighbour pairs -> {out}",
+    )
 
 
 def _add_show(sub, common) -> None:

@@ -216,8 +216,12 @@ class ContactSet:
 
     contacts: tuple[Contact, ...]
     torque_scale: float = 1.0
+    reference_point: np.ndarray | None = None  # torques are taken about it; None: the origin
 
     def __post_init__(self) -> None:
+        object.__setattr__(
+            self, "reference_point", as_reference_point(self.reference_point, "reference_point")
+        )
         contacts = tuple(self.contacts)
         if not contacts:
             raise ValueError("contacts: at least one contact is needed, got an empty list")
@@ -241,12 +245,23 @@ class ContactSet:
 
     def grasp_matrices(self) -> np.ndarray:
         """(m, 6, 4) float: ``G_i`` of every contact (eq 6)."""
+        p, ts = self.reference_point, self.torque_scale
         return np.stack(
-            [grasp_matrices(c.position, c.inward_normal, self.torque_scale) for c in self.contacts]
+            [grasp_matrices(c.position - p, c.inward_normal, ts) for c in self.contacts]
         )
 
     def to_dict(self) -> dict:
-        return {"torque_scale": self.torque_scale, "contacts": [c.to_dict() for c in self.contacts]}
+        out = {"torque_scale": self.torque_scale}
+        if self.reference_point.any():
+            out["reference_point"] = self.reference_point.tolist()
+        return {**out, "contacts": [c.to_dict() for c in self.contacts]}
+
+
+def as_reference_point(value, field: str) -> np.ndarray:
+    """The point torques are taken about: (3,) float, read-only; None means the origin."""
+    point = np.zeros(3) if value is None else np.array(as_coordinates(value, field), dtype=float)
+    point.flags.writeable = False
+    return point
 
 
 CONTACT_KEYS = {
@@ -261,7 +276,16 @@ CONTACT_KEYS = {
     "name",
 }
 DEFAULT_KEYS = {"type", "mu", "mu_s", "f_max"}
-FILE_KEYS = {"torque_scale", "defaults", "contacts", "name", "description", "units", "comment"}
+FILE_KEYS = {
+    "torque_scale",
+    "reference_point",
+    "defaults",
+    "contacts",
+    "name",
+    "description",
+    "units",
+    "comment",
+}
 
 
 def contact_set_from_dict(data) -> ContactSet:
@@ -298,7 +322,7 @@ def contact_set_from_dict(data) -> ContactSet:
                 name=name,
             )
         )
-    return ContactSet(tuple(contacts), data.get("torque_scale", 1.0))
+    return ContactSet(tuple(contacts), data.get("torque_scale", 1.0), data.get("reference_point"))
 
 
 def load_contact_set(path) -> ContactSet:

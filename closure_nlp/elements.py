@@ -8,13 +8,14 @@ criterion needs. A :class:`Model` is the elements of one object and which of the
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass, field
 from enum import Enum
 from pathlib import Path
 
 import numpy as np
 
-from .contacts import grasp_matrices, local_frame
+from .contacts import as_reference_point, grasp_matrices, local_frame
 from .files import load_json, write_json
 from .tolerances import DEFAULT_TOLERANCES, Tolerances
 from .validation import as_points, as_unit_vector, as_vector, check_keys, parse_choice
@@ -53,6 +54,8 @@ class Element:
     label: str = ""
     name: str = field(default="element", compare=False)
     tolerances: Tolerances = field(default=DEFAULT_TOLERANCES, repr=False, compare=False)
+    # The point torques are taken about (None: the origin); a Model gives its own to each element.
+    reference_point: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
@@ -87,7 +90,8 @@ class Element:
 
     def grasp_matrices(self, torque_scale: float = 1.0) -> np.ndarray:
         """(k, 6, 4) float: the vertex grasp matrices ``G_ij`` (eq 19)."""
-        return grasp_matrices(self.vertices, self.inward_normal, torque_scale)
+        r = self.vertices if self.reference_point is None else self.vertices - self.reference_point
+        return grasp_matrices(r, self.inward_normal, torque_scale)
 
     def to_dict(self) -> dict:
         out = {
@@ -223,7 +227,18 @@ def _check_facet(vertices, normal, name, tol) -> None:
 
 # --- models ----------------------------------------------------------------------------------
 
-MODEL_KEYS = {"name", "units", "elements", "adjacency", "mesh", "description", "source"}
+MODEL_KEYS = {
+    "name",
+    "units",
+    "reference_point",
+    "elements",
+    "adjacency",
+    "mesh",
+    "description",
+    "source",
+    "up",
+}
+UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}  # metres per unit
 ELEMENT_KEYS = {"kind", "vertices", "inward_normal", "label"}
 
 
@@ -237,7 +252,10 @@ class Model:
         Element ids are positions in this tuple.
     adjacency : tuple of (int, int)
         Undirected neighbour pairs, kept as given.
-    name, units : str
+    name : str
+    units : str
+        Length unit of every coordinate: ``m``, ``cm``, ``mm``, ``in`` (others are kept as text,
+        without the scale checks), or ``""`` (not said).
     mesh : str or None
         Path of a mesh for drawing, relative to ``base_dir``.
     base_dir : Path or None
@@ -245,6 +263,11 @@ class Model:
     allow_outside_mesh : bool
         Let ``mesh`` resolve outside ``base_dir`` (refused by default: a model file from
         elsewhere must not make ``show`` read and embed any file of the machine).
+    reference_point : (3,) float
+        The point torques are taken about (None or absent in a file: the origin). Every element
+        of the model gets it, so its vertex grasp matrices take moments about it.
+    up : str
+        The model's up axis for pictures: ``x``, ``y`` or ``z``.
     """
 
     elements: tuple[Element, ...]
@@ -255,6 +278,8 @@ class Model:
     description: str = ""
     base_dir: Path | None = field(default=None, compare=False)
     allow_outside_mesh: bool = field(default=False, compare=False, repr=False)
+    reference_point: np.ndarray | None = None
+    up: str = "z"
 
     def __post_init__(self) -> None:
         elements = tuple(self.elements)
@@ -263,6 +288,11 @@ class Model:
         for i, e in enumerate(elements):
             if not isinstance(e, Element):
                 raise TypeError(f"elements[{i}]: expected an Element, got {type(e).__name__}")
+        if self.up not in ("x", "y", "z"):
+            raise ValueError(f"up: expected x, y or z, got {self.up!r}")
+        point = as_reference_point(self.reference_point, "reference_point")
+        object.__setattr__(self, "reference_point", point)
+        elements = tuple(_about(e, point) for e in elements)
         object.__setattr__(self, "elements", elements)
         pairs = []
         for k, pair in enumerate(self.adjacency):
@@ -296,6 +326,13 @@ class Model:
         return {k.value: sum(e.kind is k for e in self.elements) for k in ElementKind}
 
     @property
+    def radius(self) -> float:
+        """Radius of the part's bounding sphere about the reference point: the largest distance
+        from it to an element vertex (the part's characteristic length)."""
+        pts = np.vstack([e.vertices for e in self.elements])
+        return float(np.sqrt(((pts - self.reference_point) ** 2).sum(axis=1).max()))
+
+    @property
     def mesh_path(self) -> Path | None:
         """The mesh's path, resolved; ``ValueError`` if it leaves the model's folder (symbolic
         links and ``..`` included) and ``allow_outside_mesh`` is not set."""
@@ -312,6 +349,9 @@ class Model:
 
     def to_dict(self) -> dict:
         out = {"name": self.name, "units": self.units}
+        out["reference_point"] = self.reference_point.tolist()
+        if self.up != "z":
+            out["up"] = self.up
         if self.description:
             out["description"] = self.description
         out["elements"] = [e.to_dict() for e in self.elements]
@@ -319,6 +359,17 @@ class Model:
         if self.mesh is not None:
             out["mesh"] = self.mesh
         return out
+
+
+def _about(element: Element, point: np.ndarray) -> Element:
+    """``element`` taking moments about ``point`` (a shallow copy: nothing is validated again)."""
+    if element.reference_point is not None and np.array_equal(element.reference_point, point):
+        return element
+    if element.reference_point is None and not point.any():
+        return element
+    out = copy.copy(element)
+    object.__setattr__(out, "reference_point", point)
+    return out
 
 
 def _as_pair(pair, field: str, count: int) -> tuple[int, int]:
@@ -359,7 +410,7 @@ def model_from_dict(data, base_dir=None, tolerances: Tolerances = DEFAULT_TOLERA
     adjacency = data.get("adjacency", [])
     if not isinstance(adjacency, list):
         raise TypeError(f"adjacency: expected a list of pairs, got {type(adjacency).__name__}")
-    for key in ("name", "units", "mesh", "description"):
+    for key in ("name", "units", "mesh", "description", "up"):
         if key in data and not isinstance(data[key], str):
             raise TypeError(f"{key}: expected text, got {data[key]!r}")
     return Model(
@@ -370,6 +421,8 @@ def model_from_dict(data, base_dir=None, tolerances: Tolerances = DEFAULT_TOLERA
         data.get("mesh"),
         data.get("description", ""),
         Path(base_dir) if base_dir is not None else None,
+        reference_point=data.get("reference_point"),
+        up=data.get("up", "z"),
     )
 
 

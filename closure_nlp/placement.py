@@ -359,6 +359,7 @@ class Placer:
                 for i, (e, w) in enumerate(zip(elements, weights))
             ),
             self.eligibility.torque_scale,
+            model.reference_point,
         )
 
     def optimise(self, elements, weights, progress: Progress | None = None):

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from closure_nlp.characterize import characterize, load_mesh, winding_number
+from closure_nlp.characterize import characterize, characterize_mesh, load_mesh, winding_number
 from closure_nlp.cli import main
 from closure_nlp.elements import ElementKind, load_model
 
@@ -101,7 +101,7 @@ def test_segment_spacing_thins_rulings_and_keeps_them_in_a_ring():
 
 def test_cone_rulings_meet_at_the_apex_without_making_every_ruling_a_neighbour():
     cone = trimesh.creation.cone(radius=1.0, height=2.0, sections=24)
-    model = characterize(cone)
+    model = characterize(cone, segment_spacing=0)
     assert model.counts() == {"facet": 1, "segment": 24, "point": 0}
     apex = np.array([0.0, 0.0, 2.0])
     for seg in of_kind(model, "segment"):
@@ -150,7 +150,7 @@ def test_l_bracket_is_covered_exactly_by_convex_facets():
 def test_stepped_shaft_gives_end_facets_shoulder_facets_and_two_rings_of_rulings():
     profile = np.array([[0, 0], [10, 0], [10, 20], [6, 20], [6, 50], [0, 50]], dtype=float)
     shaft = trimesh.creation.revolve(profile, sections=32)
-    model = characterize(shaft)
+    model = characterize(shaft, segment_spacing=0)
     segments = of_kind(model, "segment")
     assert len(segments) == 64 and not of_kind(model, "point")
     radii = sorted({round(float(np.hypot(*s.centroid[:2])), 3) for s in segments})
@@ -196,13 +196,30 @@ def test_inside_out_mesh_gets_inward_normals_pointing_inside():
     assert all(e.inward_normal @ e.centroid < 0 for e in model.elements)
 
 
-def test_open_mesh_that_cannot_be_closed_is_rejected(tmp_path):
+def finned_box() -> trimesh.Trimesh:
+    """A box with a large fin on one of its edges: that edge has three triangles."""
+    box = trimesh.creation.box()
+    a, b = box.edges_unique[0]
+    far = (box.vertices[a] + box.vertices[b]) / 2 + 3 * (box.vertices[a] - box.centroid)
+    vertices = np.vstack([box.vertices, far])
+    return trimesh.Trimesh(vertices, np.vstack([box.faces, [[a, b, len(box.vertices)]]]))
+
+
+def test_open_mesh_that_cannot_be_closed_is_rejected_naming_its_open_edges(tmp_path):
+    path = tmp_path / "fin.stl"
+    finned_box().export(path)
+    with pytest.raises(ValueError, match=r"fin\.stl: the mesh is not closed \(3 open or non-man"):
+        characterize(path)
+
+
+def test_large_flat_hole_is_capped():
     cyl = trimesh.creation.cylinder(radius=1.0, height=2.0, sections=16)
     keep = cyl.face_normals[:, 2] < 0.5  # no top cap: a 16-edge hole
-    path = tmp_path / "cup.stl"
-    trimesh.Trimesh(cyl.vertices, cyl.faces[keep]).export(path)
-    with pytest.raises(ValueError, match=r"cup\.stl: the mesh is not closed \(16 open"):
-        characterize(path)
+    repairs = []
+    model = characterize_mesh(trimesh.Trimesh(cyl.vertices, cyl.faces[keep]), segment_spacing=0)
+    repairs = model.repairs
+    assert model.model.counts() == {"facet": 2, "segment": 16, "point": 0}
+    assert repairs == ("filled 1 hole(s) bounded by 16 edges",)
 
 
 def test_unreadable_and_missing_files_are_rejected_naming_them(tmp_path):
@@ -337,10 +354,7 @@ def test_cli_characterize_writes_a_model(tmp_path, capsys):
 def test_cli_bad_input_exits_2_with_one_error_line(tmp_path, capsys, args, needle):
     (tmp_path / "junk.stl").write_text("solid nothing\n garbage\n")
     (tmp_path / "junk.model.json").write_text("{ not json")
-    cyl = trimesh.creation.cylinder(radius=1.0, height=2.0, sections=16)
-    trimesh.Trimesh(cyl.vertices, cyl.faces[cyl.face_normals[:, 2] < 0.5]).export(
-        tmp_path / "open.stl"
-    )
+    finned_box().export(tmp_path / "open.stl")
     fill = {"tmp": tmp_path, "model": MODELS / "pistol.model.json"}
     code, stdout, err = run_cli(capsys, *[a.format(**fill) for a in args])
     assert code == 2

@@ -1,0 +1,270 @@
+"""Closed part surfaces from meshes as datasets ship them.
+
+Robotics datasets ship open handles glued into bodies, convex decompositions (VHACD pieces that
+overlap or touch face to face), texture seams and stray triangles. :func:`repair_mesh` makes one
+closed, consistently wound surface with outward normals, or says why it cannot:
+
+1. the mesh with its vertices merged, when that is closed (most files);
+2. else its bodies: connected pieces, each closed on its own once its holes of any size are
+   filled (trimesh's repair for 3-4 edges, an ear-cut cap of the hole's boundary for larger
+   ones, kept only when the piece is then closed and consistently wound); stray open sheets
+   with almost no area are dropped;
+3. several closed bodies are merged by a boolean union (manifold3d), so no element lies inside
+   the part.
+
+Every repair is described in the ``repairs`` list the caller passes.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .files import read_mesh
+
+STRAY_AREA = 1e-3  # an open piece with less than this share of the area is dropped as debris
+
+
+def load_mesh(mesh_or_path, source: str | None = None, repairs: list | None = None):
+    """A closed, consistently wound ``trimesh.Trimesh`` with outward normals.
+
+    Parameters
+    ----------
+    mesh_or_path : trimesh.Trimesh or str or Path
+        A mesh, or a file trimesh can read (STL, OBJ, PLY, GLB, OFF...).
+    source : str, optional
+        How errors name the input (default: the path, or ``"mesh"``).
+    repairs : list, optional
+        Receives one line per repair made.
+
+    Raises
+    ------
+    ValueError
+        Unreadable file, no triangles, or a mesh that stays open (the message names the holes'
+        sizes) or inconsistently wound.
+    """
+    import trimesh
+
+    if isinstance(mesh_or_path, trimesh.Trimesh):
+        mesh = mesh_or_path.copy()
+        source = source or "mesh"
+    elif isinstance(mesh_or_path, (str, Path)):
+        path = Path(mesh_or_path)
+        source = source or str(path)
+        mesh = read_mesh(path, source)
+        raw = _read_unmerged(path)
+        if raw is not None and 0 < len(raw.vertices) < 3 * len(raw.faces):  # indexed, not soup
+            mesh = raw  # the file's own vertices: touching pieces stay apart until merged
+    else:
+        raise TypeError(f"mesh: expected a trimesh.Trimesh or a path, got {mesh_or_path!r}")
+    return repair_mesh(mesh, source, repairs)
+
+
+def _read_unmerged(path: Path):
+    """The file's triangles with its own vertex indices (read_mesh merges them), or None."""
+    import trimesh
+
+    try:
+        raw = trimesh.load(str(path), force="mesh", process=False)
+    except Exception:  # read_mesh has already read it: this is only a better start
+        return None
+    return raw if isinstance(raw, trimesh.Trimesh) else None
+
+
+def repair_mesh(mesh, source: str = "mesh", repairs: list | None = None):
+    """One closed, consistently wound surface with outward normals (see the module's steps).
+
+    Raises
+    ------
+    ValueError
+        When the mesh stays open, inconsistently wound or encloses no volume.
+    """
+    import trimesh
+
+    repairs = [] if repairs is None else repairs
+    faces = np.asarray(mesh.faces)
+    vertices = np.asarray(mesh.vertices, dtype=float)
+    if len(faces) == 0:
+        raise ValueError(f"{source}: the mesh has no triangles")
+    if not np.all(np.isfinite(vertices)):
+        raise ValueError(f"{source}: vertices must be finite")
+    merged = _clean(trimesh.Trimesh(vertices, faces, process=True))
+    if len(merged.faces) == 0:
+        raise ValueError(f"{source}: every triangle of the mesh is degenerate")
+    if merged.is_watertight and merged.body_count == 1:
+        return _oriented(merged, source, repairs)
+    # Pieces as the file gives them (vertices shared between touching pieces would join them).
+    raw = trimesh.Trimesh(vertices, faces, process=False)
+    pieces = [_clean(p) for p in raw.split(only_watertight=False)]
+    bodies, problems = [], []
+    total = sum(p.area for p in pieces)
+    for piece in pieces:
+        closed = _closed(piece.copy(), repairs)
+        if closed is not None:
+            bodies.append(closed)
+        elif piece.area < STRAY_AREA * total:
+            repairs.append(f"dropped a stray open piece of {len(piece.faces)} triangle(s)")
+        else:
+            problems.append(piece)
+    if problems:
+        raise ValueError(f"{source}: {_open_message(problems)}")
+    if not bodies:
+        raise ValueError(f"{source}: the mesh encloses no volume")
+    if len(bodies) == 1:
+        return _oriented(bodies[0], source, repairs)
+    return _union(bodies, source, repairs)
+
+
+def _clean(mesh):
+    """Merged vertices, no degenerate or repeated triangles, no unused vertices."""
+    mesh.merge_vertices()
+    mesh.update_faces(mesh.nondegenerate_faces())
+    mesh.update_faces(mesh.unique_faces())
+    mesh.remove_unreferenced_vertices()
+    return mesh
+
+
+def _closed(piece, repairs: list):
+    """The piece closed and consistently wound (holes filled), or None."""
+    import trimesh
+
+    if not piece.is_watertight:
+        loops = _boundary_loops(piece)
+        trimesh.repair.fill_holes(piece)
+        if not piece.is_watertight:
+            _cap_holes(piece)
+        if not piece.is_watertight:
+            return None
+        sizes = sorted(len(loop) for loop in loops) if loops else []
+        repairs.append(f"filled {len(sizes)} hole(s) bounded by {_sizes(sizes)} edges")
+    if not piece.is_winding_consistent:
+        trimesh.repair.fix_winding(piece)
+        if not piece.is_winding_consistent:
+            return None
+        repairs.append("made the triangles' winding consistent")
+    trimesh.repair.fix_normals(piece)
+    return piece if piece.volume > 0 else None
+
+
+def _oriented(mesh, source: str, repairs: list):
+    closed = _closed(mesh.copy(), repairs)
+    if closed is None:
+        if not mesh.is_watertight:
+            raise ValueError(f"{source}: {_open_message([mesh])}")
+        raise ValueError(
+            f"{source}: the mesh's triangles are inconsistently wound (not orientable)"
+        )
+    return closed
+
+
+def _union(bodies, source: str, repairs: list):
+    """Boolean union of closed bodies (manifold3d): overlapping pieces become one surface."""
+    import trimesh
+
+    try:
+        union = trimesh.boolean.union(bodies, engine="manifold")
+    except Exception as exc:  # manifold3d refuses a body it does not find manifold
+        raise ValueError(
+            f"{source}: the mesh has {len(bodies)} separate closed bodies and their union "
+            f"failed ({exc.__class__.__name__}: {exc}); merge them into one part first"
+        ) from None
+    if not (union.is_watertight and union.is_winding_consistent and union.volume > 0):
+        raise ValueError(
+            f"{source}: the union of its {len(bodies)} bodies is not a closed surface; merge "
+            "them into one part first"
+        )
+    trimesh.repair.fix_normals(union)
+    pieces = union.body_count
+    repairs.append(
+        f"merged {len(bodies)} bodies by boolean union (manifold3d)"
+        + (f": {pieces} disjoint pieces remain, held as one rigid part" if pieces > 1 else "")
+    )
+    return union
+
+
+def _boundary_loops(mesh) -> list[list[int]]:
+    """Vertex loops of the mesh's boundary (edges used by one triangle), in their direction."""
+    edges = mesh.edges  # directed, from the faces' winding
+    key = np.sort(edges, axis=1)
+    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    if np.any(counts > 2):
+        return []  # non-manifold: not holes
+    return _loops(edges[counts[inverse.ravel()] == 1])
+
+
+def _cap_holes(mesh) -> None:
+    """Cap every boundary loop by an ear-cut triangulation of its projection on its best-fit
+    plane (mapbox_earcut), wound against the boundary so that the result is consistent."""
+    import mapbox_earcut
+
+    loops = _boundary_loops(mesh)
+    if not loops:
+        return
+    new_faces = []
+    for loop in loops:
+        pts = mesh.vertices[loop]
+        centred = pts - pts.mean(axis=0)
+        _, _, vt = np.linalg.svd(centred, full_matrices=False)
+        xy = centred @ vt[:2].T
+        tri = mapbox_earcut.triangulate_float64(xy, np.array([len(loop)], dtype=np.uint32))
+        tri = np.asarray(tri, dtype=np.int64).reshape(-1, 3)
+        if len(tri) != len(loop) - 2:
+            return  # not a simple polygon in that plane: leave the hole
+        faces = np.asarray(loop)[tri]
+        # The boundary runs a -> b in the mesh; the cap must run b -> a.
+        a, b = loop[0], loop[1]
+        runs = [(f[k], f[(k + 1) % 3]) for f in faces.tolist() for k in range(3)]
+        if (a, b) in runs:
+            faces = faces[:, ::-1]
+        new_faces.append(faces)
+    mesh.faces = np.vstack([mesh.faces, *new_faces])
+
+
+def _loops(directed_edges: np.ndarray) -> list[list[int]]:
+    """Simple vertex loops of a set of directed boundary edges ([] if one is not simple)."""
+    nxt: dict[int, int] = {}
+    for a, b in directed_edges.tolist():
+        if a in nxt:
+            return []
+        nxt[a] = b
+    loops, seen = [], set()
+    for start in nxt:
+        if start in seen:
+            continue
+        loop, v = [], start
+        while v not in seen:
+            if v not in nxt:
+                return []
+            seen.add(v)
+            loop.append(v)
+            v = nxt[v]
+        if v != start:
+            return []
+        loops.append(loop)
+    return loops
+
+
+def _sizes(sizes: list[int]) -> str:
+    values, counts = np.unique(sizes, return_counts=True)
+    return ", ".join(f"{v}" + (f" (x{c})" if c > 1 else "") for v, c in zip(values, counts))
+
+
+def _open_message(pieces) -> str:
+    """What is open, and what the user can do."""
+    open_edges, sizes = 0, []
+    for p in pieces:
+        key = np.sort(p.edges, axis=1)
+        _, counts = np.unique(key, axis=0, return_counts=True)
+        open_edges += int((counts != 2).sum())
+        sizes += [len(loop) for loop in _boundary_loops(p)]
+    holes = f"; holes bounded by {_sizes(sorted(sizes))} edges" if sizes else ""
+    return (
+        f"the mesh is not closed ({open_edges} open or non-manifold edges{holes}) and filling "
+        "its holes did not close it (a hole that is not flat enough to cap, or edges shared by "
+        "more than two triangles); a closed surface is needed to tell inside from outside: "
+        "close it in a mesh editor (e.g. Blender's 3D-Print toolbox or MeshLab's 'close holes')"
+    )
+
+
+__all__ = ["load_mesh", "repair_mesh"]
