@@ -17,6 +17,7 @@ Every repair is described in the ``repairs`` list the caller passes.
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -127,6 +128,14 @@ def _clean(mesh):
 
 def _closed(piece, repairs: list):
     """The piece closed and consistently wound (holes filled), or None."""
+    # trimesh divides by the zero areas of degenerate caps while it tries: the outcome is judged
+    # by the checks below, not by its warnings.
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return _close(piece, repairs)
+
+
+def _close(piece, repairs: list):
     import trimesh
 
     if not piece.is_watertight:
