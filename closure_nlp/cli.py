@@ -614,6 +614,10 @@ def _add_show(sub, common) -> None:
     p.add_argument("--azim", type=float, default=-58.0, help="view azimuth, degrees")
     p.add_argument("--no-mesh", action="store_true", help="do not draw the model's mesh")
     _add_mesh_option(p)
+    p.add_argument("--ids", action="store_true", help="write each element's id beside it")
+    p.add_argument(
+        "--up", choices=["x", "y", "z"], help="model axis drawn upwards (default: the model's)"
+    )
     p.set_defaults(run=_cmd_show)
 
 
@@ -662,13 +666,30 @@ def _cmd_show(args) -> None:
     options = (
         {}
         if suffix in SCENE_SUFFIXES
-        else {"view": (args.elev, args.azim), "show_mesh": not args.no_mesh}
+        else {
+            "view": (args.elev, args.azim),
+            "show_mesh": not args.no_mesh,
+            "up": args.up,
+            "ids": args.ids,
+        }
     )
     try:
         out = save_view(model, args.out, contacts, highlight=highlight, **options)
     except OSError as exc:
         raise InputError(args.out, f"cannot write: {exc.strerror or exc}") from None
-    _emit(args, {"file": args.model, "out": str(out)}, f"{args.model}: drawn to {out}")
+    point = ", ".join(f"{x:.6g}" for x in model.reference_point)
+    _emit(
+        args,
+        {
+            "file": args.model,
+            "out": str(out),
+            "units": model.units,
+            "reference_point": model.reference_point.tolist(),
+        },
+        f"{args.model}: drawn to {out} (torques about [{point}]"
+        + (f" {model.units}" if model.units else "")
+        + ", marked x)",
+    )
 
 
 COMMANDS.extend([_add_characterize, _add_show])

@@ -84,6 +84,10 @@ def draw_model(
     show_mesh: bool = True,
     title: str | None = None,
     view: tuple[float, float] = (22.0, -58.0),
+    up: str | None = None,
+    ids: bool = False,
+    legend: bool = True,
+    contact_label: str = "contacts",
 ):
     """Draw a model's elements (and contacts) into 3-D axes.
 
@@ -104,6 +108,16 @@ def draw_model(
         Default: the model's name and its element counts.
     view : (float, float)
         Elevation and azimuth in degrees.
+    up : {"x", "y", "z"}, optional
+        The model's axis drawn upwards (default: the model's ``up``).
+    ids : bool
+        Write each element's id beside it.
+    legend : bool
+        A legend of what is drawn (elements, chosen elements, contacts, reference point).
+    contact_label : str
+        Legend entry of ``contacts``.
+
+    Contacts are drawn last and above everything else, so no facet hides them.
 
     Returns
     -------
@@ -113,22 +127,74 @@ def draw_model(
         plt = pyplot()
         fig = plt.figure(figsize=(7.0, 6.0))
         ax = fig.add_subplot(projection="3d")
+    up = model.up if up is None else up
+    if up not in UP_AXES:
+        raise ValueError(f"up: expected x, y or z, got {up!r}")
+    ax._closure_axes = UP_AXES[up]  # every later drawing call on ax shows the same axis up
+    ax.computed_zorder = False  # draw in call order: contacts last, on top
     chosen = {model.check_id(i, "highlight") for i in highlight}
     if show_mesh:
         _draw_mesh(ax, model)
     _draw_facets(ax, model, chosen)
     _draw_segments(ax, model, chosen)
     _draw_points(ax, model, chosen)
+    if ids:
+        for i, e in enumerate(model.elements):
+            x, y, z = _shown(ax, e.centroid)
+            ax.text(x, y, z, str(i), fontsize=6, color="#222222", zorder=20)
+    p = _shown(ax, model.reference_point)
+    ax.scatter(*p, marker="x", s=40, c="black", depthshade=False, zorder=5)
     draw_contacts(
-        ax, contacts, sizes=contact_sizes, colour=contact_colour, scale=model_extent(model)
+        ax,
+        contacts,
+        sizes=contact_sizes,
+        colour=contact_colour,
+        scale=model_extent(model),
+        label=contact_label,
     )
     _equal_aspect(ax, model, contacts)
     ax.view_init(*view)
     ax.set_title(title if title is not None else f"{model.name}: {counts_text(model)}")
     unit = f" [{model.units}]" if model.units else ""
-    for axis, name in zip(("x", "y", "z"), ("x", "y", "z")):
-        getattr(ax, f"set_{axis}label")(name + unit)
+    for axis, k in zip(("x", "y", "z"), ax._closure_axes):
+        getattr(ax, f"set_{axis}label")("xyz"[k] + unit)
+    if legend:
+        update_legend(ax, model, chosen)
     return ax
+
+
+# Model axes shown as the picture's x, y, z (right-handed: a cyclic permutation).
+UP_AXES = {"z": (0, 1, 2), "y": (2, 0, 1), "x": (1, 2, 0)}
+
+
+def _shown(ax, points) -> np.ndarray:
+    """Model coordinates (..., 3) as drawn on ``ax`` (its up axis last)."""
+    return np.asarray(points, dtype=float)[..., list(getattr(ax, "_closure_axes", (0, 1, 2)))]
+
+
+def update_legend(ax, model: Model | None = None, chosen=()) -> None:
+    """A legend of the element kinds present, the chosen elements, the reference point and
+    every contact set drawn (by its label)."""
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    handles = list(getattr(ax, "_closure_legend", {}).values())
+    if model is not None:
+        counts = model.counts()
+        kinds = [
+            (counts["facet"], Patch(facecolor=FACET_COLOUR, edgecolor="#33415c", label="facets")),
+            (counts["segment"], Line2D([], [], color=SEGMENT_COLOUR, lw=1.4, label="segments")),
+            (
+                counts["point"],
+                Line2D([], [], color=POINT_COLOUR, marker="o", ls="", ms=3, label="points"),
+            ),
+            (len(chosen), Patch(facecolor=HIGHLIGHT_COLOUR, label="chosen elements")),
+            (1, Line2D([], [], color="black", marker="x", ls="", label="reference point")),
+        ]
+        ax._closure_model_legend = [h for n, h in kinds if n]
+    handles = getattr(ax, "_closure_model_legend", []) + handles
+    if handles:
+        ax.legend(handles=handles, loc="upper left", fontsize=7, framealpha=0.85)
 
 
 def _ids(model: Model, kind: ElementKind) -> list[int]:
@@ -146,7 +212,9 @@ def _draw_mesh(ax, model: Model) -> None:
     colours = _shade(-mesh.face_normals, np.array([0.85, 0.85, 0.85]))
     ax.add_collection3d(
         Poly3DCollection(
-            mesh.triangles, facecolors=np.c_[colours, np.full(len(colours), 0.12)], linewidths=0
+            _shown(ax, mesh.triangles),
+            facecolors=np.c_[colours, np.full(len(colours), 0.12)],
+            linewidths=0,
         )
     )
 
@@ -164,7 +232,7 @@ def _draw_facets(ax, model: Model, chosen: set[int]) -> None:
             for i, n in zip(ids, normals)
         ]
     )
-    polygons = [model.elements[i].vertices for i in ids]
+    polygons = [_shown(ax, model.elements[i].vertices) for i in ids]
     ax.add_collection3d(
         Poly3DCollection(
             polygons,
@@ -181,7 +249,7 @@ def _draw_segments(ax, model: Model, chosen: set[int]) -> None:
     ids = _ids(model, ElementKind.SEGMENT)
     if not ids:
         return
-    lines = [model.elements[i].vertices for i in ids]
+    lines = [_shown(ax, model.elements[i].vertices) for i in ids]
     colours = np.array([HIGHLIGHT_COLOUR if i in chosen else SEGMENT_COLOUR for i in ids])
     widths = [3.0 if i in chosen else 1.4 for i in ids]
     ax.add_collection3d(Line3DCollection(lines, colors=colours, linewidths=widths))
@@ -191,7 +259,7 @@ def _draw_points(ax, model: Model, chosen: set[int]) -> None:
     ids = _ids(model, ElementKind.POINT)
     if not ids:
         return
-    pts = np.array([model.elements[i].vertices[0] for i in ids])
+    pts = _shown(ax, np.array([model.elements[i].vertices[0] for i in ids]))
     colours = np.array([HIGHLIGHT_COLOUR if i in chosen else POINT_COLOUR for i in ids])
     sizes = [30.0 if i in chosen else 6.0 for i in ids]
     ax.scatter(pts[:, 0], pts[:, 1], pts[:, 2], c=colours, s=sizes, depthshade=False)
@@ -205,6 +273,7 @@ def draw_contacts(
     colour: str = CONTACT_COLOUR,
     scale: float = 1.0,
     arrow_length: float | None = None,
+    label: str | None = None,
 ) -> None:
     """Contacts as balls with arrows that end at the contact and point along its inward normal.
 
@@ -216,10 +285,13 @@ def draw_contacts(
         Marker areas in points^2 (small for initial contacts, large for final ones).
     scale : float
         Size of the object; arrows are ``0.15 * scale`` long unless ``arrow_length`` is given.
+    label : str, optional
+        Legend entry (the legend is redrawn with it); drawn above everything drawn before.
     """
     pos, nrm = contact_arrays(contacts)
     if len(pos) == 0:
         return
+    pos, nrm = _shown(ax, pos), _shown(ax, nrm)
     sizes = np.broadcast_to(np.asarray(sizes, dtype=float), (len(pos),))
     length = 0.15 * scale if arrow_length is None else arrow_length
     tails = pos - length * nrm
@@ -235,6 +307,7 @@ def draw_contacts(
         color=colour,
         linewidth=1.6,
         arrow_length_ratio=0.3,
+        zorder=30,
     )
     ax.scatter(
         pos[:, 0],
@@ -246,7 +319,27 @@ def draw_contacts(
         linewidths=0.5,
         depthshade=False,
         alpha=1.0,
+        zorder=31,
     )
+    if label:
+        from matplotlib.lines import Line2D
+
+        entries = getattr(ax, "_closure_legend", {})
+        size = float(np.sqrt(sizes.max()))
+        entries[label] = Line2D(
+            [],
+            [],
+            color=colour,
+            marker="o",
+            markeredgecolor="black",
+            ms=size / 1.6,
+            ls="-",
+            lw=1.2,
+            label=f"{label} (arrow: inward normal)",
+        )
+        ax._closure_legend = entries
+        if ax.get_legend() is not None:
+            update_legend(ax)
 
 
 def _equal_aspect(ax, model: Model, contacts) -> None:
@@ -254,7 +347,7 @@ def _equal_aspect(ax, model: Model, contacts) -> None:
     pos, nrm = contact_arrays(contacts)
     if len(pos):
         pts += [pos, pos - 0.15 * model_extent(model) * nrm]
-    pts = np.vstack(pts)
+    pts = _shown(ax, np.vstack(pts))
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     centre, half = (lo + hi) / 2, max(float((hi - lo).max()) / 2, 1e-9)
     ax.set_xlim(centre[0] - half, centre[0] + half)

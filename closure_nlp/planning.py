@@ -313,9 +313,10 @@ def write_report(model, result: PlanResult, out_dir, options: dict) -> dict:
         highlight=sorted(set(result.placement.elements) | set(result.iterative.elements)),
         contact_sizes=25.0,
         contact_colour="tab:blue",
+        contact_label="start: element centroids",
         title=f"{model.name}: rho = {result.placement.rho:.4f}",
     )
-    draw_contacts(ax, final, sizes=140.0, scale=model_extent(model))
+    draw_contacts(ax, final, sizes=140.0, scale=model_extent(model), label="placed contacts")
     paths["placement.png"] = save_figure(fig, out / "placement.png")
     plt.close(fig)
     # Fig. 3: rho_hat against the iteration number.
