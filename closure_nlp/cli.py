@@ -36,7 +36,10 @@ from .quality import rho
 from .scale import is_auto, scale_warnings
 from .scale import resolve as resolve_scale
 from .selection import run_selection
-from .validation import MAX_ELEMENT_CONTACTS, as_count, as_torque_scale
+from .validation import MAX_ELEMENT_CONTACTS, MAX_SEED, as_count, as_torque_scale
+
+MAX_STARTS = 100  # placement start weights per run: each is a full exchange method
+MAX_WORKERS = 256  # local Dask worker processes
 
 
 class InputError(ValueError):
@@ -131,6 +134,25 @@ def _values(text: str, flag: str, count: int, convert):
     except ValueError:
         raise ValueError(f"{flag}: not a number in {text!r}") from None
     return values[0] if len(values) == 1 else values
+
+
+def _bounded_int(low: int, high: int, what: str):
+    """argparse type: an integer in [low, high] (the limit named in the message)."""
+
+    def convert(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"{what} must be in [{low}, {high}], got {text}")
+        return value
+
+    return convert
+
+
+_seed = _bounded_int(0, MAX_SEED, "a seed")
+_starts = _bounded_int(1, MAX_STARTS, "the number of start weights")
 
 
 def _add_contact_options(parser) -> None:
@@ -255,7 +277,7 @@ def _add_select(sub, common) -> None:
     p.add_argument("--contacts", type=int, required=True, metavar="M", help="number of contacts")
     p.add_argument("--algorithm", choices=["heuristic", "iterative"], default="heuristic")
     p.add_argument("--start", help="start elements I,J,... (heuristic: its i0 < M start ids)")
-    p.add_argument("--seed", type=int, default=0, help="random start of the heuristic")
+    p.add_argument("--seed", type=_seed, default=0, help="random start of the heuristic")
     _add_contact_options(p)
     p.set_defaults(run=_cmd_select)
 
@@ -292,8 +314,8 @@ def _add_place(sub, common) -> None:
     p = sub.add_parser("place", parents=[common], help="optimal contacts on given elements")
     p.add_argument("model", metavar="MODEL", help="*.model.json")
     p.add_argument("--elements", required=True, help="element ids, one per contact: I,J,...")
-    p.add_argument("--starts", type=int, default=4, help="start weights tried (default 4)")
-    p.add_argument("--seed", type=int, default=0, help="random start weights after the first")
+    p.add_argument("--starts", type=_starts, default=4, help="start weights tried (default 4)")
+    p.add_argument("--seed", type=_seed, default=0, help="random start weights after the first")
     p.add_argument("--out", metavar="FILE", help="write the placed contacts as a contact-set file")
     _add_contact_options(p)
     p.set_defaults(run=_cmd_place)
@@ -359,8 +381,10 @@ def _add_plan(sub, common) -> None:
     p = sub.add_parser("plan", parents=[common], help="heuristic, iterative and placement")
     p.add_argument("model", metavar="MODEL", help="*.model.json")
     p.add_argument("--contacts", type=int, required=True, metavar="M", help="number of contacts")
-    p.add_argument("--seed", type=int, default=0, help="random start of the heuristic")
-    p.add_argument("--starts", type=int, default=4, help="placement start weights (default 4)")
+    p.add_argument("--seed", type=_seed, default=0, help="random start of the heuristic")
+    p.add_argument(
+        "--starts", type=_starts, default=4, help="placement start weights (default 4)"
+    )
     p.add_argument(
         "--alternatives",
         type=int,
@@ -593,6 +617,17 @@ def _cmd_characterize(args) -> None:
     )
 
 
+def _angle(text: str) -> float:
+    """argparse type: a finite number of degrees (``nan`` would draw an empty picture)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not abs(value) <= 360.0:
+        raise argparse.ArgumentTypeError(f"expected degrees in [-360, 360], got {text!r}")
+    return value
+
+
 def _add_show(sub, common) -> None:
     p = sub.add_parser("show", parents=[common], help="picture (or 3-D scene) of a model")
     p.add_argument("model", metavar="MODEL", help="*.model.json")
@@ -610,8 +645,8 @@ def _add_show(sub, common) -> None:
         metavar="I,J,...",
         help="element ids to highlight (default: the contacts' 'element' ids)",
     )
-    p.add_argument("--elev", type=float, default=22.0, help="view elevation, degrees")
-    p.add_argument("--azim", type=float, default=-58.0, help="view azimuth, degrees")
+    p.add_argument("--elev", type=_angle, default=22.0, help="view elevation, degrees")
+    p.add_argument("--azim", type=_angle, default=-58.0, help="view azimuth, degrees")
     p.add_argument("--no-mesh", action="store_true", help="do not draw the model's mesh")
     _add_mesh_option(p)
     p.add_argument("--ids", action="store_true", help="write each element's id beside it")
@@ -723,7 +758,10 @@ def _add_study(sub, common) -> None:
     )
     p.add_argument("--scheduler", metavar="ADDRESS", help="join this Dask scheduler")
     p.add_argument(
-        "--workers", type=_study_count(1), metavar="N", help="local workers (default: cores)"
+        "--workers",
+        type=_bounded_int(1, MAX_WORKERS, "the number of local workers"),
+        metavar="N",
+        help="local workers (default: cores)",
     )
     p.add_argument("--serial", action="store_true", help="run in this process, without Dask")
     p.add_argument(

@@ -117,8 +117,8 @@ def read_mesh(path, source: str | None = None):
         )
     if suffix == "stl":
         _check_stl(path, source)
-    try:
-        loaded = trimesh.load(str(path), force="mesh", process=True)
+    try:  # unprocessed first: processing silently drops non-finite vertices
+        loaded = trimesh.load(str(path), force="mesh", process=False)
     except Exception as exc:  # trimesh raises many kinds for a bad file
         # A text format that is not text ends in trimesh's search for a charset module.
         detail = "bytes that are not text" if isinstance(exc, ImportError) else str(exc)
@@ -135,6 +135,7 @@ def read_mesh(path, source: str | None = None):
             f"{source}: vertices: |coordinate| {float(np.abs(vertices).max()):.3g} is beyond "
             f"the accepted range [-{MAX_COORDINATE:g}, {MAX_COORDINATE:g}]"
         )
+    loaded.process()  # merge duplicate vertices, drop degenerate faces (as process=True would)
     return loaded
 
 

@@ -124,6 +124,8 @@ def load_study(path) -> Study:
         raise ValueError(f"cannot read file: {exc.__class__.__name__}: {exc}") from None
     except tomllib.TOMLDecodeError as exc:
         raise ValueError(f"malformed TOML: {exc}") from None
+    except RecursionError:
+        raise ValueError("TOML nested too deeply to read") from None
     name = path.name.removesuffix(".toml").removesuffix(".study")
     return study_from_dict(data, path.resolve().parent, default_name=name, source=path)
 

@@ -1,0 +1,760 @@
+"""The corpus of hostile and extreme inputs (issue 15), generated, not stored.
+
+Each :class:`Case` writes its files into a folder and runs one command through the in-process CLI
+entry ``closure_nlp.cli.main`` (or one API call); :func:`outcome` sorts what happened into the
+issue's table: a clear error, an answer, a traceback (an internal error or an exception escaping),
+a NaN (a non-finite number printed), a hang. ``tests/test_hostile.py`` runs every case in
+``make test``; ``python -m tests.hostile`` prints the table.
+
+Expectations: ``"error"`` (exit 2 naming the file or flag, or ValueError/TypeError naming the
+field) or ``"answer"`` (exit 0 or 1 with every number finite; the API: a finite result).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import math
+import os
+import re
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+LAMP = ROOT / "models" / "lamp.model.json"
+CUP_MESH = ROOT / "models" / "cup.stl"
+
+ERROR, ANSWER = "error", "answer"
+HANG_SECONDS = 60.0
+
+
+@dataclass(frozen=True)
+class Case:
+    """One hostile input: ``make(folder)`` writes files and returns the CLI argv, or (group
+    ``api``) a callable whose return value is checked for finite numbers."""
+
+    group: str
+    name: str
+    make: Callable[[Path], list | Callable]
+    expect: str
+
+    @property
+    def id(self) -> str:
+        return f"{self.group}:{self.name}"
+
+
+# --- outcomes -----------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Outcome:
+    kind: str  # "error", "answer", "traceback", "nan", "hang"
+    detail: str
+    seconds: float
+
+
+def _numbers(value):
+    if isinstance(value, float):
+        yield value
+    elif isinstance(value, dict):
+        for v in value.values():
+            yield from _numbers(v)
+    elif isinstance(value, (list, tuple)):
+        for v in value:
+            yield from _numbers(v)
+
+
+_NAN_TEXT = re.compile(r"(?<![A-Za-z_])(nan|inf|-inf|NaN|Infinity)(?![A-Za-z_])")
+
+
+def run_case(case: Case, folder: Path) -> Outcome:
+    """Run one case in ``folder`` (created) and classify it."""
+    import closure_nlp.cli as cli
+
+    folder.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    if case.group == "api":
+        try:
+            call = case.make(folder)
+            value = call()
+        except (ValueError, TypeError) as exc:
+            return Outcome("error", f"{type(exc).__name__}: {exc}", time.perf_counter() - t0)
+        except Exception as exc:  # noqa: BLE001 - the corpus counts these
+            return Outcome("traceback", f"{type(exc).__name__}: {exc}", time.perf_counter() - t0)
+        seconds = time.perf_counter() - t0
+        values = [float(x) for x in np.ravel(np.asarray(value, dtype=float))]
+        if not all(math.isfinite(x) for x in values):
+            return Outcome("nan", repr(value), seconds)
+        return Outcome("answer", repr(value)[:200], seconds)
+    argv = [str(a) for a in case.make(folder)]
+    out, err = io.StringIO(), io.StringIO()
+    cwd = os.getcwd()
+    os.chdir(folder)
+    try:
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            try:
+                code = cli.main(argv)
+            except SystemExit as exc:  # argparse: bad flag
+                code = exc.code
+            except BaseException as exc:  # noqa: BLE001 - main must never let one escape
+                seconds = time.perf_counter() - t0
+                return Outcome("traceback", f"{type(exc).__name__}: {exc}", seconds)
+    finally:
+        os.chdir(cwd)
+    seconds = time.perf_counter() - t0
+    stdout, stderr = out.getvalue(), err.getvalue()
+    detail = f"exit {code}: {stderr.strip()[:300]}"
+    if seconds > HANG_SECONDS:
+        return Outcome("hang", detail, seconds)
+    if "Traceback" in stderr or code == 3 or code not in (0, 1, 2):
+        return Outcome("traceback", detail, seconds)
+    if "--json" in argv and stdout:
+        for line in stdout.splitlines():
+            if not all(math.isfinite(x) for x in _numbers(json.loads(line))):
+                return Outcome("nan", line[:300], seconds)
+    # An error message may quote the bad input ("got nan"); an answer may not print one.
+    if code != 2 and (_NAN_TEXT.search(stdout) or _NAN_TEXT.search(stderr)):
+        return Outcome("nan", stdout[:300] + stderr[:300], seconds)
+    lines = [x for x in stderr.splitlines() if not x.startswith("warning: ")]
+    if code == 2:
+        ok = len(lines) == 1 and lines[0].startswith("error: ") and stdout == ""
+        return Outcome("error" if ok else "traceback", detail, seconds)
+    if code == 1 and not (len(lines) == 1 and lines[0].startswith("error: ")):
+        return Outcome("traceback", detail, seconds)
+    return Outcome("answer", detail, seconds)
+
+
+# --- building blocks ----------------------------------------------------------------------------
+
+
+def _write(folder: Path, name: str, content) -> Path:
+    path = folder / name
+    if isinstance(content, bytes):
+        path.write_bytes(content)
+    elif isinstance(content, str):
+        path.write_text(content)
+    else:
+        path.write_text(json.dumps(content))
+    return path
+
+
+BOX = {  # 7 frictionless contacts on a unit box: force closure (examples/box_7fpc)
+    "defaults": {"type": "fpc"},
+    "contacts": json.loads((ROOT / "examples" / "box_7fpc.contacts.json").read_text())[
+        "contacts"
+    ],
+}
+PAIR = {  # two opposite soft fingers: a 2-contact answer that needs no long search
+    "contacts": [
+        {"position": [0, 0, 1], "inward_normal": [0, 0, -1], "type": "sfce"},
+        {"position": [0, 0, -1], "inward_normal": [0, 0, 1], "type": "sfce"},
+    ]
+}
+
+
+def _box_model() -> dict:
+    """A unit cube as six facets (its inward normals), neighbours across edges."""
+    elements = []
+    for axis in range(3):
+        others = [k for k in range(3) if k != axis]
+        for sign in (-1.0, 1.0):
+            corners = []
+            for p, q in [(-1, -1), (1, -1), (1, 1), (-1, 1)]:
+                v = [0.0, 0.0, 0.0]
+                v[axis], v[others[0]], v[others[1]] = sign, float(p), float(q)
+                corners.append(v)
+            normal = [0.0, 0.0, 0.0]
+            normal[axis] = -sign
+            elements.append({"kind": "facet", "vertices": corners, "inward_normal": normal})
+    adjacency = [[i, j] for i in range(6) for j in range(i + 1, 6) if i // 2 != j // 2]
+    return {"name": "box", "units": "mm", "elements": elements, "adjacency": adjacency}
+
+
+def _with(data: dict, path: tuple, value) -> dict:
+    """A deep copy of ``data`` with the item at ``path`` (keys and indices) set to ``value``;
+    ``...`` as value deletes it."""
+    out = json.loads(json.dumps(data))
+    target = out
+    for key in path[:-1]:
+        target = target[key]
+    if value is ...:
+        del target[path[-1]]
+    else:
+        target[path[-1]] = value
+    return out
+
+
+def _raw(text: str):
+    """JSON text written as is (NaN literals, huge integers, broken syntax)."""
+    return text
+
+
+# Values a hostile user puts where a number or a vector belongs.
+BAD_NUMBERS = [
+    ("nan", _raw("NaN")),
+    ("inf", _raw("Infinity")),
+    ("minus_inf", _raw("-Infinity")),
+    ("1e400", _raw("1e400")),
+    ("int_400_digits", _raw("1" + "0" * 400)),
+    ("string", "0.5"),
+    ("true", True),
+    ("null", None),
+    ("list", [1]),
+    ("object", {"x": 1}),
+]
+
+
+def _json_with_raw(data: dict, path: tuple, raw: str) -> str:
+    """JSON of ``data`` with the value at ``path`` replaced by the raw text ``raw``."""
+    marker = "__RAW_VALUE__"
+    return json.dumps(_with(data, path, marker)).replace(f'"{marker}"', raw)
+
+
+def _contact_cases() -> list[Case]:
+    cases = []
+
+    def rho_case(name, content, expect, extra=()):
+        def make(folder, content=content):
+            return ["rho", _write(folder, "c.contacts.json", content), "--json", *extra]
+
+        cases.append(Case("contacts", name, make, expect))
+
+    c0 = ("contacts", 0)
+    for field in ("position", "inward_normal"):
+        for k, (label, value) in enumerate(BAD_NUMBERS):
+            content = (
+                _json_with_raw(PAIR, (*c0, field, k % 3), value)
+                if isinstance(value, str) and label not in ("string",)
+                else _with(PAIR, (*c0, field, k % 3), value)
+            )
+            rho_case(f"{field}[{k % 3}]={label}", content, ERROR)
+        for label, value in [
+            ("short", [0, 0]),
+            ("long", [0, 0, 1, 0]),
+            ("empty", []),
+            ("nested", [[0], [0], [1]]),
+            ("strings", ["0", "0", "1"]),
+            ("booleans", [True, False, False]),
+            ("text", "0,0,1"),
+            ("missing", ...),
+        ]:
+            rho_case(f"{field}={label}", _with(PAIR, (*c0, field), value), ERROR)
+    for label, value, expect in [
+        ("1e12", 1e12, ANSWER),
+        ("1e13", 1e13, ERROR),
+        ("1e200", 1e200, ERROR),
+        ("1e300", 1e300, ERROR),
+        ("-1e300", -1e300, ERROR),
+        ("1e-300", 1e-300, ANSWER),
+        ("5e-324", 5e-324, ANSWER),
+    ]:
+        rho_case(f"position_z={label}", _with(PAIR, (*c0, "position", 2), value), expect)
+    for label, scale in [
+        ("1e-300", 1e-300),
+        ("1e-155", 1e-155),
+        ("1e-12", 1e-12),
+        ("1e155", 1e155),
+        ("1e200", 1e200),
+        ("1e300", 1e300),
+        ("1.7e308", 1.7e308),
+        ("5e-324", 5e-324),
+    ]:
+        normal = _with(PAIR, (*c0, "inward_normal"), [0, 0, -scale])
+        rho_case(f"normal_length={label}", normal, ANSWER)
+    rho_case("normal=zero", _with(PAIR, (*c0, "inward_normal"), [0, 0, 0]), ERROR)
+    rho_case("normal=minus_zero", _with(PAIR, (*c0, "inward_normal"), [-0.0, 0.0, -0.0]), ERROR)
+    ranges = {
+        "mu": [(-1, ERROR), (0, ANSWER), (1e6, ANSWER), (1e7, ERROR), (1e300, ERROR)],
+        "mu_s": [(-1, ERROR), (0, ANSWER), (1e12, ANSWER), (1e13, ERROR), (1e300, ERROR)],
+        "f_max": [
+            (0, ERROR), (-1, ERROR), (1e-13, ERROR), (1e-12, ANSWER), (1e12, ANSWER),
+            (1e13, ERROR), (1e300, ERROR),
+        ],
+    }
+    for field, values in ranges.items():
+        for value, expect in values:
+            rho_case(f"{field}={value:g}", _with(PAIR, (*c0, field), value), expect)
+        for label, value in BAD_NUMBERS:
+            content = (
+                _json_with_raw(PAIR, (*c0, field), value)
+                if isinstance(value, str) and label != "string"
+                else _with(PAIR, (*c0, field), value)
+            )
+            rho_case(f"{field}={label}", content, ERROR)
+    for value, expect in [
+        (0, ERROR), (-1, ERROR), (1e-13, ERROR), (1e-12, ANSWER), (1e12, ANSWER), (1e13, ERROR),
+        (1e300, ERROR), ("1", ERROR), (True, ERROR), (None, ERROR),
+    ]:
+        rho_case(f"torque_scale={value!r}", {**PAIR, "torque_scale": value}, expect)
+    for label, value in [("glue", "glue"), ("number", 3), ("null", None), ("upper", "SFCE")]:
+        expect = ANSWER if label == "upper" else ERROR
+        rho_case(f"type={label}", _with(PAIR, (*c0, "type"), value), expect)
+    rho_case("unknown_key", _with(PAIR, (*c0, "positon"), [0, 0, 1]), ERROR)
+    rho_case("contacts=empty", {"contacts": []}, ERROR)
+    rho_case("contacts=object", {"contacts": {}}, ERROR)
+    rho_case("contacts=text", {"contacts": "x"}, ERROR)
+    rho_case("contacts=missing", {"torque_scale": 1}, ERROR)
+    rho_case("contacts=2001", {"contacts": PAIR["contacts"] * 1001}, ERROR)
+    rho_case("contact=list", {"contacts": [[0, 0, 1]]}, ERROR)
+    rho_case("defaults=list", {**PAIR, "defaults": []}, ERROR)
+    rho_case("defaults.mu=1e300", {**PAIR, "defaults": {"mu": 1e300}}, ERROR)
+    rho_case("top=list", [PAIR], ERROR)
+    rho_case("top=number", "3", ERROR)
+    rho_case("nested_5000", "[" * 5000 + "]" * 5000, ERROR)
+    rho_case("nested_100000", "[" * 100000 + "]" * 100000, ERROR)
+    rho_case("malformed", '{"contacts": [', ERROR)
+    rho_case("empty_file", "", ERROR)
+    noise = bytes(np.random.default_rng(1).integers(0, 256, 4096, dtype=np.uint8))
+    rho_case("random_bytes", noise, ERROR)
+    rho_case("utf16", json.dumps(PAIR).encode("utf-16"), ERROR)
+    rho_case("huge_digits", '{"contacts": ' + "1" * 5000 + "}", ERROR)
+    rho_case("box_7fpc", BOX, ANSWER)
+    rho_case("box_7fpc_certify", BOX, ANSWER, ("--certify",))
+    rho_case("pair_text", PAIR, ANSWER)
+    cases.append(Case("contacts", "missing_file", lambda f: ["rho", f / "none.json"], ERROR))
+    cases.append(Case("contacts", "folder_as_file", lambda f: ["rho", f], ERROR))
+    return cases
+
+
+def _model_cases() -> list[Case]:
+    cases = []
+    base = _box_model()
+
+    def elig_case(name, content, expect, ids="0,1,2,3", extra=()):
+        def make(folder, content=content):
+            path = _write(folder, "m.model.json", content)
+            return ["eligibility", path, "--elements", ids, "--type", "pcwf", "--json", *extra]
+
+        cases.append(Case("models", name, make, expect))
+
+    e0 = ("elements", 0)
+    for k, (label, value) in enumerate(BAD_NUMBERS):
+        raw = isinstance(value, str) and label != "string"
+        path = (*e0, "vertices", k % 4, k % 3)
+        content = _json_with_raw(base, path, value) if raw else _with(base, path, value)
+        elig_case(f"vertex={label}", content, ERROR)
+        path = (*e0, "inward_normal", k % 3)
+        content = _json_with_raw(base, path, value) if raw else _with(base, path, value)
+        elig_case(f"normal={label}", content, ERROR)
+    for label, scale, expect in [
+        ("1e12", 1e12, ANSWER), ("1e13", 1e13, ERROR), ("1e200", 1e200, ERROR),
+        ("1e-200", 1e-200, ERROR),  # a facet of size 1e-200 next to unit ones: degenerate
+    ]:
+        content = _with(base, (*e0, "vertices"), [[-1, y * scale, z * scale] for y, z in
+                                                   [(-1, -1), (1, -1), (1, 1), (-1, 1)]])
+        elig_case(f"facet_size={label}", content, expect)
+    for label, value in [
+        ("kind=glue", ("kind", "glue")),
+        ("kind=null", ("kind", None)),
+        ("two_vertices", ("vertices", [[-1, 0, 0], [-1, 1, 0]])),
+        ("collinear", ("vertices", [[-1, 0, 0], [-1, 1, 0], [-1, 2, 0]])),
+        ("not_planar", ("vertices", [[-1, -1, -1], [-1, 1, -1], [-0.5, 1, 1], [-1, -1, 1]])),
+        ("not_convex", ("vertices", [[-1, -1, -1], [-1, 1, 1], [-1, 1, -1], [-1, -1, 1]])),
+        ("normal_in_plane", ("inward_normal", [0, 1, 0])),
+        ("normal_zero", ("inward_normal", [0, 0, 0])),
+        ("vertices_flat_list", ("vertices", [0, 0, 0])),
+        ("vertices_empty", ("vertices", [])),
+        ("unknown_key", ("colour", "red")),
+    ]:
+        key, v = value
+        elig_case(label, _with(base, (*e0, key), v), ERROR)
+    elig_case("normal_length_1e300", _with(base, (*e0, "inward_normal"), [1e300, 0, 0]), ANSWER)
+    elig_case("normal_length_1e-300", _with(base, (*e0, "inward_normal"), [1e-300, 0, 0]), ANSWER)
+    seg = {"kind": "segment", "vertices": [[0, 0, 1], [0, 0, 1]], "inward_normal": [1, 0, 0]}
+    elig_case("segment_coincident", _with(base, ("elements", 5), seg), ERROR)
+    seg = {"kind": "segment", "vertices": [[0, 0, 1], [1, 0, 1]], "inward_normal": [1, 0, 0]}
+    elig_case("segment_normal_along", _with(base, ("elements", 5), seg), ERROR)
+    pt = {"kind": "point", "vertices": [[0, 0, 1], [1, 0, 1]], "inward_normal": [0, 0, -1]}
+    elig_case("point_two_vertices", _with(base, ("elements", 5), pt), ERROR)
+    for label, pair in [
+        ("99", [0, 99]), ("negative", [0, -1]), ("self", [1, 1]), ("bool", [True, 0]),
+        ("string", ["0", 1]), ("triple", [0, 1, 2]), ("float", [0.0, 1]),
+    ]:
+        elig_case(f"adjacency={label}", _with(base, ("adjacency", 0), pair), ERROR)
+    elig_case("elements=empty", _with(base, ("elements",), []), ERROR)
+    elig_case("elements=object", _with(base, ("elements",), {}), ERROR)
+    elig_case("name=number", _with(base, ("name",), 3), ERROR)
+    elig_case("mesh=number", _with(base, ("mesh",), 3), ERROR)
+    elig_case("nested_5000", "[" * 5000 + "]" * 5000, ERROR)
+    elig_case("box", base, ANSWER)
+    elig_case("box_ids_repeat", base, ANSWER, ids="0,0,1,1")
+    for label, mesh in [
+        ("outside_dotdot", "../elsewhere.stl"),
+        ("outside_absolute", "/etc/hostname"),
+    ]:
+        elig_case(f"mesh={label}", _with(base, ("mesh",), mesh), ERROR)
+    elig_case("mesh=missing", _with(base, ("mesh",), "gone.stl"), ANSWER)
+
+    def with_mesh(name, mesh_bytes, expect, flip=None, command="eligibility"):
+        def make(folder):
+            _write(folder, "part.stl", mesh_bytes)
+            data = _with(base, ("mesh",), "part.stl")
+            if flip is not None:
+                data = _with(data, ("elements", flip, "inward_normal"),
+                             [-x for x in base["elements"][flip]["inward_normal"]])
+            path = _write(folder, "m.model.json", data)
+            if command == "show":
+                return ["show", path, "--out", folder / "x.glb", "--json"]
+            return ["eligibility", path, "--elements", "0,1,2,3", "--json"]
+
+        cases.append(Case("models", name, make, expect))
+
+    import trimesh
+
+    cube = trimesh.creation.box(extents=(2, 2, 2))
+    cube_stl = trimesh.exchange.stl.export_stl(cube)
+    with_mesh("mesh=own_cube", cube_stl, ANSWER)
+    for i in range(6):
+        with_mesh(f"mesh=own_cube_flipped_facet_{i}", cube_stl, ERROR, flip=i)
+    with_mesh("mesh=text_as_stl", b"hello", ANSWER)
+    with_mesh("mesh=random_bytes_show_glb", bytes(range(256)) * 8, ANSWER, command="show")
+    with_mesh("mesh=own_cube_show_glb", cube_stl, ANSWER, command="show")
+    return cases
+
+
+def _mesh_cases() -> list[Case]:
+    import trimesh
+
+    cases = []
+    rng = np.random.default_rng(7)
+
+    def char_case(name, filename, content, expect, extra=()):
+        def make(folder):
+            path = _write(folder, filename, content) if content is not None else folder / filename
+            return ["characterize", path, "--out", folder / "out.model.json", "--json", *extra]
+
+        cases.append(Case("meshes", name, make, expect))
+
+    for suffix in ("stl", "obj", "ply", "glb", "off", "3mf", "dae"):
+        char_case(f"random_bytes.{suffix}", f"r.{suffix}",
+                  bytes(rng.integers(0, 256, 3000, dtype=np.uint8)), ERROR)
+        char_case(f"empty.{suffix}", f"e.{suffix}", b"", ERROR)
+    char_case("ascii_solid_garbage.stl", "g.stl", "solid x\n garbage\nendsolid\n", ERROR)
+    char_case("text.txt", "t.txt", "hello", ERROR)
+    char_case("json_as_mesh.json", "m.json", json.dumps(_box_model()), ERROR)
+    char_case("missing.stl", "none.stl", None, ERROR)
+    char_case("binary_count_lies.stl", "b.stl", b"\0" * 80 + (10**6).to_bytes(4, "little"), ERROR)
+    tet = trimesh.creation.box(extents=(1, 1, 1))
+    char_case("cube.stl", "cube.stl", trimesh.exchange.stl.export_stl(tet), ANSWER)
+    char_case("cube.obj", "cube.obj", trimesh.exchange.obj.export_obj(tet), ANSWER)
+    char_case("cube.ply", "cube.ply", trimesh.exchange.ply.export_ply(tet), ANSWER)
+    big = trimesh.Trimesh(tet.vertices * 1e200, tet.faces, process=False)
+    char_case("cube_at_1e200.obj", "big.obj", trimesh.exchange.obj.export_obj(big), ERROR)
+    stl = bytearray(trimesh.exchange.stl.export_stl(tet))
+    stl[84 + 12 : 84 + 16] = np.float32(np.inf).tobytes()  # first vertex x of a binary STL
+    char_case("cube_inf_vertex.stl", "inf.stl", bytes(stl), ERROR)
+    huge = tet.copy()
+    huge.apply_translation([1e13, 0, 0])
+    char_case("cube_at_1e13.stl", "far.stl", trimesh.exchange.stl.export_stl(huge), ERROR)
+    opened = trimesh.Trimesh(tet.vertices, tet.faces[:-4])
+    char_case("open_box.stl", "open.stl", trimesh.exchange.stl.export_stl(opened), ANSWER)  # filled
+    torn = trimesh.Trimesh(tet.vertices, tet.faces[::2])  # every other face: no small holes
+    char_case("torn_box.stl", "torn.stl", trimesh.exchange.stl.export_stl(torn), ERROR)
+    flat = trimesh.Trimesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])
+    char_case("one_triangle.stl", "tri.stl", trimesh.exchange.stl.export_stl(flat), ERROR)
+    char_case("cube.stl_spacing_nan", "cube2.stl", trimesh.exchange.stl.export_stl(tet), ERROR,
+              ("--point-spacing", "nan"))
+    char_case("cube.stl_sharp_-1", "cube3.stl", trimesh.exchange.stl.export_stl(tet), ERROR,
+              ("--sharp-angle", "-1"))
+    char_case("cup.stl", "cup.stl", CUP_MESH.read_bytes(), ANSWER)
+    for out, needle in [("file", "f"), ("under_file", "f/x.model.json"), ("folder", "d")]:
+        def make(folder, out=needle):
+            _write(folder, "f", "x")
+            (folder / "d").mkdir(exist_ok=True)
+            path = _write(folder, "cube.stl", trimesh.exchange.stl.export_stl(tet))
+            return ["characterize", path, "--out", folder / out]
+
+        cases.append(Case("meshes", f"out={out}", make, ANSWER if out == "file" else ERROR))
+    return cases
+
+
+def _study_cases() -> list[Case]:
+    cases = []
+
+    def study_case(name, body, expect, extra=("--limit", "0")):
+        def make(folder):
+            path = _write(folder, "s.toml", f'models = ["{LAMP.as_posix()}"]\n{body}\n')
+            return ["study", path, "--out", folder / "out", "--json", *extra]
+
+        cases.append(Case("studies", name, make, expect))
+
+    for label, body, expect in [
+        ("seeds=1e12", "contacts = 4\nseeds = 1_000_000_000_000", ERROR),
+        ("seeds=10M", "contacts = 4\nseeds = 10_000_000", ERROR),
+        ("seeds=0", "contacts = 4\nseeds = 0", ERROR),
+        ("seeds=-1", "contacts = 4\nseeds = -1", ERROR),
+        ("seeds=float", "contacts = 4\nseeds = 2.5", ERROR),
+        ("seeds=string", 'contacts = 4\nseeds = "3"', ERROR),
+        ("seeds=bool", "contacts = 4\nseeds = true", ERROR),
+        ("seeds=2**63", "contacts = 4\nseeds = [9223372036854775808]", ERROR),
+        ("seeds=repeat", "contacts = 4\nseeds = [1, 1]", ERROR),
+        ("seeds=empty", "contacts = 4\nseeds = []", ERROR),
+        ("grid=over_limit", "contacts = [4, 5]\nmu = [0.1, 0.2, 0.3, 0.4, 0.5]\nseeds = 10001",
+         ERROR),
+        ("contacts=1000", "contacts = 1000", ERROR),
+        ("contacts=0", "contacts = 0", ERROR),
+        ("contacts=1", "contacts = 1", ERROR),
+        ("mu=1e300", "contacts = 4\nmu = 1e300", ERROR),
+        ("mu=nan", "contacts = 4\nmu = nan", ERROR),
+        ("f_max=inf", "contacts = 4\nf_max = inf", ERROR),
+        ("f_max=1e-20", "contacts = 4\nf_max = 1e-20", ERROR),
+        ("torque_scale=0", "contacts = 4\ntorque_scale = 0", ERROR),
+        ("type=glue", 'contacts = 4\ntype = "glue"', ERROR),
+        ("unknown_key", "contacts = 4\nseed = 3", ERROR),
+        ("placement.starts=0", "contacts = 4\n[placement]\nstarts = 0", ERROR),
+        ("selection.bogus", "contacts = 4\n[selection]\nbogus = 1", ERROR),
+        ("limit0_ok", "contacts = 4\nseeds = 3", ANSWER),
+        ("limit0_99999_seeds", "contacts = 4\nseeds = 99999", ANSWER),
+    ]:
+        study_case(label, body, expect)
+
+    def raw_study(name, text, expect):
+        def make(folder):
+            path = _write(folder, "s.toml", text)
+            return ["study", path, "--out", folder / "out", "--limit", "0"]
+
+        cases.append(Case("studies", name, make, expect))
+
+    raw_study("malformed_toml", "models = [", ERROR)
+    raw_study("missing_models", "contacts = 4", ERROR)
+    raw_study("model_not_found", 'models = ["none.model.json"]\ncontacts = 4', ERROR)
+    raw_study("models_outside_json", 'models = ["/etc/hostname"]\ncontacts = 4', ERROR)
+    raw_study("random_bytes", bytes(range(256)) * 10, ERROR)
+    raw_study("deep_nesting", "x = " + "[" * 5000 + "]" * 5000, ERROR)
+
+    def out_case(name, out, expect):
+        def make(folder):
+            _write(folder, "f", "x")
+            path = _write(folder, "s.toml", f'models = ["{LAMP.as_posix()}"]\ncontacts = 4\n')
+            return ["study", path, "--out", folder / out, "--limit", "0"]
+
+        cases.append(Case("studies", name, make, expect))
+
+    out_case("out=file", "f", ERROR)
+    out_case("out=under_file", "f/out", ERROR)
+    for flag, value in [("--workers", "0"), ("--workers", "1000000"), ("--limit", "-1")]:
+        study_case(f"{flag}={value}", "contacts = 4", ERROR, (flag, value))
+    return cases
+
+
+def _flag_cases() -> list[Case]:
+    cases = []
+    model = _box_model()
+
+    def flag_case(name, command, args, expect):
+        def make(folder):
+            path = _write(folder, "m.model.json", model)
+            return [command, path, *args]
+
+        cases.append(Case("flags", name, make, expect))
+
+    el = ["--elements", "0,1,2,3"]
+    for flag, values in {
+        "--mu": ["nan", "inf", "-1", "1e300", "abc", "", "0.2,0.2", "1e6"],
+        "--mu-s": ["nan", "-1", "1e300", "1e12"],
+        "--f-max": ["0", "1e-13", "1e-12", "1e12", "1e13", "1e300", "nan", "-inf"],
+        "--torque-scale": ["0", "-1", "1e-13", "1e13", "1e300", "nan", "x", "1,2", "1e-12"],
+        "--type": ["glue", "", "pcwf,fpc", "PCWF", "fpc,fpc,fpc,fpc"],
+    }.items():
+        for value in values:
+            good = {
+                ("--mu", "1e6"), ("--mu-s", "1e12"), ("--f-max", "1e-12"), ("--f-max", "1e12"),
+                ("--torque-scale", "1e-12"), ("--type", "PCWF"), ("--type", "fpc,fpc,fpc,fpc"),
+            }
+            expect = ANSWER if (flag, value) in good else ERROR
+            flag_case(f"eligibility {flag}={value!r}", "eligibility", [*el, flag, value, "--json"],
+                      expect)
+    for value, expect in [
+        ("", ERROR), ("0,,1", ERROR), ("99", ERROR), ("-1", ERROR), ("1e3", ERROR),
+        ("0," * 32 + "0", ERROR), ("a", ERROR), ("0,1,2,3,4,5,0,1", ANSWER), ("0", ANSWER),
+    ]:
+        flag_case(f"eligibility --elements={value[:20]!r}", "eligibility",
+                  ["--elements", value, "--json"], expect)
+    for value in ["0", "-1", "1000", "33", "1e3", "x", "1"]:
+        flag_case(f"select --contacts={value}", "select", ["--contacts", value], ERROR)
+        flag_case(f"plan --contacts={value}", "plan", ["--contacts", value], ERROR)
+    for flag, value in [("--seed", "-1"), ("--seed", "1e3"), ("--seed", str(2**64)),
+                        ("--start", "0,99"), ("--start", "x"), ("--algorithm", "magic")]:
+        flag_case(f"select {flag}={value}", "select", ["--contacts", "4", flag, value], ERROR)
+    for flag, value in [("--starts", "0"), ("--starts", "1000000"), ("--seed", "-5")]:
+        flag_case(f"place {flag}={value}", "place", [*el, flag, value], ERROR)
+        flag_case(f"plan {flag}={value}", "plan", ["--contacts", "4", flag, value], ERROR)
+    flag_case("place --elements 0,1 (too few pcwf)", "place", ["--elements", "0,1"], ERROR)
+    flag_case("show --out .txt", "show", ["--out", "x.txt"], ERROR)
+    flag_case("show --highlight 99", "show", ["--out", "x.png", "--highlight", "99"], ERROR)
+    flag_case("show --highlight x", "show", ["--out", "x.png", "--highlight", "x"], ERROR)
+    flag_case("show --elev nan", "show", ["--out", "x.png", "--elev", "nan"], ERROR)
+    flag_case("show png", "show", ["--out", "x.png", "--json"], ANSWER)
+
+    def out_case(name, command, args, out, expect):
+        def make(folder):
+            _write(folder, "f", "x")
+            (folder / "other").mkdir(exist_ok=True)
+            _write(folder / "other", "notes.txt", "mine")
+            path = _write(folder, "m.model.json", model)
+            return [command, path, *args, "--out", folder / out]
+
+        cases.append(Case("flags", name, make, expect))
+
+    for out in ("f", "f/sub", "/proc/closure_nlp/x", "other"):
+        out_case(f"plan --out={out}", "plan", ["--contacts", "4"], out, ERROR)
+    out_case("place --out=folder", "place", el, "other", ERROR)
+    out_case("place --out=under_file", "place", el, "f/x.json", ERROR)
+    out_case("show --out=under_file", "show", [], "f/x.png", ERROR)
+    cases.append(Case("flags", "no command", lambda f: [], ERROR))
+    cases.append(Case("flags", "unknown command", lambda f: ["fly"], ERROR))
+    cases.append(Case("flags", "rho no files", lambda f: ["rho"], ERROR))
+    return cases
+
+
+def _api_cases() -> list[Case]:
+    from closure_nlp.contacts import Contact, ContactSet, contact_set_from_dict, contact_specs
+    from closure_nlp.elements import Element, Model, model_from_dict
+    from closure_nlp.eligibility import Eligibility
+    from closure_nlp.files import load_json, read_mesh
+    from closure_nlp.quality import rho
+
+    cases = []
+
+    def api(name, call, expect):
+        cases.append(Case("api", name, lambda folder, call=call: call, expect))
+
+    pair = contact_set_from_dict(PAIR)
+    for label, kwargs in [
+        ("position_str", {"position": ["0", "0", "1"]}),
+        ("position_bool", {"position": [True, False, False]}),
+        ("position_1e300", {"position": [0, 0, 1e300]}),
+        ("position_nan", {"position": [0, 0, float("nan")]}),
+        ("position_bigint", {"position": [0, 0, 10**400]}),
+        ("position_object_array", {"position": np.array(["0", "0", "1"], dtype=object)}),
+        ("position_bool_array", {"position": np.array([True, False, True])}),
+        ("normal_zero", {"inward_normal": [0, 0, 0]}),
+        ("normal_str", {"inward_normal": "001"}),
+        ("mu_1e300", {"mu": 1e300}),
+        ("mu_nan", {"mu": float("nan")}),
+        ("mu_s_neg", {"mu_s": -1.0}),
+        ("f_max_0", {"f_max": 0.0}),
+        ("f_max_1e300", {"f_max": 1e300}),
+        ("f_max_bool", {"f_max": True}),
+        ("type_glue", {"type": "glue"}),
+    ]:
+        args = {"position": [0, 0, 1], "inward_normal": [0, 0, -1], **kwargs}
+        api(f"Contact({label})", lambda args=args: Contact(**args).position, ERROR)
+    for label, ts in [("0", 0.0), ("1e300", 1e300), ("nan", float("nan")), ("str", "1")]:
+        api(f"ContactSet(torque_scale={label})",
+            lambda ts=ts: ContactSet(pair.contacts, ts).torque_scale, ERROR)
+    api("ContactSet(empty)", lambda: ContactSet(()), ERROR)
+    api("ContactSet(not contacts)", lambda: ContactSet(([0, 0, 1],)), ERROR)
+    api("ContactSet(2001)", lambda: ContactSet(pair.contacts * 1001), ERROR)
+    api("contact_specs(1000)", lambda: contact_specs(1000), ERROR)
+    api("contact_specs(0)", lambda: contact_specs(0), ERROR)
+    api("contact_specs(2.5)", lambda: contact_specs(2.5), ERROR)
+    api("contact_specs(mu list short)", lambda: contact_specs(3, mu=[0.1]), ERROR)
+    api("rho(pair)", lambda: rho(pair).rho, ANSWER)
+    api("rho(normal 1e300)", lambda: rho(contact_set_from_dict(
+        _with(PAIR, ("contacts", 0, "inward_normal"), [0, 0, -1e300]))).rho, ANSWER)
+    api("rho(box)", lambda: rho(contact_set_from_dict(BOX)).rho, ANSWER)
+    api("rho(box, warm_start=nan)", lambda: rho(contact_set_from_dict(BOX),
+                                                warm_start=[np.nan] * 6).rho, ERROR)
+    api("rho(box, warm_start=str)", lambda: rho(contact_set_from_dict(BOX),
+                                                warm_start="abc").rho, ERROR)
+    api("rho(not a set)", lambda: rho([1, 2, 3]).rho, ERROR)
+    for label, element in [
+        ("vertices_str", lambda: Element("point", [["0", 0, 0]], [0, 0, 1])),
+        ("vertices_1e200", lambda: Element("point", [[1e200, 0, 0]], [0, 0, 1])),
+        ("vertices_ragged", lambda: Element("facet", [[0, 0, 0], [1, 0]], [0, 0, 1])),
+        ("kind_glue", lambda: Element("glue", [[0, 0, 0]], [0, 0, 1])),
+        ("label_number", lambda: Element("point", [[0, 0, 0]], [0, 0, 1], label=3)),
+    ]:
+        api(f"Element({label})", lambda element=element: element().vertices, ERROR)
+    box = model_from_dict(_box_model())
+    api("Model(empty)", lambda: Model(()).elements, ERROR)
+    api("Model(adjacency 99)", lambda: Model(box.elements, ((0, 99),)).adjacency, ERROR)
+    api("Model(adjacency bool)", lambda: Model(box.elements, ((True, 0),)).adjacency, ERROR)
+    api("model.check_id(1.0)", lambda: box.check_id(1.0, "id"), ERROR)
+    api("model.check_id(-1)", lambda: box.check_id(-1, "id"), ERROR)
+    specs = contact_specs(4)
+    api("Eligibility(box)([0,1,2,3])", lambda: Eligibility(box, specs)([0, 1, 2, 3]).rho_hat,
+        ANSWER)
+    api("Eligibility(box)([0,1,2,99])", lambda: Eligibility(box, specs)([0, 1, 2, 99]).rho_hat,
+        ERROR)
+    api("Eligibility(box)(['0',1,2,3])",
+        lambda: Eligibility(box, specs)(["0", 1, 2, 3]).rho_hat, ERROR)
+    api("Eligibility(box)([0,1])", lambda: Eligibility(box, specs)([0, 1]).rho_hat, ERROR)
+    api("Eligibility(torque_scale=0)", lambda: Eligibility(box, specs, 0.0).torque_scale, ERROR)
+    api("model_from_dict(list)", lambda: model_from_dict([]).elements, ERROR)
+    api("contact_set_from_dict(None)", lambda: contact_set_from_dict(None).contacts, ERROR)
+
+    def deep(folder):
+        path = _write(folder, "deep.json", "[" * 100000 + "]" * 100000)
+        return lambda: load_json(path)
+
+    cases.append(Case("api", "load_json(deep)", deep, ERROR))
+
+    def noise(folder):
+        path = _write(folder, "n.stl", bytes(range(256)) * 4)
+        return lambda: read_mesh(path).vertices
+
+    cases.append(Case("api", "read_mesh(random bytes)", noise, ERROR))
+    return cases
+
+
+def corpus() -> list[Case]:
+    """Every case, in group order."""
+    return [
+        *_contact_cases(),
+        *_model_cases(),
+        *_mesh_cases(),
+        *_study_cases(),
+        *_flag_cases(),
+        *_api_cases(),
+    ]
+
+
+def table(results) -> str:
+    """The issue's table: per group, inputs tried and how each ended."""
+    groups: dict[str, dict[str, int]] = {}
+    for case, outcome in results:
+        row = groups.setdefault(case.group, {})
+        row[outcome.kind] = row.get(outcome.kind, 0) + 1
+    lines = [
+        "| group | inputs | clear error | answer | traceback | NaN | hang | as expected |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for group, row in groups.items():
+        tried = sum(row.values())
+        expected = sum(
+            1 for c, o in results if c.group == group and o.kind == c.expect
+        )
+        lines.append(
+            f"| {group} | {tried} | {row.get('error', 0)} | {row.get('answer', 0)} | "
+            f"{row.get('traceback', 0)} | {row.get('nan', 0)} | {row.get('hang', 0)} | "
+            f"{expected} |"
+        )
+    return "\n".join(lines)
+
+
+def main() -> None:
+    import tempfile
+
+    results = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for k, case in enumerate(corpus()):
+            outcome = run_case(case, Path(tmp) / f"case{k}")
+            results.append((case, outcome))
+            if outcome.kind != case.expect:
+                print(f"UNEXPECTED {case.id}: expected {case.expect}, got {outcome.kind}: "
+                      f"{outcome.detail[:300]}", flush=True)
+    print(table(results))
+    slow = sorted(results, key=lambda r: -r[1].seconds)[:5]
+    print("slowest:", ", ".join(f"{c.id} {o.seconds:.1f} s" for c, o in slow))
+
+
+if __name__ == "__main__":
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    main()
