@@ -176,6 +176,33 @@ def bench_select(seeds: int = 10, models_dir=MODELS_DIR) -> dict:
     return report
 
 
+def bench_characterize(subdivisions=(5, 7)) -> dict:
+    """Seconds and peak memory of :func:`characterize` on icospheres (20,480 and 327,680 faces
+    by default), each in a fresh process so that its peak resident set is its own."""
+    import subprocess
+
+    code = (
+        "import json, resource, sys, time, trimesh\n"
+        "from closure_nlp.characterize import characterize\n"
+        "mesh = trimesh.creation.icosphere(subdivisions=int(sys.argv[1]))\n"
+        "before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss\n"
+        "t = time.perf_counter()\n"
+        "model = characterize(mesh)\n"
+        "seconds = time.perf_counter() - t\n"
+        "peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss\n"
+        "print(json.dumps({'faces': len(mesh.faces), 'seconds': round(seconds, 2),\n"
+        "    'peak_rss_mb': round(peak / 1024), 'rss_before_mb': round(before / 1024),\n"
+        "    'elements': model.counts()}))\n"
+    )
+    runs = []
+    for sub in subdivisions:
+        out = subprocess.run(
+            [sys.executable, "-c", code, str(sub)], capture_output=True, text=True, check=True
+        )
+        runs.append(json.loads(out.stdout.strip().splitlines()[-1]))
+    return {"work": "characterize an icosphere (default options)", "runs": runs}
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m closure_nlp.bench", description=__doc__)
     sub = parser.add_subparsers(dest="what", required=True)
@@ -189,11 +216,15 @@ def main(argv=None) -> int:
     p.add_argument("--seed", type=int, default=0)
     p = sub.add_parser("select", help="heuristic and iterative selection on the example models")
     p.add_argument("--seeds", type=int, default=10)
+    p = sub.add_parser("characterize", help="seconds and peak memory of characterize")
+    p.add_argument("--subdivisions", type=int, nargs="+", default=[5, 7])
     args = parser.parse_args(argv)
     if args.what == "rho":
         report = bench_rho(args.cases, args.repeats, args.seed)
     elif args.what == "rho-hat":
         report = bench_rho_hat(args.cases, args.repeats, args.seed)
+    elif args.what == "characterize":
+        report = bench_characterize(args.subdivisions)
     else:
         report = bench_select(args.seeds)
     json.dump(report, sys.stdout, indent=2)
