@@ -29,7 +29,7 @@ from scipy.sparse.csgraph import connected_components, dijkstra
 
 from .contacts import as_reference_point
 from .elements import Element, ElementKind, Model
-from .meshes import load_mesh, repair_mesh
+from .meshes import load_mesh, repair_mesh, simple_loops
 
 
 @dataclass(frozen=True)
@@ -392,73 +392,38 @@ def _area(xy: np.ndarray) -> float:
 
 
 def _remove_interior_vertices(triangles: np.ndarray, xy: np.ndarray) -> np.ndarray:
-    """Retriangulate a planar patch (t, 3) without vertices inside it.
+    """Retriangulate a planar patch (t, 3) from its boundary alone (mapbox_earcut, holes
+    included), so that convex merging is not blocked by a vertex no piece can drop.
 
-    The triangles around each interior vertex are replaced by an ear-clipped triangulation of
-    their outer boundary, so that convex merging is not blocked by a vertex no piece can drop.
+    The patch's triangles are kept as they are when its boundary is not simple loops (a vertex
+    where two boundary loops touch) or the triangulation does not cover the same area.
     """
-    tris = [tuple(int(v) for v in t) for t in triangles]
-    directed = {(t[k], t[(k + 1) % 3]) for t in tris for k in range(3)}
-    boundary = {v for a, b in directed if (b, a) not in directed for v in (a, b)}
-    interior = sorted({v for t in tris for v in t} - boundary)
-    for v in interior:
-        star = [t for t in tris if v in t]
-        ring = _link_loop(star, v)
-        if ring is None:
-            continue
-        tris = [t for t in tris if v not in t] + _ear_clip(ring, xy)
-    return np.array(tris, dtype=np.int64).reshape(-1, 3)
+    import mapbox_earcut
 
-
-def _link_loop(star: list[tuple[int, int, int]], v: int) -> list[int] | None:
-    """The loop of outer edges of the triangles around vertex ``v``, in their winding order."""
-    nxt = {}
-    for t in star:
-        k = t.index(v)
-        nxt[t[(k + 1) % 3]] = t[(k + 2) % 3]
-    start = next(iter(nxt))
-    loop, u = [start], nxt[start]
-    while u != start:
-        if u not in nxt or len(loop) > len(nxt):
-            return None
-        loop.append(u)
-        u = nxt[u]
-    return loop if len(loop) == len(nxt) else None
-
-
-def _ear_clip(loop: list[int], xy: np.ndarray) -> list[tuple[int, int, int]]:
-    """Triangulate a simple counter-clockwise polygon given by vertex ids."""
-    loop = list(loop)
-    out = []
-    while len(loop) > 3:
-        k = len(loop)
-        best, fallback, best_cross = None, 0, -np.inf
-        for i in range(k):
-            a, b, c = loop[i - 1], loop[i], loop[(i + 1) % k]
-            u, w = xy[b] - xy[a], xy[c] - xy[b]
-            cross = u[0] * w[1] - u[1] * w[0]
-            if cross <= 0:
-                continue
-            others = [x for x in loop if x not in (a, b, c)]
-            if not any(_in_triangle(xy[x], xy[a], xy[b], xy[c]) for x in others):
-                best = i
-                break
-            if cross > best_cross:  # round-off: no clean ear, clip the most convex corner
-                fallback, best_cross = i, cross
-        i = best if best is not None else fallback
-        out.append((loop[i - 1], loop[i], loop[(i + 1) % k]))
-        del loop[i]
-    out.append(tuple(loop))
+    directed = np.vstack([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
+    key = np.sort(directed, axis=1)
+    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    boundary = directed[counts[inverse.ravel()] == 1]
+    loops = simple_loops(boundary)
+    if not loops or len(np.unique(boundary[:, 0])) == len(np.unique(triangles)):
+        return triangles  # no interior vertex (or a boundary that is not simple loops)
+    areas = [_area(xy[loop]) for loop in loops]
+    outer = int(np.argmax(areas))
+    if areas[outer] <= 0 or sum(a > 0 for a in areas) != 1:
+        return triangles
+    rings = [loops[outer]] + [loop for k, loop in enumerate(loops) if k != outer]
+    ids = np.concatenate(rings)
+    ends = np.cumsum([len(r) for r in rings]).astype(np.uint32)
+    local = np.asarray(mapbox_earcut.triangulate_float64(xy[ids], ends), dtype=np.int64)
+    out = ids[local.reshape(-1, 3)]
+    if len(out) == 0:
+        return triangles
+    signed = np.array([_area(xy[t]) for t in out])
+    out[signed < 0] = out[signed < 0][:, ::-1]  # counter-clockwise, like the patch's faces
+    total = sum(_area(xy[t]) for t in triangles)
+    if not np.isclose(np.abs(signed).sum(), total, rtol=1e-9, atol=0.0):
+        return triangles  # earcut did not cover the patch (a boundary it reads differently)
     return out
-
-
-def _in_triangle(p, a, b, c) -> bool:
-    """Whether 2-D point ``p`` lies strictly inside the counter-clockwise triangle abc."""
-
-    def side(u, v):
-        return (v[0] - u[0]) * (p[1] - u[1]) - (v[1] - u[1]) * (p[0] - u[0])
-
-    return side(a, b) > 0 and side(b, c) > 0 and side(c, a) > 0
 
 
 def _convex_pieces(triangles: np.ndarray, xy: np.ndarray) -> list[tuple[list[int], set[int]]]:

@@ -199,7 +199,7 @@ def _boundary_loops(mesh) -> list[list[int]]:
     _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
     if np.any(counts > 2):
         return []  # non-manifold: not holes
-    return _loops(edges[counts[inverse.ravel()] == 1])
+    return simple_loops(edges[counts[inverse.ravel()] == 1])
 
 
 def _cap_holes(mesh) -> None:
@@ -230,7 +230,7 @@ def _cap_holes(mesh) -> None:
     mesh.faces = np.vstack([mesh.faces, *new_faces])
 
 
-def _loops(directed_edges: np.ndarray) -> list[list[int]]:
+def simple_loops(directed_edges: np.ndarray) -> list[list[int]]:
     """Simple vertex loops of a set of directed boundary edges ([] if one is not simple)."""
     nxt: dict[int, int] = {}
     for a, b in directed_edges.tolist():

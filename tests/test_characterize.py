@@ -424,3 +424,12 @@ def test_draw_model_highlights_and_sizes_contacts():
             draw_model(model, None, ax, highlight=[999])
     finally:
         plt.close(fig)
+
+
+def test_finely_meshed_flat_faces_are_one_facet_each():
+    box = trimesh.creation.box()
+    for _ in range(4):
+        box = box.subdivide()  # 3,072 triangles, hundreds of vertices inside each face
+    model = characterize(box)
+    assert model.counts() == {"facet": 6, "segment": 0, "point": 0}
+    assert all(len(e.vertices) == 4 for e in model.elements)  # straight corners dropped
