@@ -13,6 +13,10 @@ Inside each region:
   ``segment_spacing``;
 - any other curved patch becomes discrete points at its vertices, thinned to ``point_spacing``.
 
+The mesh is read and repaired by :mod:`closure_nlp.meshes`; facets come from
+:mod:`closure_nlp.planar`, segments from :mod:`closure_nlp.rulings`; points and neighbours are
+made here.
+
 Every normal is an inward normal: the mesh's outward normal negated. Two elements are neighbours
 when they share a mesh vertex; a segment or a point is also a neighbour of the elements across a
 mesh edge from the vertices it stands for (its own, and the dropped ones nearest to it).
@@ -28,8 +32,11 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components, dijkstra
 
 from .contacts import as_reference_point
+from .drafts import Draft, thin
 from .elements import Element, ElementKind, Model
-from .meshes import load_mesh, repair_mesh, simple_loops
+from .meshes import load_mesh, repair_mesh
+from .planar import facets
+from .rulings import rulings, segments
 
 
 @dataclass(frozen=True)
@@ -91,15 +98,6 @@ class CharacterizeOptions:
 
 
 # --- characterization ------------------------------------------------------------------------
-
-
-@dataclass
-class _Draft:
-    """An element on its way to the model, with the mesh vertices it stands for."""
-
-    element: Element
-    owned: set[int]
-    region: int  # index of the curved patch a segment or point belongs to; -1 for facets
 
 
 SPACING_FRACTION = 0.2  # default point and ruling spacing: this fraction of the part's radius
@@ -231,7 +229,7 @@ def _characterize_mesh(mesh, options: CharacterizeOptions):
     flat = np.radians(options.flat_angle)
     regions = _face_components(mesh, mesh.face_adjacency_angles < sharp)
     patches = _planar_patches(mesh, flat)
-    drafts: list[_Draft] = []
+    drafts: list[Draft] = []
     curved: list[np.ndarray] = []
     for faces in _groups(regions):
         drafts += _characterize_region(mesh, faces, patches, curved, options)
@@ -298,7 +296,7 @@ def _face_components(mesh, keep: np.ndarray) -> np.ndarray:
     return connected_components(graph, directed=False)[1]
 
 
-def _characterize_region(mesh, faces, patches, curved, options) -> list[_Draft]:
+def _characterize_region(mesh, faces, patches, curved, options) -> list[Draft]:
     """Facets, segments or points for one smooth region (faces: (k,) int).
 
     Planar patches much larger than the region's median patch are taken apart from the rest:
@@ -308,10 +306,10 @@ def _characterize_region(mesh, faces, patches, curved, options) -> list[_Draft]:
     """
     groups = _groups(patches, faces)
     if len(groups) <= 2:
-        return [d for g in groups for d in _facets(mesh, g)]
+        return [d for g in groups for d in facets(mesh, g)]
     areas = np.array([mesh.area_faces[g].sum() for g in groups])
     big = areas >= options.facet_area_ratio * np.median(areas)
-    drafts: list[_Draft] = []
+    drafts: list[Draft] = []
     for chosen, fallback in ((big, "facets"), (~big, "points")):
         part = np.concatenate([g for g, b in zip(groups, chosen) if b] or [np.zeros(0, int)])
         for component in _split(mesh, part, np.radians(options.sharp_angle)):
@@ -328,341 +326,30 @@ def _split(mesh, faces: np.ndarray, sharp: float) -> list[np.ndarray]:
     return [faces[labels == c] for c in np.unique(labels)]
 
 
-def _curved(mesh, faces, patches, curved, options, fallback: str = "points") -> list[_Draft]:
+def _curved(mesh, faces, patches, curved, options, fallback: str = "points") -> list[Draft]:
     """Elements of a patch: segments if it is ruled; facets if it has at most 2 planes, or
     few planes (see ``faceted_limit``), or ``fallback`` says so; points otherwise."""
     groups = np.unique(patches[faces])
-    rulings = None if len(groups) <= 2 else _rulings(mesh, faces, np.radians(options.flat_angle))
+    flat = np.radians(options.flat_angle)
+    chains = None if len(groups) <= 2 else rulings(mesh, faces, flat)
     faceted = fallback == "facets" or len(groups) <= options.faceted_limit
-    if len(groups) <= 2 or (rulings is None and faceted):
-        return [d for g in _groups(patches, faces) for d in _facets(mesh, g)]
+    if len(groups) <= 2 or (chains is None and faceted):
+        return [d for g in _groups(patches, faces) for d in facets(mesh, g)]
     region = len(curved)
     singular = np.zeros(0, np.int64)
-    if rulings is not None:  # a cone's apex ends every ruling: it stands for none of them
-        uses = np.bincount(np.concatenate(rulings))
+    if chains is not None:  # a cone's apex ends every ruling: it stands for none of them
+        uses = np.bincount(np.concatenate(chains))
         singular = np.flatnonzero(uses >= 3)
     curved.append((faces, singular))
-    if rulings is not None:
-        return _segments(mesh, faces, rulings, region, options.segment_spacing)
+    if chains is not None:
+        return segments(mesh, faces, chains, region, options.segment_spacing)
     return _points(mesh, faces, region, options.point_spacing)
-
-
-# --- facets ----------------------------------------------------------------------------------
-
-
-def _facets(mesh, faces: np.ndarray) -> list[_Draft]:
-    """Convex facets covering one planar patch (faces: (k,) int)."""
-    areas = mesh.area_faces[faces]
-    if not areas.sum() > 0:
-        return []  # a patch of zero-area slivers
-    normal = (mesh.face_normals[faces] * areas[:, None]).sum(0)
-    normal /= np.linalg.norm(normal)
-    centre = (mesh.triangles_center[faces] * areas[:, None]).sum(0) / areas.sum()
-    verts = mesh.vertices
-    flat = verts - np.outer((verts - centre) @ normal, normal)  # every vertex onto the plane
-    frame = _plane_frame(normal)
-    xy = (flat - centre) @ frame
-    triangles = _remove_interior_vertices(mesh.faces[faces], xy)
-    drafts = []
-    for loop, owned in _convex_pieces(triangles, xy):
-        loop = _drop_straight(loop, xy)
-        if _area(xy[loop]) <= 1e-9 * areas.sum():
-            continue  # a sliver left by collinear boundary vertices
-        try:
-            element = Element(ElementKind.FACET, flat[loop], -normal)
-        except ValueError:
-            continue  # a sliver too thin to be a facet (boolean unions leave some)
-        drafts.append(_Draft(element, owned, -1))
-    return drafts
-
-
-def _plane_frame(normal: np.ndarray) -> np.ndarray:
-    """(3, 2) float: orthonormal in-plane axes with ``x, y, normal`` right-handed."""
-    helper = np.zeros(3)
-    helper[int(np.argmin(np.abs(normal)))] = 1.0
-    x = np.cross(helper, normal)
-    x /= np.linalg.norm(x)
-    return np.column_stack([x, np.cross(normal, x)])
-
-
-def _area(xy: np.ndarray) -> float:
-    """Signed area of a polygon (k, 2), positive when counter-clockwise."""
-    x, y = xy[:, 0], xy[:, 1]
-    return float(0.5 * (x @ np.roll(y, -1) - y @ np.roll(x, -1)))
-
-
-def _remove_interior_vertices(triangles: np.ndarray, xy: np.ndarray) -> np.ndarray:
-    """Retriangulate a planar patch (t, 3) from its boundary alone (mapbox_earcut, holes
-    included), so that convex merging is not blocked by a vertex no piece can drop.
-
-    The patch's triangles are kept as they are when its boundary is not simple loops (a vertex
-    where two boundary loops touch) or the triangulation does not cover the same area.
-    """
-    import mapbox_earcut
-
-    directed = np.vstack([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
-    key = np.sort(directed, axis=1)
-    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    boundary = directed[counts[inverse.ravel()] == 1]
-    loops = simple_loops(boundary)
-    if not loops or len(np.unique(boundary[:, 0])) == len(np.unique(triangles)):
-        return triangles  # no interior vertex (or a boundary that is not simple loops)
-    areas = [_area(xy[loop]) for loop in loops]
-    outer = int(np.argmax(areas))
-    if areas[outer] <= 0 or sum(a > 0 for a in areas) != 1:
-        return triangles
-    rings = [loops[outer]] + [loop for k, loop in enumerate(loops) if k != outer]
-    ids = np.concatenate(rings)
-    ends = np.cumsum([len(r) for r in rings]).astype(np.uint32)
-    local = np.asarray(mapbox_earcut.triangulate_float64(xy[ids], ends), dtype=np.int64)
-    out = ids[local.reshape(-1, 3)]
-    if len(out) == 0:
-        return triangles
-    signed = np.array([_area(xy[t]) for t in out])
-    out[signed < 0] = out[signed < 0][:, ::-1]  # counter-clockwise, like the patch's faces
-    total = sum(_area(xy[t]) for t in triangles)
-    if not np.isclose(np.abs(signed).sum(), total, rtol=1e-9, atol=0.0):
-        return triangles  # earcut did not cover the patch (a boundary it reads differently)
-    return out
-
-
-def _convex_pieces(triangles: np.ndarray, xy: np.ndarray) -> list[tuple[list[int], set[int]]]:
-    """Merge counter-clockwise triangles (t, 3) into convex polygons (Hertel-Mehlhorn).
-
-    Returns a list of (vertex loop, vertex ids of the merged triangles).
-    """
-    parent = list(range(len(triangles)))
-    loops = {i: [int(v) for v in tri] for i, tri in enumerate(triangles)}
-    owned = {i: set(loops[i]) for i in loops}
-
-    def find(i: int) -> int:
-        while parent[i] != i:
-            parent[i] = parent[parent[i]]
-            i = parent[i]
-        return i
-
-    edge_face = {}
-    for f, tri in enumerate(triangles.tolist()):
-        for k in range(3):
-            edge_face[(tri[k], tri[(k + 1) % 3])] = f
-    shared = [(a, b) for (a, b) in edge_face if a < b and (b, a) in edge_face]
-    shared.sort(key=lambda e: -float(np.linalg.norm(xy[e[0]] - xy[e[1]])))
-    for a, b in shared:
-        p, q = find(edge_face[(a, b)]), find(edge_face[(b, a)])
-        if p == q:
-            continue
-        merged = _merge_loops(loops[p], loops[q], a, b)
-        if merged is None or not _is_convex(xy[merged]):
-            continue
-        parent[q] = p
-        loops[p] = merged
-        owned[p] |= owned.pop(q)
-        del loops[q]
-    return [(loops[i], owned[i]) for i in sorted(loops)]
-
-
-def _merge_loops(p: list[int], q: list[int], a: int, b: int) -> list[int] | None:
-    """Union of loop ``p`` (with edge a->b) and loop ``q`` (with edge b->a) across that edge."""
-    try:
-        i, j = p.index(b), q.index(a)
-    except ValueError:
-        return None
-    p_rot = p[i:] + p[:i]  # b ... a
-    q_rot = q[j:] + q[:j]  # a ... b
-    if p_rot[-1] != a or q_rot[-1] != b:
-        return None
-    merged = p_rot + q_rot[1:-1]
-    return merged if len(set(merged)) == len(merged) else None
-
-
-def _is_convex(xy: np.ndarray, eps: float = 1e-9) -> bool:
-    """Whether the counter-clockwise polygon (k, 2) is convex (straight corners allowed)."""
-    edges = np.roll(xy, -1, axis=0) - xy
-    nxt = np.roll(edges, -1, axis=0)
-    cross = edges[:, 0] * nxt[:, 1] - edges[:, 1] * nxt[:, 0]
-    scale = np.linalg.norm(edges, axis=1) * np.linalg.norm(nxt, axis=1)
-    return bool(np.all(cross >= -eps * scale))
-
-
-def _drop_straight(loop: list[int], xy: np.ndarray, eps: float = 1e-9) -> list[int]:
-    """Remove corners where the boundary goes straight on."""
-    keep = []
-    k = len(loop)
-    for i in range(k):
-        u = xy[loop[i]] - xy[loop[i - 1]]
-        w = xy[loop[(i + 1) % k]] - xy[loop[i]]
-        cross = u[0] * w[1] - u[1] * w[0]
-        if abs(cross) > eps * np.linalg.norm(u) * np.linalg.norm(w) or u @ w < 0:
-            keep.append(loop[i])
-    return keep if len(keep) >= 3 else loop
-
-
-# --- segments --------------------------------------------------------------------------------
-
-
-def _rulings(mesh, faces: np.ndarray, tol: float) -> list[np.ndarray] | None:
-    """Rulings of a cylindrical or circular-conical patch, or None if it is not one.
-
-    Returns
-    -------
-    rulings : list of (k,) int
-        Each a chain of mesh vertices along one straight ruling, in order.
-    """
-    normals = mesh.face_normals[faces]
-    axis, offset, residual = _normal_circle(normals)
-    if residual > np.sin(tol):
-        return None
-    edges = _patch_edges(mesh, faces)
-    a, b = mesh.vertices[edges[:, 0]], mesh.vertices[edges[:, 1]]
-    d = b - a
-    length = np.linalg.norm(d, axis=1)
-    d = d / length[:, None]
-    if abs(offset) < np.sin(tol):  # cylinder: rulings parallel to the axis
-        along = np.abs(d @ axis) > np.cos(tol)
-    else:  # cone: rulings through the apex
-        apex = _apex(mesh, faces)
-        if apex is None:
-            return None
-        to_apex = apex - a
-        off = np.linalg.norm(np.cross(to_apex, d), axis=1)
-        along = off < np.tan(tol) * np.maximum(np.linalg.norm(to_apex, axis=1), length)
-    ruling_edges = edges[along]
-    if not _faces_with_edge(mesh.faces[faces], ruling_edges).all():
-        return None
-    return _chains(mesh.vertices, ruling_edges, tol)
-
-
-def _normal_circle(normals: np.ndarray) -> tuple[np.ndarray, float, float]:
-    """Fit ``n . axis = offset`` to unit normals (k, 3): a circle on the Gauss sphere."""
-    centre = normals.mean(axis=0)
-    _, sing, vt = np.linalg.svd(normals - centre, full_matrices=False)  # (k, 3): no k x k U
-    axis = vt[2]
-    offset = float(centre @ axis)
-    residual = float(np.abs(normals @ axis - offset).max())
-    if sing[1] < 1e-9:  # all normals on one line: a plane, not a ruled curved patch
-        return axis, offset, np.inf
-    return axis, offset, residual
-
-
-def _apex(mesh, faces: np.ndarray) -> np.ndarray | None:
-    """Least-squares common point of the faces' planes (the cone's apex)."""
-    n = mesh.face_normals[faces]
-    rhs = (n * mesh.triangles_center[faces]).sum(1)
-    sol, _, rank, _ = np.linalg.lstsq(n, rhs, rcond=None)
-    return sol if rank == 3 else None
-
-
-def _patch_edges(mesh, faces: np.ndarray) -> np.ndarray:
-    """(e, 2) int: unique undirected edges of the faces."""
-    tri = mesh.faces[faces]
-    edges = np.vstack([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
-    return np.unique(np.sort(edges, axis=1), axis=0)
-
-
-def _faces_with_edge(tri: np.ndarray, edges: np.ndarray) -> np.ndarray:
-    """(t,) bool: whether each triangle (t, 3) has one of the undirected ``edges`` (e, 2)."""
-    keys = {(int(a), int(b)) for a, b in np.sort(edges, axis=1)}
-    hit = np.zeros(len(tri), bool)
-    for i, (x, y, z) in enumerate(tri.tolist()):
-        for a, b in ((x, y), (y, z), (z, x)):
-            if (min(a, b), max(a, b)) in keys:
-                hit[i] = True
-                break
-    return hit
-
-
-def _chains(vertices: np.ndarray, edges: np.ndarray, tol: float) -> list[np.ndarray]:
-    """Join collinear edges (e, 2) that share a vertex into chains of vertices."""
-    parent = list(range(len(edges)))
-
-    def find(i: int) -> int:
-        while parent[i] != i:
-            parent[i] = parent[parent[i]]
-            i = parent[i]
-        return i
-
-    d = vertices[edges[:, 1]] - vertices[edges[:, 0]]
-    d /= np.linalg.norm(d, axis=1)[:, None]
-    at_vertex: dict[int, list[int]] = {}
-    for k, (a, b) in enumerate(edges.tolist()):
-        at_vertex.setdefault(a, []).append(k)
-        at_vertex.setdefault(b, []).append(k)
-    for ks in at_vertex.values():
-        for i in ks:
-            for j in ks:
-                if i < j and abs(d[i] @ d[j]) > np.cos(tol):
-                    parent[find(j)] = find(i)
-    groups: dict[int, set[int]] = {}
-    for k, (a, b) in enumerate(edges.tolist()):
-        groups.setdefault(find(k), set()).update((a, b))
-    chains = []
-    for ids in groups.values():
-        ids = np.array(sorted(ids))
-        pts = vertices[ids]
-        direction = pts[np.argmax(np.linalg.norm(pts - pts[0], axis=1))] - pts[0]
-        chains.append(ids[np.argsort((pts - pts[0]) @ direction)])
-    return chains
-
-
-def _segments(mesh, faces, rulings, region, spacing) -> list[_Draft]:
-    """One segment per ruling (thinned to ``spacing``), normal from the faces along it."""
-    verts = mesh.vertices
-    face_set = set(faces.tolist())
-    vertex_faces = mesh.vertex_faces
-    uses = np.bincount(np.concatenate(rulings), minlength=len(verts))
-    drafts: list[_Draft] = []
-    for chain in rulings:
-        ends = verts[[chain[0], chain[-1]]]
-        direction = (ends[1] - ends[0]) / np.linalg.norm(ends[1] - ends[0])
-        touching = {f for v in chain for f in vertex_faces[v] if f >= 0 and f in face_set}
-        near = [f for f in touching if sum(v in chain for v in mesh.faces[f]) >= 2]
-        outward = mesh.face_normals[near or list(touching)].sum(axis=0)
-        outward -= (outward @ direction) * direction
-        element = Element(ElementKind.SEGMENT, ends, -outward)
-        owned = {int(v) for v in chain if uses[v] <= 2}  # not a cone's apex, shared by all
-        drafts.append(_Draft(element, owned or {int(chain[-1])}, region))
-    midpoints = np.array([d.element.centroid for d in drafts])
-    keep = _thin(midpoints, spacing, _ruling_order(midpoints))
-    return [drafts[i] for i in keep]
-
-
-def _ruling_order(midpoints: np.ndarray) -> np.ndarray:
-    """Order rulings by angle around their common centre (so thinning keeps every k-th)."""
-    centred = midpoints - midpoints.mean(axis=0)
-    if len(midpoints) < 3:
-        return np.arange(len(midpoints))
-    _, _, vt = np.linalg.svd(centred, full_matrices=False)
-    xy = centred @ vt[:2].T
-    return np.argsort(np.arctan2(xy[:, 1], xy[:, 0]), kind="stable")
-
-
-def _thin(points: np.ndarray, spacing: float | None, order=None) -> list[int]:
-    """Greedy Poisson-disc thinning: ids (ascending) of points kept at least ``spacing`` apart."""
-    if spacing is None or spacing <= 0 or len(points) == 0:  # keep all, but once each
-        return sorted(np.unique(points, axis=0, return_index=True)[1].tolist())
-    order = np.arange(len(points)) if order is None else order
-    cells: dict[tuple[int, ...], list[int]] = {}
-    kept = []
-    for i in order:
-        cell = tuple(np.floor(points[i] / spacing).astype(int))
-        near = (
-            j
-            for dx in (-1, 0, 1)
-            for dy in (-1, 0, 1)
-            for dz in (-1, 0, 1)
-            for j in cells.get((cell[0] + dx, cell[1] + dy, cell[2] + dz), ())
-        )
-        if any(np.linalg.norm(points[j] - points[i]) < spacing for j in near):
-            continue
-        cells.setdefault(cell, []).append(int(i))
-        kept.append(int(i))
-    return sorted(kept)
 
 
 # --- points ----------------------------------------------------------------------------------
 
 
-def _points(mesh, faces, region, spacing) -> list[_Draft]:
+def _points(mesh, faces, region, spacing) -> list[Draft]:
     """One point per vertex of the patch (thinned), normal from the patch's faces only.
 
     The normal is the angle-weighted mean of the normals of the faces around the vertex.
@@ -673,18 +360,18 @@ def _points(mesh, faces, region, spacing) -> list[_Draft]:
     for k in range(3):
         np.add.at(outward, tri[:, k], mesh.face_normals[faces] * angles[:, k, None])
     ids = np.unique(tri)
-    keep = _thin(mesh.vertices[ids], spacing)
+    keep = thin(mesh.vertices[ids], spacing)
     drafts = []
     for v in ids[keep]:
         element = Element(ElementKind.POINT, mesh.vertices[[v]], -outward[v])
-        drafts.append(_Draft(element, {int(v)}, region))
+        drafts.append(Draft(element, {int(v)}, region))
     return drafts
 
 
 # --- adjacency -------------------------------------------------------------------------------
 
 
-def _adjacency(mesh, drafts: list[_Draft], curved: list) -> tuple[tuple[int, int], ...]:
+def _adjacency(mesh, drafts: list[Draft], curved: list) -> tuple[tuple[int, int], ...]:
     """Neighbour pairs: a shared mesh vertex, or (unless both are facets) a mesh edge between."""
     owners = _owners(mesh, drafts, curved)
     facet = np.array([d.element.kind is ElementKind.FACET for d in drafts])
@@ -702,7 +389,7 @@ def _adjacency(mesh, drafts: list[_Draft], curved: list) -> tuple[tuple[int, int
     return tuple(sorted(pairs))
 
 
-def _owners(mesh, drafts: list[_Draft], curved: list) -> list[set[int]]:
+def _owners(mesh, drafts: list[Draft], curved: list) -> list[set[int]]:
     """Element ids standing for each mesh vertex.
 
     A segment or a point also stands for the vertices of its curved patch nearest to it along
@@ -734,7 +421,15 @@ def _owners(mesh, drafts: list[_Draft], curved: list) -> list[set[int]]:
     return owners
 
 
-__all__ = ["CharacterizeOptions", "characterize", "load_mesh", "repair_mesh", "winding_number"]
+__all__ = [
+    "Characterization",
+    "CharacterizeOptions",
+    "characterize",
+    "characterize_mesh",
+    "load_mesh",
+    "repair_mesh",
+    "winding_number",
+]
 
 
 def winding_number(mesh, points) -> np.ndarray:

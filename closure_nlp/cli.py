@@ -382,9 +382,7 @@ def _add_plan(sub, common) -> None:
     p.add_argument("model", metavar="MODEL", help="*.model.json")
     p.add_argument("--contacts", type=int, required=True, metavar="M", help="number of contacts")
     p.add_argument("--seed", type=_seed, default=0, help="random start of the heuristic")
-    p.add_argument(
-        "--starts", type=_starts, default=4, help="placement start weights (default 4)"
-    )
+    p.add_argument("--starts", type=_starts, default=4, help="placement start weights (default 4)")
     p.add_argument(
         "--alternatives",
         type=int,

@@ -97,8 +97,6 @@ class SelectionResult:
         }
 
 
-
-
 def heuristic(
     eligibility: Eligibility,
     *,

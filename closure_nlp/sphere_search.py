@@ -106,4 +106,3 @@ def smoothed_descent(slots: WrenchSlots, U: np.ndarray, taus, iterations: int):
     for tau in taus:
         U, values = descend(slots, U, iterations, tau * scale)
     return U, (slots.support(U) if values is None else values)
-

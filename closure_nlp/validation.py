@@ -156,9 +156,7 @@ def as_number(
             raise ValueError(f"{field}: must be >= {minimum:g}, got {_short(value)}")
     if maximum is not None and number > maximum:
         low = "" if minimum is None else f"{minimum:g}"
-        raise ValueError(
-            f"{field}: {number:g} is beyond the accepted range [{low}, {maximum:g}]"
-        )
+        raise ValueError(f"{field}: {number:g} is beyond the accepted range [{low}, {maximum:g}]")
     return number
 
 
