@@ -6,18 +6,19 @@ Every number the method uses must be representable in every product the engine f
 ranges below are checked on input, not discovered as a NaN answer:
 
 - coordinates (positions, vertices, reference points): ``|x| <= MAX_COORDINATE`` (1e12);
-- ``f_max`` and ``torque_scale``: in ``SCALE_RANGE`` [1e-12, 1e12];
+- ``f_max`` in ``SCALE_RANGE`` [1e-12, 1e12], ``torque_scale`` in ``TORQUE_SCALE_RANGE``
+  [1e-15, 1e15] (wide enough for ``auto`` = 1 / radius of any accepted part);
 - ``mu`` in [0, MAX_MU] (1e6), ``mu_s`` (a length) in [0, MAX_COORDINATE];
 - a normal: any finite non-zero 3-vector (it is normalised without overflow);
 - at most ``MAX_SET_CONTACTS`` (2000) contacts in a contact set, ``MAX_ELEMENT_CONTACTS`` (32)
   in an element set (one per listed element id), where every selection step solves many sets;
   at most ``MAX_STUDY_TASKS`` (100,000) grid points in a study, seeds in [0, 2**63 - 1].
 
-With these bounds a grasp-matrix entry is at most ``torque_scale * |x|`` ~ 2e24, a local
-component ``d = G^T u`` of a unit direction at most ~2e24, a friction square ``mu^2 d^2`` at
-most ~4e60 and a support value (times ``f_max``) at most ~2e42: squared once more (norms,
-Hessians) that is ~4e84, far from the 1.8e308 of a double. At the small end, products of the
-smallest scales (1e-12 each) stay far above the 2.2e-308 where doubles lose precision.
+With these bounds a grasp-matrix entry is at most ``torque_scale * |x|`` ~ 2e27, a local
+component ``d = G^T u`` of a unit direction at most ~4e27, a friction square ``mu^2 d^2`` at
+most ~2e67 and a support value (times ``f_max``) at most ~5e45: squared once more (norms,
+Hessians) that is ~2e91, far from the 1.8e308 of a double. At the small end, products of the
+smallest scales (1e-12, 1e-15) stay far above the 2.2e-308 where doubles lose precision.
 """
 
 from __future__ import annotations
@@ -27,7 +28,10 @@ import numbers
 import numpy as np
 
 MAX_COORDINATE = 1e12
-SCALE_RANGE = (1e-12, 1e12)
+SCALE_RANGE = (1e-12, 1e12)  # f_max
+# torque_scale: wider, so that `auto` (1 / the part's radius) of any part within MAX_COORDINATE
+# (radius up to 2 sqrt(3) 1e12 about a far reference point) is accepted.
+TORQUE_SCALE_RANGE = (1e-15, 1e15)
 MAX_MU = 1e6
 MAX_MU_S = MAX_COORDINATE
 
@@ -178,8 +182,8 @@ def as_f_max(value, field: str) -> float:
 
 
 def as_torque_scale(value, field: str = "torque_scale") -> float:
-    """``torque_scale``: the factor on every torque row, in ``SCALE_RANGE``."""
-    return in_range(value, field, SCALE_RANGE)
+    """``torque_scale``: the factor on every torque row, in ``TORQUE_SCALE_RANGE``."""
+    return in_range(value, field, TORQUE_SCALE_RANGE)
 
 
 def as_mu(value, field: str) -> float:

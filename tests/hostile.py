@@ -287,7 +287,7 @@ def _contact_cases() -> list[Case]:
             )
             rho_case(f"{field}={label}", content, ERROR)
     for value, expect in [
-        (0, ERROR), (-1, ERROR), (1e-13, ERROR), (1e-12, ANSWER), (1e12, ANSWER), (1e13, ERROR),
+        (0, ERROR), (-1, ERROR), (1e-16, ERROR), (1e-15, ANSWER), (1e15, ANSWER), (1e16, ERROR),
         (1e300, ERROR), ("1", ERROR), (True, ERROR), (None, ERROR),
     ]:
         rho_case(f"torque_scale={value!r}", {**PAIR, "torque_scale": value}, expect)
@@ -558,13 +558,13 @@ def _flag_cases() -> list[Case]:
         "--mu": ["nan", "inf", "-1", "1e300", "abc", "", "0.2,0.2", "1e6"],
         "--mu-s": ["nan", "-1", "1e300", "1e12"],
         "--f-max": ["0", "1e-13", "1e-12", "1e12", "1e13", "1e300", "nan", "-inf"],
-        "--torque-scale": ["0", "-1", "1e-13", "1e13", "1e300", "nan", "x", "1,2", "1e-12"],
+        "--torque-scale": ["0", "-1", "1e-16", "1e16", "1e300", "nan", "x", "1,2", "1e-15"],
         "--type": ["glue", "", "pcwf,fpc", "PCWF", "fpc,fpc,fpc,fpc"],
     }.items():
         for value in values:
             good = {
                 ("--mu", "1e6"), ("--mu-s", "1e12"), ("--f-max", "1e-12"), ("--f-max", "1e12"),
-                ("--torque-scale", "1e-12"), ("--type", "PCWF"), ("--type", "fpc,fpc,fpc,fpc"),
+                ("--torque-scale", "1e-15"), ("--type", "PCWF"), ("--type", "fpc,fpc,fpc,fpc"),
             }
             expect = ANSWER if (flag, value) in good else ERROR
             flag_case(f"eligibility {flag}={value!r}", "eligibility", [*el, flag, value, "--json"],

@@ -150,7 +150,7 @@ def test_cli_eligibility_and_select(capsys, ring_file):
         (["--elements", "0,1", "--mu", "-1"], r"contacts\[0\]\.mu: must be >= 0"),
         (["--elements", "0,1", "--type", "glue"], "unknown contact type 'glue'"),
         (["--elements", "0,1", "--mu", "0.1,0.2,0.3"], "--mu: expected 1 or 2 values"),
-        (["--elements", "0,1", "--torque-scale", "0"], "--torque-scale: must be >= 1e-12"),
+        (["--elements", "0,1", "--torque-scale", "0"], "--torque-scale: must be >= 1e-15"),
     ],
 )
 def test_cli_bad_input(capsys, ring_file, argv, message):

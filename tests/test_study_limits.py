@@ -32,7 +32,7 @@ def study(tmp_path, body: str) -> Path:
         ("seeds = true", "seeds: expected a count"),
         ("mu = 1e300", "mu: must be <= 1e+06 (accepted range"),
         ("f_max = 1e-20", "f_max: must be >= 1e-12"),
-        ("torque_scale = [1.0, 1e13]", "torque_scale[1]: must be <= 1e+12"),
+        ("torque_scale = [1.0, 1e16]", "torque_scale[1]: must be <= 1e+15"),
         ("contacts = 1000", "limit 1..32"),
     ],
 )
