@@ -831,6 +831,8 @@ def main(argv: list[str] | None = None) -> int:
         args = build_parser().parse_args(argv)
         with _one_line_warnings(), _interruptible():
             args.run(args)
+    except SystemExit as exc:  # argparse: --help (0) or a bad flag (2, its line already printed)
+        return exc.code if isinstance(exc.code, int) else 2
     except KeyboardInterrupt:
         sys.stderr.write("interrupted: stopped by Ctrl-C; finished output is kept\n")
         return 130

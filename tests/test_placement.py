@@ -185,4 +185,4 @@ def test_cli_place_bad_input(capsys, tmp_path):
     assert code == 2 and err.startswith("error:") and "--elements[2]: element id 7" in err
     code = cli.main(["place", str(path), "--elements", "0,1,2,3", "--starts", "0"])
     err = capsys.readouterr().err
-    assert code == 2 and "--starts: expected an integer >= 1" in err
+    assert code == 2 and "--starts: the number of start weights must be in [1, 100]" in err
