@@ -69,6 +69,7 @@ def test_place_and_show_out_refused_before_any_work(tmp_path, capsys, box_file, 
     assert code == 2 and "which is a file" in err
 
 
+@pytest.mark.slow  # one real plan (~10-25 s)
 def test_plan_rerun_replaces_the_whole_set(tmp_path, capsys, box_file):
     out = tmp_path / "run"
     out.mkdir()
@@ -76,7 +77,7 @@ def test_plan_rerun_replaces_the_whole_set(tmp_path, capsys, box_file):
     (out / "stale.png").write_text("from an older version")
     code, stdout, err = run(
         capsys, "plan", box_file, "--contacts", "4", "--type", "pcwf", "--mu", "0.5",
-        "--out", out, "--json",
+        "--starts", "1", "--alternatives", "0", "--out", out, "--json",
     )
     assert code == 0, err
     written = json.loads(stdout)["out"]
