@@ -32,6 +32,7 @@ bench: $(STAMP)
 	$(BIN)/python -m closure_nlp.bench rho
 	$(BIN)/python -m closure_nlp.bench rho-hat
 	$(BIN)/python -m closure_nlp.bench select
+	$(BIN)/python -m closure_nlp.bench plan
 
 clean:
 	rm -rf $(VENV) build *.egg-info

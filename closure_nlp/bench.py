@@ -1,4 +1,4 @@
-"""Benchmarks that print JSON: ``python -m closure_nlp.bench rho|rho-hat|select``.
+"""Benchmarks that print JSON: ``python -m closure_nlp.bench rho|rho-hat|select|plan``.
 
 Timings are medians over seeded random cases with every solver built and warmed up first, and
 each is compared in the same process with a paper-style baseline: scipy SLSQP started from the
@@ -21,9 +21,11 @@ from scipy.optimize import minimize
 from .contacts import contact_specs
 from .elements import load_model
 from .eligibility import Eligibility
+from .placement import PlacementOptions, Placer
+from .planning import plan
 from .quality import SearchOptions, SupportMinimizer
 from .random_sets import BENCH_CASES, random_contact_set
-from .selection import heuristic, iterative
+from .selection import SelectionOptions, heuristic, iterative
 from .wrenches import WrenchSlots
 
 
@@ -203,6 +205,72 @@ def bench_characterize(subdivisions=(5, 7)) -> dict:
     return {"work": "characterize an icosphere (default options)", "runs": runs}
 
 
+# The former behaviour (full search for every neighbour): the baseline that ``bench plan`` runs
+# in the same process, on the same solvers, for its ratios; and the faster placement options.
+BASELINE_SELECTION = SelectionOptions(screen=False)
+BASELINE_PLACEMENT = PlacementOptions()
+FAST_PLACEMENT = PlacementOptions(screen=True, probe_rounds=6)
+
+
+def bench_plan(seeds: int = 3, models_dir=MODELS_DIR, names=None) -> dict:
+    """``plan`` on each example model over ``seeds`` seeds: the default options (``current``),
+    with :data:`FAST_PLACEMENT` (``fast``) and the baseline (:data:`BASELINE_SELECTION`,
+    :data:`BASELINE_PLACEMENT`); medians of each step's seconds, rho, and the ratios baseline /
+    current and baseline / fast. Solvers are built and warmed up first (one
+    plan of each kind on another seed), and the order of the two alternates over the seeds."""
+    modes = {
+        "current": (SelectionOptions(), PlacementOptions()),
+        "fast": (SelectionOptions(), FAST_PLACEMENT),
+        "baseline": (BASELINE_SELECTION, BASELINE_PLACEMENT),
+    }
+    report = {"benchmark": "plan", "seeds": seeds, "models": {}}
+    for name in names or PAPER_EXAMPLES:
+        setup = PAPER_EXAMPLES[name]
+        eligibility = paper_eligibility(name, models_dir)
+        placers = {k: Placer(eligibility, p) for k, (_, p) in modes.items()}
+        for k, (selection, _) in modes.items():  # warm-up: every NLP shape built
+            plan(eligibility, seed=seeds + 100, selection=selection, placer=placers[k])
+        runs = {k: [] for k in modes}
+        for seed in range(seeds):
+            order = list(modes)[seed % 3 :] + list(modes)[: seed % 3]  # rotate the order
+            for k in order:
+                t0 = time.perf_counter()
+                result = plan(
+                    eligibility,
+                    seed=seed,
+                    selection=modes[k][0],
+                    placer=placers[k],
+                    alternatives=0,
+                )
+                runs[k].append((result, time.perf_counter() - t0))
+        entry = {"type": setup["type"], "contacts": setup["m"]}
+        for k, results in runs.items():
+            entry[k] = {
+                "total_s": float(np.median([s for _, s in results])),
+                "heuristic_s": float(np.median([r.heuristic.seconds for r, _ in results])),
+                "iterative_s": float(np.median([r.iterative.seconds for r, _ in results])),
+                "placement_s": float(np.median([r.placement.seconds for r, _ in results])),
+                "iterative_evaluations": float(
+                    np.median([r.iterative.evaluations for r, _ in results])
+                ),
+                "placement_rounds": float(np.median([r.placement.rounds for r, _ in results])),
+                "rho_median": float(np.median([r.placement.rho for r, _ in results])),
+                "force_closure_share": float(
+                    np.mean([r.placement.force_closure for r, _ in results])
+                ),
+                "total_s_each": [s for _, s in results],
+            }
+        for mode in ("current", "fast"):
+            for step in ("total_s", "iterative_s", "placement_s"):
+                entry[f"ratio_{step}_{mode}"] = entry["baseline"][step] / entry[mode][step]
+        pairs = list(zip(runs["current"], runs["baseline"]))
+        entry["same_selection_share"] = float(
+            np.mean([a.iterative.elements == b.iterative.elements for (a, _), (b, _) in pairs])
+        )
+        report["models"][name] = entry
+    return report
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m closure_nlp.bench", description=__doc__)
     sub = parser.add_subparsers(dest="what", required=True)
@@ -218,6 +286,9 @@ def main(argv=None) -> int:
     p.add_argument("--seeds", type=int, default=10)
     p = sub.add_parser("characterize", help="seconds and peak memory of characterize")
     p.add_argument("--subdivisions", type=int, nargs="+", default=[5, 7])
+    p = sub.add_parser("plan", help="plan on the example models, against the former options")
+    p.add_argument("--seeds", type=int, default=3)
+    p.add_argument("--models", default=",".join(PAPER_EXAMPLES), help="e.g. lamp,cup")
     args = parser.parse_args(argv)
     if args.what == "rho":
         report = bench_rho(args.cases, args.repeats, args.seed)
@@ -225,6 +296,8 @@ def main(argv=None) -> int:
         report = bench_rho_hat(args.cases, args.repeats, args.seed)
     elif args.what == "characterize":
         report = bench_characterize(args.subdivisions)
+    elif args.what == "plan":
+        report = bench_plan(args.seeds, names=args.models.split(","))
     else:
         report = bench_select(args.seeds)
     json.dump(report, sys.stdout, indent=2)

@@ -68,7 +68,8 @@ def test_iterative_improves_a_bad_start_and_counts_its_work(ring):
     result = iterative(ring, [0, 1, 12])
     assert result.rho_hat < first.rho_hat - 1e-3
     assert result.eligible
-    assert result.evaluations >= 1 + len(result.history) - 1
+    assert result.evaluations + result.screened >= 1 + len(result.history) - 1
+    assert result.to_dict()["screened"] == result.screened
     assert result.seconds > 0
 
 

@@ -119,6 +119,7 @@ def _solvers(task: Task, model_text: str | None) -> tuple[Eligibility, Placer, b
     """
     if not hasattr(_local, "cache"):
         _local.cache, _local.minimizer = OrderedDict(), SupportMinimizer()
+        _local.problems = {}  # exchange NLPs by shape, shared by every placer of the thread
     cache = _local.cache
     key = (task.model_digest, task.type, task.contacts, task.mu, task.mu_s, task.f_max)
     key += (task.torque_scale,)
@@ -136,7 +137,7 @@ def _solvers(task: Task, model_text: str | None) -> tuple[Eligibility, Placer, b
     cache.move_to_end(key)
     eligibility, placers = cache[key]
     if task.placement not in placers:
-        placers[task.placement] = Placer(eligibility, task.placement_options())
+        placers[task.placement] = Placer(eligibility, task.placement_options(), _local.problems)
         built = True
     return eligibility, placers[task.placement], built
 
