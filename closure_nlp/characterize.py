@@ -355,7 +355,8 @@ def _points(mesh, faces, region, spacing) -> list[Draft]:
     The normal is the angle-weighted mean of the normals of the faces around the vertex.
     """
     tri = mesh.faces[faces]
-    angles = mesh.face_angles[faces]  # (k, 3): each face's corner angles weigh its normal
+    with np.errstate(invalid="ignore", divide="ignore"):  # zero-area slivers weigh nothing
+        angles = np.nan_to_num(mesh.face_angles[faces])  # (k, 3): corner angles weigh normals
     outward = np.zeros_like(mesh.vertices)
     for k in range(3):
         np.add.at(outward, tri[:, k], mesh.face_normals[faces] * angles[:, k, None])
