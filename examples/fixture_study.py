@@ -140,7 +140,17 @@ def build_models(folder: Path = MODELS) -> list[Path]:
         folder.mkdir(parents=True, exist_ok=True)
         mesh = make()
         write_atomic(folder / f"{name}.stl", mesh.export(file_type="stl"))
-        model = characterize(mesh, name=name, units="mm", mesh_ref=f"{name}.stl")
+        # The options the committed models were made with (before spacing and reference
+        # point had defaults of their own): every ruling kept, torques about the origin.
+        model = characterize(
+            mesh,
+            name=name,
+            units="mm",
+            mesh_ref=f"{name}.stl",
+            segment_spacing=0,
+            point_spacing=0,
+            reference_point=(0.0, 0.0, 0.0),
+        )
         save_model(model, model_path)
         counts = ", ".join(f"{n} {kind}s" for kind, n in model.counts().items())
         print(f"{model_path}: {counts}")
