@@ -886,7 +886,7 @@ def _one_line_warnings():
 
 @contextlib.contextmanager
 def _interruptible():
-    """Ctrl-C (or SIGTERM) raises ``KeyboardInterrupt`` in Python code, never inside CasADi.
+    """Ctrl-C raises ``KeyboardInterrupt`` in Python code, never inside a CasADi call.
 
     CasADi polls Python's signal handlers during IPOPT and, when one raises, stops the solver and
     returns its last iterate as if it were the answer (with a warning on stderr). So inside a
@@ -919,8 +919,9 @@ def _interruptible():
             raise KeyboardInterrupt
 
     interrupted: list[int] = []
-    # SIGTERM too: a polite kill also removes the temporary files of what was being written.
-    signums = (signal.SIGINT, signal.SIGTERM, signal.SIGALRM)
+    # Not SIGTERM: a Python handler runs only between bytecodes, so `kill` or `timeout` would
+    # wait for a long C call (qhull, a big numpy product) instead of ending the process.
+    signums = (signal.SIGINT, signal.SIGALRM)
     saved = [signal.signal(signum, on_signal) for signum in signums]
     try:
         yield
