@@ -138,6 +138,8 @@ def _closed(piece, repairs: list):
 def _close(piece, repairs: list):
     import trimesh
 
+    if not piece.is_watertight and _split_t_junctions(piece):
+        repairs.append("closed cracks at T-junctions (a vertex on another triangle's edge)")
     if not piece.is_watertight:
         loops = _boundary_loops(piece)
         trimesh.repair.fill_holes(piece)
@@ -200,6 +202,35 @@ def _boundary_loops(mesh) -> list[list[int]]:
     if np.any(counts > 2):
         return []  # non-manifold: not holes
     return simple_loops(edges[counts[inverse.ravel()] == 1])
+
+
+def _split_t_junctions(mesh) -> bool:
+    """Close 3-edge cracks of zero area: a vertex m lying on the edge p-q of a triangle on the
+    other side of the crack. That triangle is split at m (capping would add a triangle of no
+    area). Returns whether any crack was closed."""
+    faces = np.asarray(mesh.faces).tolist()
+    split = False
+    for loop in _boundary_loops(mesh):
+        if len(loop) != 3:
+            continue
+        v = mesh.vertices[loop]
+        sides = [np.linalg.norm(v[(k + 1) % 3] - v[k]) for k in range(3)]
+        area = np.linalg.norm(np.cross(v[1] - v[0], v[2] - v[0])) / 2
+        if not area <= 1e-9 * max(sides) ** 2:
+            continue
+        k = int(np.argmax(sides))
+        p, q, m = loop[k], loop[(k + 1) % 3], loop[(k + 2) % 3]
+        for i, face in enumerate(faces):  # the triangle whose edge p -> q is the long side
+            j = next((j for j in range(3) if face[j] == p and face[(j + 1) % 3] == q), None)
+            if j is not None:
+                x = face[(j + 2) % 3]
+                faces[i] = [p, m, x]
+                faces.append([m, q, x])
+                split = True
+                break
+    if split:
+        mesh.faces = np.asarray(faces, dtype=np.int64)
+    return split
 
 
 def _cap_holes(mesh) -> None:

@@ -124,6 +124,11 @@ def main(argv=None) -> int:
         "error",
     ]
     OUT.mkdir(exist_ok=True)
+    if (OUT / "real_meshes.csv").exists():  # keep the rows of the meshes not run this time
+        with open(OUT / "real_meshes.csv", newline="") as f:
+            kept = [r for r in csv.DictReader(f) if r["mesh"] not in args.meshes]
+        order = {name: k for k, name in enumerate(MESHES)}
+        rows = sorted(kept + rows, key=lambda r: order.get(r["mesh"], len(order)))
     with open(OUT / "real_meshes.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, keys)
         writer.writeheader()

@@ -155,3 +155,23 @@ def test_old_model_files_mean_the_origin_and_new_ones_keep_their_point(tmp_path)
     G_old = old.elements[0].grasp_matrices()
     assert np.allclose(G_new[:, :3], G_old[:, :3])
     assert not np.allclose(G_new[:, 3:], G_old[:, 3:])
+
+
+def test_crack_at_a_t_junction_is_closed():
+    box = trimesh.creation.box()
+    faces = box.faces.tolist()
+    a, c = (int(v) for v in box.face_adjacency_edges[0])
+    i = next(
+        k for k, f in enumerate(faces) if any(f[j] == c and f[(j + 1) % 3] == a for j in range(3))
+    )
+    j = next(j for j in range(3) if faces[i][j] == c and faces[i][(j + 1) % 3] == a)
+    x = faces[i][(j + 2) % 3]
+    m = len(box.vertices)  # a vertex on edge a-c, used by one side only: a zero-area crack
+    vertices = np.vstack([box.vertices, (box.vertices[a] + box.vertices[c]) / 2])
+    faces[i] = [c, m, x]
+    faces.append([m, a, x])
+    cracked = trimesh.Trimesh(vertices, faces, process=False)
+    assert not cracked.is_watertight
+    found = characterize_mesh(cracked)
+    assert any("T-junctions" in r for r in found.repairs)
+    assert found.model.counts() == {"facet": 6, "segment": 0, "point": 0}
