@@ -20,9 +20,11 @@ from .validation import (
     MAX_SET_CONTACTS,
     as_coordinates,
     as_count,
+    as_element_id,
     as_f_max,
     as_mu,
     as_mu_s,
+    as_numbers,
     as_torque_scale,
     as_unit_vector,
     check_keys,
@@ -303,6 +305,7 @@ def contact_set_from_dict(data) -> ContactSet:
     for i, entry in enumerate(entries):
         name = f"contacts[{i}]"
         check_keys(entry, name, CONTACT_KEYS, required={"position", "inward_normal"})
+        _check_kept_keys(entry, name)
         merged = {
             "type": ContactType.PCWF.value,
             "mu": DEFAULT_MU,
@@ -323,6 +326,17 @@ def contact_set_from_dict(data) -> ContactSet:
             )
         )
     return ContactSet(tuple(contacts), data.get("torque_scale", 1.0), data.get("reference_point"))
+
+
+def _check_kept_keys(entry: dict, name: str) -> None:
+    """Keys a contact file keeps but rho does not use (where a plan placed the contact) are
+    still checked: a wrong one is a wrong file."""
+    if "element" in entry:
+        as_element_id(entry["element"], f"{name}.element")
+    if "weights" in entry:
+        as_numbers(entry["weights"], f"{name}.weights")
+    if "name" in entry and not isinstance(entry["name"], str):
+        raise TypeError(f"{name}.name: expected text, got {entry['name']!r}")
 
 
 def load_contact_set(path) -> ContactSet:

@@ -94,6 +94,24 @@ def as_vector(value, field: str, length: int, *, limit: float | None = None) -> 
     return arr
 
 
+def as_numbers(value, field: str) -> np.ndarray:
+    """A list of finite numbers of any length (e.g. barycentric weights kept in a file)."""
+    arr = _as_float_array(value, field, 1)
+    if arr.ndim != 1:
+        raise ValueError(f"{field}: expected a list of numbers, got {_short(value)}")
+    _check_finite(arr, field, None)
+    return arr
+
+
+def as_element_id(value, field: str) -> int:
+    """An element id: a whole number >= 0 (whether the model has it is checked with the model)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral):
+        raise TypeError(f"{field}: expected an element id, got {_short(value)}")
+    if value < 0:
+        raise ValueError(f"{field}: an element id is >= 0, got {value}")
+    return int(value)
+
+
 def as_points(value, field: str) -> np.ndarray:
     """Return ``value`` as a (k, 3) float array of coordinates (k >= 1), each within range."""
     arr = _as_float_array(value, field, 2)

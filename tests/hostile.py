@@ -295,6 +295,13 @@ def _contact_cases() -> list[Case]:
         expect = ANSWER if label == "upper" else ERROR
         rho_case(f"type={label}", _with(PAIR, (*c0, "type"), value), expect)
     rho_case("unknown_key", _with(PAIR, (*c0, "positon"), [0, 0, 1]), ERROR)
+    for key, value, expect in [
+        ("element", 3, ANSWER), ("element", -1, ERROR), ("element", "3", ERROR),
+        ("element", True, ERROR), ("weights", [0.5, 0.5], ANSWER), ("weights", ["a"], ERROR),
+        ("name", 7, ERROR),
+    ]:
+        rho_case(f"{key}={value!r}", _with(PAIR, (*c0, key), value), expect)
+    rho_case("weights=[NaN]", _json_with_raw(PAIR, (*c0, "weights"), "[0.5, NaN]"), ERROR)
     rho_case("contacts=empty", {"contacts": []}, ERROR)
     rho_case("contacts=object", {"contacts": {}}, ERROR)
     rho_case("contacts=text", {"contacts": "x"}, ERROR)
