@@ -202,13 +202,17 @@ def _load_model(args):
     mesh is one warning (it only serves pictures)."""
     from dataclasses import replace
 
+    from .elements import ElementKind
     from .model_mesh import check_normals, read_model_mesh
 
     [(_, model)] = _load_each([args.model], load_model)
     if getattr(args, "allow_outside_mesh", False):
         model = replace(model, allow_outside_mesh=True)
     with _reading(args.model):
-        check_normals(model, read_model_mesh(model))
+        model.mesh_path  # noqa: B018 - refuses a path outside the model's folder, before work
+        judged = any(e.kind is not ElementKind.POINT for e in model.elements)
+        if judged and not getattr(args, "no_mesh", False):  # points have nothing to check
+            check_normals(model, read_model_mesh(model))
     return model
 
 
