@@ -593,6 +593,11 @@ def _cmd_characterize(args) -> None:
     warning = units_warning(found.radius, args.units)
     if warning:
         sys.stderr.write(f"warning: {args.mesh}: {warning}\n")
+    if mesh_ref.startswith("../"):  # show reads only meshes inside the model's folder
+        sys.stderr.write(
+            f"warning: {args.out}: its mesh {mesh_ref} lies outside the model's folder: copy the "
+            "mesh beside the model, or draw with show --allow-outside-mesh\n"
+        )
     try:
         save_model(model, out)
     except OSError as exc:
