@@ -24,7 +24,7 @@ mesh edge from the vertices it stands for (its own, and the dropped ones nearest
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -115,6 +115,7 @@ class Characterization:
     point_spacing: float
     repairs: tuple[str, ...]
     reference_source: str = "given"
+    mesh: object = field(default=None, repr=False)  # the closed mesh the elements come from
 
     def text(self) -> str:
         unit = f" {self.model.units}" if self.model.units else ""
@@ -216,7 +217,9 @@ def characterize_mesh(
         reference_point=point,
         up=up,
     )
-    return Characterization(model, model.reference_point, radius, *spacings, tuple(repairs), source)
+    return Characterization(
+        model, model.reference_point, radius, *spacings, tuple(repairs), source, mesh
+    )
 
 
 def _is_auto(value) -> bool:

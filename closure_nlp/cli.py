@@ -569,11 +569,16 @@ def _cmd_characterize(args) -> None:
 
     from .characterize import characterize_mesh
     from .elements import save_model
+    from .files import write_atomic
     from .scale import units_warning
 
     with _reading(args.out):
         out = check_output_file(args.out)
     mesh_ref = Path(os.path.relpath(Path(args.mesh).resolve(), out.resolve().parent)).as_posix()
+    copy = None
+    if mesh_ref.startswith("../"):  # models read only meshes in their folder: write one there
+        copy = out.parent / (out.name.removesuffix(".json").removesuffix(".model") + ".mesh.stl")
+        mesh_ref = copy.name
     try:
         found = characterize_mesh(
             args.mesh,
@@ -593,12 +598,9 @@ def _cmd_characterize(args) -> None:
     warning = units_warning(found.radius, args.units)
     if warning:
         sys.stderr.write(f"warning: {args.mesh}: {warning}\n")
-    if mesh_ref.startswith("../"):  # show reads only meshes inside the model's folder
-        sys.stderr.write(
-            f"warning: {args.out}: its mesh {mesh_ref} lies outside the model's folder: copy the "
-            "mesh beside the model, or draw with show --allow-outside-mesh\n"
-        )
     try:
+        if copy is not None:  # the repaired mesh, beside the model (pictures draw it)
+            write_atomic(copy, found.mesh.export(file_type="stl"))
         save_model(model, out)
     except OSError as exc:
         raise InputError(args.out, f"cannot write: {exc.strerror or exc}") from None

@@ -249,6 +249,15 @@ def summary_markdown(model, result: PlanResult, options: dict) -> str:
         f"rho = {pl.start_rho:.6g}. Total {result.seconds:.2f} s.",
         "",
     ]
+    if "torque_scale" in options and "reference_point" in options:  # the CLI's scale (scale.py)
+        unit = f" {options.get('units')}" if options.get("units") else ""
+        point = ", ".join(f"{x:.6g}" for x in options["reference_point"])
+        auto = " (auto: 1 / the part's radius)" if options.get("torque_scale_auto") else ""
+        rows += [
+            f"Torques about [{point}]{unit}; torque scale {options['torque_scale']:.6g}{auto}; "
+            f"mu_s {options.get('mu_s')}{unit}.",
+            "",
+        ]
     for i, c in enumerate(pl.contacts):
         pos = ", ".join(f"{x:.3f}" for x in c.position)
         rows.append(f"- contact {i}: element {c.element}, position ({pos})")

@@ -325,9 +325,13 @@ def test_cli_characterize_writes_a_model(tmp_path, capsys):
     assert payload["out"] == str(out)
     model = load_model(out)
     assert model.counts() == payload["elements"] and model.name == "shaft"
+    # A model reads meshes only in its folder (../meshes/ is refused unless allowed), so the
+    # repaired mesh is written beside it.
+    assert model.mesh == "shaft.mesh.stl" and model.mesh_path.is_file()
+    outside = replace(model, mesh="../meshes/shaft.stl")
     with pytest.raises(ValueError, match="outside the model's folder"):
-        model.mesh_path  # noqa: B018 - ../meshes/ is read only when allowed
-    assert replace(model, allow_outside_mesh=True).mesh_path == mesh.resolve()
+        outside.mesh_path  # noqa: B018
+    assert replace(outside, allow_outside_mesh=True).mesh_path == mesh.resolve()
     code, stdout, _ = run_cli(capsys, "characterize", mesh, "--out", out, "--segment-spacing", "1")
     assert code == 0 and "facets" in stdout and "segments" in stdout
 

@@ -175,3 +175,22 @@ def test_crack_at_a_t_junction_is_closed():
     found = characterize_mesh(cracked)
     assert any("T-junctions" in r for r in found.repairs)
     assert found.model.counts() == {"facet": 6, "segment": 0, "point": 0}
+
+
+def test_cli_characterize_of_a_mesh_elsewhere_writes_the_repaired_mesh_beside_the_model(
+    tmp_path, capsys
+):
+    (tmp_path / "data").mkdir()
+    (tmp_path / "models").mkdir()
+    a = trimesh.creation.box(extents=[0.02, 0.01, 0.01])
+    b = trimesh.creation.box(extents=[0.01, 0.01, 0.03])
+    trimesh.util.concatenate([a, b]).export(tmp_path / "data" / "cross.obj")
+    out = tmp_path / "models" / "cross.model.json"
+    args = ["characterize", str(tmp_path / "data" / "cross.obj"), "--units", "m", "--out", str(out)]
+    assert main(args) == 0
+    assert "merged 2 bodies" in capsys.readouterr().out
+    model = load_model(out)
+    assert model.mesh == "cross.mesh.stl"
+    drawn = trimesh.load(tmp_path / "models" / "cross.mesh.stl")
+    assert drawn.is_watertight and drawn.body_count == 1  # the union, not the two boxes
+    assert main(["show", str(out), "--out", str(tmp_path / "cross.png")]) == 0
