@@ -837,7 +837,7 @@ COMMANDS.append(_add_study)
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run one command; returns the exit status (module docstring), never raises but SystemExit."""
+    """Run one command; returns the exit status (module docstring) and never raises."""
     try:
         args = build_parser().parse_args(argv)
         with _one_line_warnings(), _interruptible():
@@ -940,6 +940,7 @@ def _interruptible():
         signal.setitimer(signal.ITIMER_REAL, 0)
         for signum, handler in zip(signums, saved):
             signal.signal(signum, handler)
+        logging.disable(logging.NOTSET)  # an in-process caller gets its logging back
 
 
 if __name__ == "__main__":  # pragma: no cover
