@@ -17,6 +17,7 @@ import json
 import os
 import sys
 
+from . import _cli_startup, _quiet_interrupt  # noqa: F401 - first: Ctrl-C while importing
 from .contact_count import require_closure_count
 from .contacts import contact_specs
 from .elements import load_model
@@ -37,6 +38,8 @@ from .scale import is_auto, scale_warnings
 from .scale import resolve as resolve_scale
 from .selection import run_selection
 from .validation import MAX_ELEMENT_CONTACTS, MAX_SEED, as_count, as_torque_scale
+
+_quiet_interrupt.restore()
 
 MAX_STARTS = 100  # placement start weights per run: each is a full exchange method
 MAX_WORKERS = 256  # local Dask worker processes

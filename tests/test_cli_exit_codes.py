@@ -151,3 +151,19 @@ def test_broken_pipe_is_quiet(tmp_path):
     proc.wait(timeout=120)
     assert "Traceback" not in stderr
     assert np.isin(proc.returncode, [0, 1])
+
+
+def test_ctrl_c_while_starting_is_one_line():
+    """A KeyboardInterrupt while the CLI's modules are still importing (simulated right after
+    the startup hook is in place) prints one line; importing the package and the CLI leaves
+    sys.excepthook as it was."""
+    code = "import closure_nlp._cli_startup\nraise KeyboardInterrupt\n"
+    proc = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=_env(), timeout=60
+    )
+    assert proc.stderr == "interrupted: stopped by Ctrl-C while starting\n"
+    check = (
+        "import sys\nhook = sys.excepthook\nimport closure_nlp, closure_nlp.cli\n"
+        "assert sys.excepthook is hook\n"
+    )
+    subprocess.run([sys.executable, "-c", check], env=_env(), timeout=60, check=True)
