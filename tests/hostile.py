@@ -82,7 +82,7 @@ def run_case(case: Case, folder: Path) -> Outcome:
         try:
             call = case.make(folder)
             value = call()
-        except (ValueError, TypeError) as exc:
+        except (ValueError, TypeError, OSError) as exc:  # OSError: the file system said no
             return Outcome("error", f"{type(exc).__name__}: {exc}", time.perf_counter() - t0)
         except Exception as exc:  # noqa: BLE001 - the corpus counts these
             return Outcome("traceback", f"{type(exc).__name__}: {exc}", time.perf_counter() - t0)
@@ -696,6 +696,55 @@ def _api_cases() -> list[Case]:
     api("Eligibility(torque_scale=0)", lambda: Eligibility(box, specs, 0.0).torque_scale, ERROR)
     api("model_from_dict(list)", lambda: model_from_dict([]).elements, ERROR)
     api("contact_set_from_dict(None)", lambda: contact_set_from_dict(None).contacts, ERROR)
+
+    from closure_nlp.characterize import characterize
+    from closure_nlp.elements import save_model, simplex_weights
+    from closure_nlp.files import write_json
+    from closure_nlp.placement import PlacementOptions
+    from closure_nlp.selection import SelectionOptions, heuristic
+
+    for label, kwargs in [
+        ("starts=0", {"starts": 0}), ("starts=-1", {"starts": -1}), ("starts=2.5", {"starts": 2.5}),
+        ("seed=str", {"seed": "1"}), ("certify=str", {"certify": "yes"}), ("bogus", {"bogus": 1}),
+    ]:
+        api(f"PlacementOptions({label})", lambda kw=kwargs: PlacementOptions(**kw).starts, ERROR)
+    for label, kwargs in [
+        ("initial=0", {"initial": 0}), ("restarts=0", {"restarts": 0}),
+        ("max_iterations=-1", {"max_iterations": -1}), ("descent=nan", {"descent": float("nan")}),
+    ]:
+        api(f"SelectionOptions({label})", lambda kw=kwargs: SelectionOptions(**kw).initial, ERROR)
+    elig = Eligibility(box, specs)
+    api("heuristic(start=[99])", lambda: heuristic(elig, start=[99]).rho_hat, ERROR)
+    api("heuristic(start='01')", lambda: heuristic(elig, start="01").rho_hat, ERROR)
+    api("heuristic(seed=-1)", lambda: heuristic(elig, seed=-1).rho_hat, ERROR)
+    for label, weights in [("negative", [-0.5, 1.5]), ("nan", [np.nan, 1.0]), ("str", ["a", 1]),
+                           ("short", [1.0]), ("sum_2", [1.0, 1.0])]:
+        api(f"simplex_weights({label})", lambda w=weights: simplex_weights(w, 2, "w"), ERROR)
+    api("simplex_weights(ok)", lambda: simplex_weights([0.25, 0.75], 2, "w"), ANSWER)
+    api("characterize(3)", lambda: characterize(3).elements, ERROR)
+    api("characterize(missing)", lambda: characterize("/nonexistent/x.stl").elements, ERROR)
+
+    def char_option(folder, key, value):
+        import trimesh
+
+        path = folder / "cube.stl"
+        trimesh.creation.box(extents=(1, 1, 1)).export(path)
+        return lambda: characterize(path, **{key: value}).elements
+
+    for key, value in [("sharp_angle", -1.0), ("sharp_angle", float("nan")),
+                       ("point_spacing", -2.0), ("segment_spacing", "x"), ("bogus", 1)]:
+        cases.append(Case("api", f"characterize({key}={value!r})",
+                          lambda f, k=key, v=value: char_option(f, k, v), ERROR))
+
+    def writes(folder, data):
+        return lambda: write_json(folder / "x.json", data)
+
+    cases.append(Case("api", "write_json(nan)",
+                      lambda f: writes(f, {"rho": float("nan")}), ERROR))
+    cases.append(Case("api", "write_json(inf in list)",
+                      lambda f: writes(f, {"a": [1.0, float("inf")]}), ERROR))
+    cases.append(Case("api", "save_model(under a file)", lambda f: (
+        (f / "file").write_text("x"), lambda: save_model(box, f / "file" / "m.json"))[1], ERROR))
 
     def deep(folder):
         path = _write(folder, "deep.json", "[" * 100000 + "]" * 100000)
