@@ -302,6 +302,9 @@ def _contact_cases() -> list[Case]:
     ]:
         rho_case(f"{key}={value!r}", _with(PAIR, (*c0, key), value), expect)
     rho_case("weights=[NaN]", _json_with_raw(PAIR, (*c0, "weights"), "[0.5, NaN]"), ERROR)
+    for label, point, expect in [("1e200", [0, 0, 1e200], ERROR), ("str", ["0", 0, 1], ERROR),
+                                 ("bool", [True, 0, 0], ERROR), ("1e12", [0, 0, 1e12], ANSWER)]:
+        rho_case(f"reference_point={label}", {**PAIR, "reference_point": point}, expect)
     rho_case("contacts=empty", {"contacts": []}, ERROR)
     rho_case("contacts=object", {"contacts": {}}, ERROR)
     rho_case("contacts=text", {"contacts": "x"}, ERROR)
@@ -383,6 +386,8 @@ def _model_cases() -> list[Case]:
         ("string", ["0", 1]), ("triple", [0, 1, 2]), ("float", [0.0, 1]),
     ]:
         elig_case(f"adjacency={label}", _with(base, ("adjacency", 0), pair), ERROR)
+    for label, point in [("1e200", [0, 0, 1e200]), ("str", ["0", 0, 1]), ("short", [0, 0])]:
+        elig_case(f"reference_point={label}", {**base, "reference_point": point}, ERROR)
     elig_case("elements=empty", _with(base, ("elements",), []), ERROR)
     elig_case("elements=object", _with(base, ("elements",), {}), ERROR)
     elig_case("name=number", _with(base, ("name",), 3), ERROR)
