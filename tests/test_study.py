@@ -270,6 +270,31 @@ def test_serial_run_matches_plan(tiny, serial_rows):
     assert row.rho < 0 and row.force_closure
 
 
+def test_a_new_model_releases_the_solvers_of_the_previous_one(tmp_path):
+    """Solver caches are per model in a worker thread: the first task on another model drops
+    them (no NLP is built here: the solver objects build theirs lazily)."""
+    from closure_nlp.study import tasks
+
+    save_model(box_model(2.0), tmp_path / "big.model.json")
+    body = TINY.replace('models = ["box.model.json"]', 'models = ["box.model.json", "big"]')
+    body = body.replace('"big"]', '"big.model.json"]')
+    study = load_study(write_study(tmp_path, body))
+    first, last = study.tasks[0], study.tasks[-1]
+    assert first.model != last.model
+    clear_cache()
+    try:
+        tasks._solvers(first, None)
+        tasks._solvers(study.tasks[2], None)  # the same model, another mu: kept beside it
+        assert {k[0] for k in tasks._local.cache} == {first.model_digest}
+        assert len(tasks._local.cache) == 2
+        minimizer = tasks._local.minimizer
+        tasks._solvers(last, None)
+        assert {k[0] for k in tasks._local.cache} == {last.model_digest}
+        assert tasks._local.minimizer is not minimizer
+    finally:
+        clear_cache()
+
+
 @pytest.mark.slow
 def test_solvers_are_built_once_per_process(tiny, monkeypatch):
     import casadi
