@@ -27,23 +27,14 @@ from dataclasses import dataclass
 import cvxpy as cp
 import numpy as np
 
-from .contacts import ContactSet, ContactType
+from .contacts import ContactType
 from .errors import MethodError
 from .tolerances import DEFAULT_TOLERANCES, Tolerances
-from .wrenches import WrenchSlots
+from .wrenches import WrenchSlots, as_slots
 
 SOLVER = "CLARABEL"
 MARGIN_TOL = 1e-7  # force-closure margin t* (forces normalised to f_n <= 1) counted as positive
 RANK_TOL = 1e-9  # singular values below this times the largest one do not count
-
-
-def as_slots(value) -> WrenchSlots:
-    """A :class:`WrenchSlots` from slots or a :class:`ContactSet` (``TypeError`` otherwise)."""
-    if isinstance(value, WrenchSlots):
-        return value
-    if isinstance(value, ContactSet):
-        return WrenchSlots.from_contacts(value)
-    raise TypeError(f"slots: expected WrenchSlots or ContactSet, got {type(value).__name__}")
 
 
 # --- force closure as a cone program ---------------------------------------------------------

@@ -97,6 +97,18 @@ class WrenchSlots:
     def rows_per_slot(self) -> tuple[int, ...]:
         return tuple(np.diff(np.append(self.starts, len(self.G))).tolist())
 
+    def row_scales(self) -> tuple[float, float]:
+        """Upper bounds on the force part and the torque part of any row's extreme wrench.
+
+        A row's force ``(f_n, f_t)`` has ``|f_t|^2 <= (sum of its friction weights) f_n^2`` and
+        ``f_n <= f_max``; the first three rows of ``G`` map it to the force, the last three to
+        the torque.
+        """
+        force = self.f_max * np.sqrt(1.0 + self.pieces[:, :, 1:].sum(axis=(1, 2)))
+        top = np.linalg.norm(self.G[:, :3, :], ord=2, axis=(1, 2))
+        bottom = np.linalg.norm(self.G[:, 3:, :], ord=2, axis=(1, 2))
+        return float(np.max(top * force)), float(np.max(bottom * force))
+
     # --- evaluation ---------------------------------------------------------------------------
 
     def local(self, U: np.ndarray) -> np.ndarray:
@@ -168,6 +180,15 @@ class WrenchSlots:
     def support_point(self, u: np.ndarray) -> np.ndarray:
         """A wrench of the set attaining ``p(u)``: (6,) -> (6,)."""
         return self.evaluate(np.asarray(u, dtype=float)[None])[1][0]
+
+
+def as_slots(value) -> WrenchSlots:
+    """A :class:`WrenchSlots` from slots or a :class:`ContactSet` (``TypeError`` otherwise)."""
+    if isinstance(value, WrenchSlots):
+        return value
+    if isinstance(value, ContactSet):
+        return WrenchSlots.from_contacts(value)
+    raise TypeError(f"slots: expected WrenchSlots or ContactSet, got {type(value).__name__}")
 
 
 def combine_slots(P: np.ndarray) -> np.ndarray:

@@ -1,0 +1,439 @@
+"""Certified ``min_{|u| = 1} p(u)`` by branch and bound over the sphere.
+
+``p`` is the support function of a compact convex set ``W`` (:class:`WrenchSlots`): convex and
+positively homogeneous, so every wrench ``w`` of ``W`` gives the linear lower bound
+``p(x) >= w . x`` everywhere, and so does every convex combination ``wbar`` of such wrenches.
+
+Cells. The sphere is the image of the 12 faces of the cube ``[-1, 1]^6`` (``x_k = +-1``); a cell
+is a box of the other five coordinates. Its directions lie in the cap of centre ``c`` (the box
+centre, normalised) and angular radius ``delta`` = the largest angle from ``c`` to a box corner
+(``c . x / |x|`` is quasi-concave, so its minimum over a box is at a corner).
+
+Bound of a cell. On a cap, ``min wbar . u = |wbar| cos(theta + delta)`` exactly, with ``theta`` the
+angle between ``wbar`` and ``c``, that is ``cos(delta) wbar . c - sin(delta) |wbar_perp|``. The
+support points of eleven directions of the cell (centre and the five axes' ends) are combined with
+convex weights that maximise this concave expression (a few Frank-Wolfe steps with exact line
+search; any weights give a valid bound). A single support point gives only a first-order bound
+where ``p`` has a kink (a contact switching on, a cone's apex), and minima sit on such kinks; the
+best combination of the support points from both sides of the kink is second-order accurate
+there as on smooth minima, so few cells survive per level.
+
+Support points. Besides the cell's own eleven, every cell may combine the support points of a
+tiny cloud around the incumbent (they hold every piece of ``p`` that meets at the minimum), and a
+cell that survives near the minimum gets those of its corners and of a cloud around its lowest
+sample, with a longer search of the weights.
+
+Incumbent. Every evaluated direction gives an upper bound ``p(u) >= min p``; the lowest is the
+incumbent. Cells whose bound reaches the incumbent
+minus the allowed gap are dropped; the others are halved along their widest coordinate, all at
+once in numpy, until none is left or the budget is spent. The minimum over the sphere then lies in
+``[min over dropped and live cells of their bounds, incumbent]``.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .wrenches import WrenchSlots
+
+# Per unit of wrench scale: covers the float64 roundoff of support values and support points
+# (a few ulps of sums of m terms), far below any tolerance of the package.
+ROUNDOFF = 1e-13
+_FREE = np.array([[j for j in range(6) if j != k] for k in range(6)])  # (6, 5)
+_CORNERS = np.array(np.meshgrid(*[[-1.0, 1.0]] * 5, indexing="ij")).reshape(5, -1).T  # (32, 5)
+_AXES = np.vstack([np.zeros(5), np.eye(5), -np.eye(5)])  # (11, 5): centre and the axes' ends
+
+
+@dataclass(frozen=True)
+class BranchBoundOptions:
+    """Budget and shape of the search.
+
+    Attributes
+    ----------
+    initial_splits : int
+        Halvings of every free coordinate of each cube face before the first bound (1: 32 cells
+        per face, 384 in all).
+    max_cells : int
+        Cells bounded in all, beyond which the search stops with ``converged=False``.
+    max_rounds : int
+        Rounds of splitting (each halves every live cell once).
+    fw_steps : int
+        Frank-Wolfe steps that choose the convex weights of a cell's support points.
+    refine_below : float
+        Angular radius under which a cell that survives its first bound gets more support
+        points (its corners and a small cloud around its lowest sample) and a longer search of
+        their weights: near the minimum, where the kinks of ``p`` meet.
+    stop_below_zero : bool
+        Stop, unconverged, at the first direction with ``p < 0``: the origin is then outside the
+        set, where :mod:`closure_nlp.nearest_point` is exact and much faster.
+    """
+
+    initial_splits: int = 1
+    max_cells: int = 400_000
+    max_rounds: int = 200
+    fw_steps: int = 12
+    refine_below: float = 0.05
+    stop_below_zero: bool = True
+
+    def __post_init__(self) -> None:
+        for name in ("initial_splits", "max_cells", "max_rounds", "fw_steps"):
+            value = getattr(self, name)
+            least = 0 if name == "initial_splits" else 1
+            if isinstance(value, bool) or not isinstance(value, int) or value < least:
+                raise ValueError(f"options.{name}: must be an integer >= {least}, got {value!r}")
+
+
+@dataclass(frozen=True, eq=False)
+class SphereBounds:
+    """``lower <= min_{|u|=1} p(u) <= upper = p(direction)``.
+
+    Attributes
+    ----------
+    lower, upper : float
+    direction : (6,) float
+        Unit direction of the incumbent.
+    converged : bool
+        Every cell was dropped: ``upper - lower`` is within the gap asked for.
+    cells : int
+        Cells bounded.
+    evaluations : int
+        Directions at which ``p`` and a support point were evaluated.
+    rounds : int
+    seconds : float
+    """
+
+    lower: float
+    upper: float
+    direction: np.ndarray = field(repr=False)
+    converged: bool
+    cells: int
+    evaluations: int
+    rounds: int
+    seconds: float
+
+
+def _face_points(axis, sign, y):
+    """Points of the cube faces: axis (N,), sign (N,), y (N, ..., 5) -> (N, ..., 6)."""
+    shape = y.shape[:-1]
+    expand = (-1,) + (1,) * (len(shape) - 1)
+    idx = np.broadcast_to(axis.reshape(expand), shape)
+    x = np.empty((*shape, 6))
+    np.put_along_axis(x, _FREE[idx], y, axis=-1)
+    s = np.broadcast_to(sign.reshape(expand), shape)[..., None].astype(float)
+    np.put_along_axis(x, idx[..., None], s, axis=-1)
+    return x
+
+
+def _directions(axis, sign, y):
+    """Unit directions of cube-face points: axis (N,), sign (N,), y (N, ..., 5) -> (N, ..., 6)."""
+    x = _face_points(axis, sign, y)
+    return x / np.linalg.norm(x, axis=-1, keepdims=True)
+
+
+def _cells(axis, sign, lo, hi):
+    """What the bounds need of each cell.
+
+    Returns the cap's centre (N, 6) and angular radius (N,), the corners on the cube face
+    (N, 32, 6) and their unit directions, and the smallest ``|x|`` over the box (N,).
+    """
+    mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
+    c = _directions(axis, sign, mid)
+    corners = _face_points(axis, sign, mid[:, None, :] + half[:, None, :] * _CORNERS[None])
+    unit = corners / np.linalg.norm(corners, axis=2, keepdims=True)
+    cos = np.einsum("nkr,nr->nk", unit, c).min(axis=1)
+    nearest = np.sqrt(1.0 + np.sum(np.maximum(np.maximum(lo, -hi), 0.0) ** 2, axis=1))
+    return c, np.arccos(np.clip(cos, -1.0, 1.0)), corners, unit, nearest
+
+
+def _combined_bound(points, c, delta, corners, corners_unit, nearest, steps):
+    """A lower bound of ``p`` over each cell from its support points.
+
+    points (N, K, 6), c (N, 6), delta (N,), corners (N, 32, 6) on the cube face and their unit
+    directions -> (N,). Every convex combination ``wbar`` of the points bounds ``p`` from below;
+    over the cell, ``wbar . u`` is bounded two ways and the larger bound is kept:
+
+    * on the cap: ``cos(delta) wbar . c - sin(delta) |wbar_perp|`` (exact on the cap);
+    * on the box: where ``wbar . x >= 0`` at every corner ``x``, ``wbar . x / |x|`` is
+      quasi-concave on the box, so its minimum is at a corner; otherwise the most negative
+      ``wbar . x`` over the corners divided by the smallest ``|x|`` on the box.
+
+    The cap bound with weights that cancel the tangential parts is second-order accurate at a
+    kink of ``p``; the corner bound of a single point is exact for a linear piece of ``p``.
+    Weights: each point alone, and a few Frank-Wolfe steps (exact line search) on the concave
+    cap bound.
+    """
+    cd, sd = np.cos(delta), np.sin(delta)
+    a = np.einsum("nkr,nr->nk", points, c)
+    B = points - a[..., None] * c[:, None, :]
+    single = cd[:, None] * a - sd[:, None] * np.linalg.norm(B, axis=2)
+    j = np.argmax(single, axis=1)
+    rows = np.arange(len(points))
+    lam = np.zeros(points.shape[:2])
+    lam[rows, j] = 1.0
+    lam_a = a[rows, j]
+    v = B[rows, j].copy()
+    for _ in range(steps):
+        nv = np.linalg.norm(v, axis=1)
+        unit = v / np.where(nv > 0, nv, 1.0)[:, None]
+        grad = cd[:, None] * a - sd[:, None] * np.einsum("nkr,nr->nk", B, unit)
+        j = np.argmax(grad, axis=1)
+        beta = cd * (a[rows, j] - lam_a)
+        dv = B[rows, j] - v
+        A = np.einsum("nr,nr->n", dv, dv)
+        b = np.einsum("nr,nr->n", v, dv)
+        gamma = _line_search(beta, sd, A, b, nv**2)
+        lam *= (1.0 - gamma)[:, None]
+        lam[rows, j] += gamma
+        lam_a = lam_a + gamma * (a[rows, j] - lam_a)
+        v = v + gamma[:, None] * dv
+    a_bar, b_bar = lam_a, np.linalg.norm(v, axis=1)
+    theta = np.arctan2(b_bar, a_bar)
+    # Past the antipode the cap's farthest point is -wbar itself.
+    cap = np.where(theta + delta > np.pi, -np.hypot(a_bar, b_bar), cd * a_bar - sd * b_bar)
+    # Corner bounds of the single points and of the combination: (N, K + 1).
+    W = np.concatenate([points, np.einsum("nk,nkr->nr", lam, points)[:, None]], axis=1)
+    raw = np.einsum("ncr,nkr->nck", corners, W).min(axis=1)
+    unit = np.einsum("ncr,nkr->nck", corners_unit, W).min(axis=1)
+    box = np.where(raw >= 0, unit, raw / nearest[:, None])
+    return np.maximum(cap, box.max(axis=1))
+
+
+def _anchor_cloud(u, scales=(1e-3, 1e-5, 1e-7)):
+    """``u`` and ``u +- eps e_j`` along an orthonormal basis of its tangent space: (1 + 10 k, 6).
+
+    Their support points hold every piece of ``p`` that meets at ``u`` (a kink's subgradients),
+    so convex combinations of them reach the subgradient parallel to ``u`` at a minimum.
+    """
+    Q, _ = np.linalg.qr(np.column_stack([u, np.eye(6)]))
+    E = Q[:, 1:6].T
+    blocks = [u[None]] + [u + eps * sgn * E for eps in scales for sgn in (1.0, -1.0)]
+    U = np.vstack(blocks)
+    return U / np.linalg.norm(U, axis=1, keepdims=True)
+
+
+def _game_weights(M: np.ndarray, max_pivots: int = 300) -> np.ndarray:
+    """Convex weights ``lam`` maximising ``min_c (M lam)_c``: (N, C, K) -> (N, K).
+
+    The value of a small matrix game, as ``N`` linear programs solved at once by a dense
+    primal simplex (Dantzig's rule): ``max t`` s.t. ``t <= (M lam)_c``, ``sum lam = 1``,
+    ``lam >= 0``. Every iterate is feasible, so weights from a capped run still give a valid
+    (if looser) bound; callers recompute the bound from the weights.
+    """
+    N, C, K = M.shape
+    shift = M.min(axis=(1, 2), keepdims=True)
+    Mp = M - shift  # >= 0, so t - shift >= 0 at the optimum
+    j0 = np.argmax(Mp.min(axis=1), axis=1)  # the best single column
+    rows = np.arange(N)
+    V = K + 1 + C  # columns: lam, t, slacks
+    T = np.zeros((N, C + 2, V + 1))
+    # Row c: -M' lam + t + s_c = 0, with lam_j0 eliminated through the sum row.
+    pivot_col = Mp[rows, :, j0]  # (N, C)
+    T[:, :C, :K] = -Mp + pivot_col[:, :, None]
+    T[:, :C, K] = 1.0
+    T[:, :C, K + 1 : K + 1 + C] = np.eye(C)
+    T[:, :C, -1] = pivot_col
+    T[:, C, :K] = 1.0  # sum row
+    T[:, C, -1] = 1.0
+    T[:, C + 1, K] = -1.0  # objective row: maximise t
+    basis = np.empty((N, C + 1), dtype=int)
+    basis[:, :C] = K + 1 + np.arange(C)
+    basis[:, C] = j0
+    eps = 1e-12
+    for _ in range(max_pivots):
+        obj = T[:, C + 1, :V]
+        j = np.argmin(obj, axis=1)
+        active = obj[rows, j] < -eps
+        if not active.any():
+            break
+        col = T[rows, : C + 1, j]  # (N, C + 1)
+        rhs = T[:, : C + 1, -1]
+        ratio = np.where(col > eps, rhs / np.where(col > eps, col, 1.0), np.inf)
+        i = np.argmin(ratio, axis=1)
+        active &= np.isfinite(ratio[rows, i])
+        if not active.any():
+            break
+        n = rows[active]
+        prow = T[n, i[active], :] / T[n, i[active], j[active]][:, None]
+        T[n] -= T[n, :, j[active]][:, :, None] * prow[:, None, :]
+        T[n, i[active], :] = prow
+        basis[n, i[active]] = j[active]
+    lam = np.zeros((N, K))
+    values = T[:, : C + 1, -1]
+    is_lam = basis < K
+    r, k = np.nonzero(is_lam)
+    lam[r, basis[r, k]] = np.maximum(values[r, k], 0.0)
+    total = lam.sum(axis=1, keepdims=True)
+    lam = np.where(total > 0, lam / np.where(total > 0, total, 1.0), 0.0)
+    lam[total[:, 0] <= 0, 0] = 1.0
+    return lam
+
+
+def _exact_bound(points, corners, corners_unit, nearest):
+    """The corner bound of the best convex combination of each cell's points: (N,)."""
+    lam = _game_weights(np.einsum("ncr,nkr->nck", corners_unit, points))
+    wbar = np.einsum("nk,nkr->nr", lam, points)
+    raw = np.einsum("ncr,nr->nc", corners, wbar).min(axis=1)
+    unit = np.einsum("ncr,nr->nc", corners_unit, wbar).min(axis=1)
+    return np.where(raw >= 0, unit, raw / nearest)
+
+
+def _line_search(beta, s, A, b, C):
+    """argmax over [0, 1] of ``beta g - s sqrt(A g^2 + 2 b g + C)`` (concave), batched.
+
+    Stationary point: with ``t = A g + b`` and ``D = A C - b^2 >= 0``, ``t sqrt(A) / sqrt(t^2 +
+    D) = r = beta / s``, solvable when ``r^2 < A``; otherwise the function is monotone.
+    """
+    D = np.maximum(A * C - b * b, 0.0)
+    safe_A = np.where(A > 0, A, 1.0)
+    r = beta / np.where(s > 0, s, 1e-300)
+    room = safe_A - r * r
+    t = np.sign(r) * np.sqrt(r * r * D / np.where(room > 0, room, 1.0))
+    g = np.where(room > 0, (t - b) / safe_A, np.where(beta > 0, 1.0, 0.0))
+    g = np.where(A > 0, g, 0.0)
+    return np.clip(np.nan_to_num(g, nan=0.0), 0.0, 1.0)
+
+
+def sphere_minimum(
+    slots: WrenchSlots,
+    incumbent: np.ndarray | None = None,
+    *,
+    gap: float,
+    options: BranchBoundOptions = BranchBoundOptions(),
+) -> SphereBounds:
+    """Certified bounds on ``min_{|u|=1} p(u)`` with ``upper - lower <= gap`` when converged.
+
+    Parameters
+    ----------
+    slots : WrenchSlots
+    incumbent : (6,) float, optional
+        A good direction (e.g. a local solver's): its value starts the incumbent.
+    gap : float
+        Absolute gap to reach (callers make it relative to the wrench scale).
+    options : BranchBoundOptions
+
+    The search stops early, unconverged, when it finds ``p(u) < 0`` while ``stop_below_zero``:
+    the origin is then outside the set, where :mod:`closure_nlp.nearest_point` is exact.
+    """
+    start = time.perf_counter()
+    margin = ROUNDOFF * max(slots.row_scales()) * max(1, slots.m)
+    state = _Incumbent(slots)
+    if incumbent is not None:
+        state.consider(np.asarray(incumbent, dtype=float)[None])
+    axis, sign, lo, hi = _initial_cells(options.initial_splits)
+    lower_dropped = np.inf
+    cells = rounds = 0
+    converged = False
+    while True:
+        c, delta, corners, corners_unit, nearest = _cells(axis, sign, lo, hi)
+        mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
+        U = _directions(axis, sign, mid[:, None, :] + half[:, None, :] * _AXES[None])
+        values, points = state.consider(U.reshape(-1, 6), with_values=True)
+        points = points.reshape(len(lo), -1, 6)
+        cells += len(lo)
+        rounds += 1
+        if options.stop_below_zero and state.value < -margin:
+            lower = -np.inf
+            break
+        anchors = state.anchors()
+        candidates = np.concatenate(
+            [points, np.broadcast_to(anchors, (len(lo), *anchors.shape))], axis=1
+        )
+        bound = _combined_bound(
+            candidates, c, delta, corners, corners_unit, nearest, options.fw_steps
+        )
+        bound -= margin
+        live = bound < state.value - gap
+        critical = np.flatnonzero(live & (delta < options.refine_below))
+        if len(critical):
+            # More support points of each critical cell: at its corners (both sides of any
+            # kink crossing it) and a small cloud around its lowest sample (the pieces of p
+            # meeting there), whose convex combinations the exact bound needs.
+            k = critical
+            lowest = U[k, np.argmin(values.reshape(len(lo), -1)[k], axis=1)]
+            clouds = np.stack(
+                [_anchor_cloud(u, (0.25 * d, 0.01 * d)) for u, d in zip(lowest, delta[k])]
+            )
+            more = np.concatenate([corners_unit[k], clouds], axis=1)
+            local = state.consider(more.reshape(-1, 6)).reshape(len(k), -1, 6)
+            pool = np.concatenate([candidates[k], local], axis=1)
+            refined = _combined_bound(
+                pool, c[k], delta[k], corners[k], corners_unit[k], nearest[k],
+                4 * options.fw_steps,
+            )
+            bound[k] = np.maximum(bound[k], refined - margin)
+            still = bound[k] < state.value - gap
+            if still.any():
+                j = k[still]
+                exact = _exact_bound(pool[still], corners[j], corners_unit[j], nearest[j])
+                bound[j] = np.maximum(bound[j], exact - margin)
+            live = bound < state.value - gap
+        if (~live).any():
+            lower_dropped = min(lower_dropped, float(bound[~live].min()))
+        if not live.any():
+            converged = True
+            lower = lower_dropped
+            break
+        if cells >= options.max_cells or rounds >= options.max_rounds:
+            lower = min(lower_dropped, float(bound[live].min()))
+            break
+        axis, sign, lo, hi = _halve(axis[live], sign[live], lo[live], hi[live])
+    return SphereBounds(
+        min(lower, state.value), state.value, state.u, converged, cells, state.evaluations,
+        rounds, time.perf_counter() - start,
+    )
+
+
+class _Incumbent:
+    """The lowest support value evaluated so far, and support points near its direction."""
+
+    def __init__(self, slots: WrenchSlots):
+        self.slots = slots
+        self.value, self.u = np.inf, None
+        self.evaluations = 0
+        self._anchored_at, self._anchors = None, None
+
+    def consider(self, U: np.ndarray, with_values: bool = False):
+        """Evaluate directions (N, 6) (normalised here); returns their support points."""
+        U = U / np.linalg.norm(U, axis=1, keepdims=True)
+        values, points = self.slots.evaluate(U)
+        self.evaluations += len(U)
+        k = int(np.argmin(values))
+        if values[k] < self.value:
+            self.value, self.u = float(values[k]), U[k].copy()
+        return (values, points) if with_values else points
+
+    def anchors(self) -> np.ndarray:
+        """Support points of a tiny cloud around the incumbent (renewed when it moves)."""
+        if self._anchored_at is None or not np.array_equal(self._anchored_at, self.u):
+            self._anchored_at = self.u
+            self._anchors = self.consider(_anchor_cloud(self.u))
+        return self._anchors
+
+
+def _initial_cells(splits: int):
+    """Every cube face cut into ``2^(5 splits)`` boxes: axis, sign, lo, hi."""
+    n = 2**splits
+    edges = np.linspace(-1.0, 1.0, n + 1)
+    grid = np.array(np.meshgrid(*[np.arange(n)] * 5, indexing="ij")).reshape(5, -1).T
+    axis = np.repeat(np.arange(6), 2 * len(grid))
+    sign = np.tile(np.repeat([1.0, -1.0], len(grid)), 6)
+    return axis, sign, np.tile(edges[grid], (12, 1)), np.tile(edges[grid + 1], (12, 1))
+
+
+def _halve(axis, sign, lo, hi):
+    """Every cell cut in two across its widest coordinate."""
+    widest = np.argmax(hi - lo, axis=1)
+    rows = np.arange(len(lo))
+    cut = 0.5 * (lo[rows, widest] + hi[rows, widest])
+    lo2, hi2 = lo.copy(), hi.copy()
+    hi[rows, widest] = cut
+    lo2[rows, widest] = cut
+    return (
+        np.concatenate([axis, axis]),
+        np.concatenate([sign, sign]),
+        np.vstack([lo, lo2]),
+        np.vstack([hi, hi2]),
+    )

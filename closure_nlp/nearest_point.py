@@ -1,0 +1,108 @@
+"""The point of a convex set nearest the origin, from its support function alone.
+
+When the origin lies outside ``W`` (some direction has ``p(u) < 0``), ``rho = dist(0, W)``, and
+both sides have certificates: ``dist(0, W) >= -p(u)`` for every unit ``u``, and
+``dist(0, W) <= |x|`` for every point ``x`` of ``W``, for instance a convex combination of
+support points. The loop is Gilbert's (GJK's in collision detection): ``x`` is the point of the
+hull of the support points kept so far nearest the origin (Wolfe's exact algorithm), the next
+support point is the one at ``-x / |x|``; the two bounds meet at the distance.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .wrenches import WrenchSlots
+
+
+def min_norm_point(points: np.ndarray, tol: float = 1e-15):
+    """Wolfe's algorithm: the point of ``conv(points)`` nearest the origin.
+
+    Parameters
+    ----------
+    points : (n, d) float
+    tol : float
+        Relative optimality tolerance (against the largest squared norm of the points).
+
+    Returns
+    -------
+    x : (d,) float
+        A convex combination of the points (exactly, up to the combination's roundoff).
+    weights : (n,) float
+        Its convex weights (non-negative, summing to 1).
+    """
+    P = np.asarray(points, dtype=float)
+    n = len(P)
+    scale = max(float(np.max(np.einsum("ij,ij->i", P, P))), 1e-300)
+    S = [int(np.argmin(np.einsum("ij,ij->i", P, P)))]
+    lam = np.array([1.0])
+    for _ in range(50 * (n + 1)):
+        x = lam @ P[S]
+        j = int(np.argmin(P @ x))
+        if x @ x - x @ P[j] <= tol * scale or j in S:
+            break
+        S.append(j)
+        lam = np.append(lam, 0.0)
+        while True:  # minor cycle: the affine minimiser, or the farthest step towards it
+            mu = _affine_minimizer(P[S])
+            if np.all(mu > 0):
+                lam = mu
+                break
+            neg = mu <= 0
+            theta = np.min(lam[neg] / (lam[neg] - mu[neg]))
+            lam = lam + theta * (mu - lam)
+            keep = lam > 1e-15
+            S = [s for s, k in zip(S, keep) if k]
+            lam = lam[keep]
+            lam /= lam.sum()
+    weights = np.zeros(n)
+    weights[S] = lam
+    return weights @ P, weights
+
+
+def _affine_minimizer(P: np.ndarray) -> np.ndarray:
+    """Weights ``mu`` (summing to 1) of the point of the affine hull of ``P`` nearest 0."""
+    k = len(P)
+    K = np.zeros((k + 1, k + 1))
+    K[:k, :k] = P @ P.T
+    K[:k, k] = K[k, :k] = 1.0
+    rhs = np.zeros(k + 1)
+    rhs[k] = 1.0
+    return np.linalg.lstsq(K, rhs, rcond=None)[0][:k]
+
+
+def nearest_point_bounds(slots: WrenchSlots, u0: np.ndarray, gap: float, max_iter: int = 200):
+    """Certified ``lo <= dist(0, W) <= hi`` when ``p(u0) < 0`` (the origin outside ``W``).
+
+    Returns ``(lo, hi, u, converged, evaluations)``: ``u`` is the unit direction with the lowest
+    support value found, ``lo = -p(u)``.
+    """
+    U = _start_directions(u0)
+    values, points = slots.evaluate(U)
+    best = int(np.argmin(values))
+    lo, best_u = -float(values[best]), U[best]
+    x, w = min_norm_point(points)
+    hi = float(np.linalg.norm(x))
+    kept = points[w > 0]
+    evaluations = len(U)
+    for _ in range(max_iter):
+        if hi - lo <= gap or not hi > 0:
+            break
+        u = -x / np.linalg.norm(x)
+        value, point = slots.evaluate(u[None])
+        evaluations += 1
+        if -value[0] > lo:
+            lo, best_u = -float(value[0]), u
+        kept = np.vstack([kept, point])
+        x, w = min_norm_point(kept)
+        hi = min(hi, float(np.linalg.norm(x)))
+        kept = kept[w > 0]
+    return lo, max(hi, lo), best_u, hi - lo <= gap, evaluations
+
+
+def _start_directions(u0: np.ndarray) -> np.ndarray:
+    """``u0`` and a small cross-polytope around it: support points on every side of the foot."""
+    Q, _ = np.linalg.qr(np.column_stack([u0, np.eye(6)]))
+    E = Q[:, 1:6].T
+    U = np.vstack([u0, u0 + 0.1 * E, u0 - 0.1 * E])
+    return U / np.linalg.norm(U, axis=1, keepdims=True)
