@@ -72,7 +72,7 @@ class BranchBoundOptions:
     """
 
     initial_splits: int = 1
-    max_cells: int = 400_000
+    max_cells: int = 40_000
     max_rounds: int = 200
     fw_steps: int = 12
     refine_below: float = 0.05
@@ -148,22 +148,25 @@ def _cells(axis, sign, lo, hi):
     return c, np.arccos(np.clip(cos, -1.0, 1.0)), corners, unit, nearest
 
 
-def _combined_bound(points, c, delta, corners, corners_unit, nearest, steps):
-    """A lower bound of ``p`` over each cell from its support points.
+def _box_bound(W, corners, corners_unit, nearest):
+    """Lower bounds of ``w . u`` over each cell, for wrenches W (N, K, 6) -> (N, K).
 
-    points (N, K, 6), c (N, 6), delta (N,), corners (N, 32, 6) on the cube face and their unit
-    directions -> (N,). Every convex combination ``wbar`` of the points bounds ``p`` from below;
-    over the cell, ``wbar . u`` is bounded two ways and the larger bound is kept:
+    Where ``w . x >= 0`` at every corner ``x`` of the box (on the cube face), ``w . x / |x|`` is
+    quasi-concave on the box, so its minimum is at a corner: exact. Otherwise the most negative
+    ``w . x`` over the corners divided by the smallest ``|x|`` on the box.
+    """
+    raw = np.einsum("ncr,nkr->nck", corners, W).min(axis=1)
+    unit = np.einsum("ncr,nkr->nck", corners_unit, W).min(axis=1)
+    return np.where(raw >= 0, unit, raw / nearest[:, None])
 
-    * on the cap: ``cos(delta) wbar . c - sin(delta) |wbar_perp|`` (exact on the cap);
-    * on the box: where ``wbar . x >= 0`` at every corner ``x``, ``wbar . x / |x|`` is
-      quasi-concave on the box, so its minimum is at a corner; otherwise the most negative
-      ``wbar . x`` over the corners divided by the smallest ``|x|`` on the box.
 
-    The cap bound with weights that cancel the tangential parts is second-order accurate at a
-    kink of ``p``; the corner bound of a single point is exact for a linear piece of ``p``.
-    Weights: each point alone, and a few Frank-Wolfe steps (exact line search) on the concave
-    cap bound.
+def _frank_wolfe(points, c, delta, steps):
+    """Convex weights of ``points`` (N, K, 6) for a high cap bound, and that bound: (N, K), (N,).
+
+    On a cap of centre ``c`` and radius ``delta``, ``min wbar . u = cos(delta) wbar . c -
+    sin(delta) |wbar_perp|`` (``|wbar| cos(theta + delta)``), concave in the weights: a few
+    Frank-Wolfe steps with exact line search raise it; every iterate is a valid bound. Weights
+    that cancel the tangential parts make it second-order accurate at a kink of ``p``.
     """
     cd, sd = np.cos(delta), np.sin(delta)
     a = np.einsum("nkr,nr->nk", points, c)
@@ -193,12 +196,7 @@ def _combined_bound(points, c, delta, corners, corners_unit, nearest, steps):
     theta = np.arctan2(b_bar, a_bar)
     # Past the antipode the cap's farthest point is -wbar itself.
     cap = np.where(theta + delta > np.pi, -np.hypot(a_bar, b_bar), cd * a_bar - sd * b_bar)
-    # Corner bounds of the single points and of the combination: (N, K + 1).
-    W = np.concatenate([points, np.einsum("nk,nkr->nr", lam, points)[:, None]], axis=1)
-    raw = np.einsum("ncr,nkr->nck", corners, W).min(axis=1)
-    unit = np.einsum("ncr,nkr->nck", corners_unit, W).min(axis=1)
-    box = np.where(raw >= 0, unit, raw / nearest[:, None])
-    return np.maximum(cap, box.max(axis=1))
+    return lam, cap
 
 
 def _anchor_cloud(u, scales=(1e-3, 1e-5, 1e-7)):
@@ -274,10 +272,8 @@ def _game_weights(M: np.ndarray, max_pivots: int = 300) -> np.ndarray:
 def _exact_bound(points, corners, corners_unit, nearest):
     """The corner bound of the best convex combination of each cell's points: (N,)."""
     lam = _game_weights(np.einsum("ncr,nkr->nck", corners_unit, points))
-    wbar = np.einsum("nk,nkr->nr", lam, points)
-    raw = np.einsum("ncr,nr->nc", corners, wbar).min(axis=1)
-    unit = np.einsum("ncr,nr->nc", corners_unit, wbar).min(axis=1)
-    return np.where(raw >= 0, unit, raw / nearest)
+    wbar = np.einsum("nk,nkr->nr", lam, points)[:, None]
+    return _box_bound(wbar, corners, corners_unit, nearest)[:, 0]
 
 
 def _line_search(beta, s, A, b, C):
@@ -337,39 +333,41 @@ def sphere_minimum(
         if options.stop_below_zero and state.value < -margin:
             lower = -np.inf
             break
-        anchors = state.anchors()
-        candidates = np.concatenate(
-            [points, np.broadcast_to(anchors, (len(lo), *anchors.shape))], axis=1
-        )
-        bound = _combined_bound(
-            candidates, c, delta, corners, corners_unit, nearest, options.fw_steps
-        )
-        bound -= margin
-        live = bound < state.value - gap
-        critical = np.flatnonzero(live & (delta < options.refine_below))
-        if len(critical):
-            # More support points of each critical cell: at its corners (both sides of any
-            # kink crossing it) and a small cloud around its lowest sample (the pieces of p
-            # meeting there), whose convex combinations the exact bound needs.
-            k = critical
+        # Three bounds, each for the cells the cheaper one left: single support points (exact
+        # on a linear piece of p), Frank-Wolfe combinations with the anchors (second order
+        # at a kink, approximately), the exact best combination of more points (small cells).
+        target = state.value - gap
+        bound = _box_bound(points, corners, corners_unit, nearest).max(axis=1) - margin
+        k = np.flatnonzero(bound < target)
+        if len(k):
+            anchors = state.anchors()
+            pool = np.concatenate(
+                [points[k], np.broadcast_to(anchors, (len(k), *anchors.shape))], axis=1
+            )
+            lam, cap = _frank_wolfe(pool, c[k], delta[k], options.fw_steps)
+            wbar = np.einsum("nk,nkr->nr", lam, pool)[:, None]
+            box = _box_bound(wbar, corners[k], corners_unit[k], nearest[k])[:, 0]
+            bound[k] = np.maximum(bound[k], np.maximum(cap, box) - margin)
+            still = bound[k] < target
+            k, pool = k[still], pool[still]
+        if len(k):
+            k_small = delta[k] < options.refine_below
+            k, pool = k[k_small], pool[k_small]
+        if len(k):
+            # More support points of each small surviving cell: at its corners (both sides of
+            # any kink crossing it) and a small cloud around its lowest sample (the pieces of p
+            # meeting there), and their best combination, exactly.
             lowest = U[k, np.argmin(values.reshape(len(lo), -1)[k], axis=1)]
             clouds = np.stack(
                 [_anchor_cloud(u, (0.25 * d, 0.01 * d)) for u, d in zip(lowest, delta[k])]
             )
             more = np.concatenate([corners_unit[k], clouds], axis=1)
             local = state.consider(more.reshape(-1, 6)).reshape(len(k), -1, 6)
-            pool = np.concatenate([candidates[k], local], axis=1)
-            refined = _combined_bound(
-                pool, c[k], delta[k], corners[k], corners_unit[k], nearest[k],
-                4 * options.fw_steps,
+            exact = _exact_bound(
+                np.concatenate([pool, local], axis=1), corners[k], corners_unit[k], nearest[k]
             )
-            bound[k] = np.maximum(bound[k], refined - margin)
-            still = bound[k] < state.value - gap
-            if still.any():
-                j = k[still]
-                exact = _exact_bound(pool[still], corners[j], corners_unit[j], nearest[j])
-                bound[j] = np.maximum(bound[j], exact - margin)
-            live = bound < state.value - gap
+            bound[k] = np.maximum(bound[k], exact - margin)
+        live = bound < target
         if (~live).any():
             lower_dropped = min(lower_dropped, float(bound[~live].min()))
         if not live.any():

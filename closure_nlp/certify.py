@@ -103,11 +103,12 @@ class CertifiedBounds:
 def tolerance_unit(slots: WrenchSlots) -> float:
     """The scale every tolerance of the certificate is relative to.
 
-    The smaller of the force scale and the torque scale (:meth:`WrenchSlots.row_scales`): it follows
-    ``f_max``, the length unit and ``torque_scale`` alike, and a set whose torques are 10-100x its
-    forces (long lever arms, ``torque_scale`` 1) keeps the precision of its force scale.
+    The smaller of the scales of the rows' normal forces and of their torques
+    (:meth:`WrenchSlots.row_scales`, ``f_max`` for the force part): it follows ``f_max``, the
+    length unit and ``torque_scale`` alike, and a set whose torques are 10-100x its forces (long
+    lever arms, ``torque_scale`` 1) keeps the precision of its force scale.
     """
-    force, torque = slots.row_scales()
+    force, torque = slots.row_scales(friction=False)
     positive = [s for s in (force, torque) if s > 0]
     return min(positive) if positive else 1.0
 

@@ -105,26 +105,40 @@ def _add_rho(sub, common) -> None:
     p.add_argument(
         "--certify",
         action="store_true",
-        help="also certified bounds lo <= rho <= hi (inner polytope by qhull, SOCP by cvxpy)",
+        help="accepted for compatibility: certified bounds lo <= rho <= hi are always given",
     )
     p.set_defaults(run=_cmd_rho)
 
 
 def _cmd_rho(args) -> None:
     for path, contact_set in _load_each(args.files, load_contacts):
-        result = rho(contact_set, certify=args.certify)
+        result = rho(contact_set)
         payload = {"file": path, **result.to_dict()}
-        verdict = "force closure" if result.force_closure else "not force closure"
         direction = " ".join(f"{x:+.4f}" for x in result.direction)
-        bounds = ""
-        if result.bounds is not None:
-            bounds = f"; certified {result.bounds[0]:.9g} <= rho <= {result.bounds[1]:.9g}"
         _emit(
             args,
             payload,
-            f"{path}: rho = {result.rho:.9g} ({verdict}); weakest direction u* = [{direction}]"
-            + bounds,
+            f"{path}: rho = {result.rho:.9g} ({_verdict(result, result.force_closure)}); "
+            f"weakest direction u* = [{direction}]" + _bounds_text(result, "rho", 9),
         )
+
+
+def _verdict(result, positive: bool, yes="force closure", no="not force closure") -> str:
+    """The certified verdict in words; a bracket that reaches zero is marginal, never closure."""
+    if getattr(result, "marginal", False):
+        return "marginal: within numerical accuracy of no interior"
+    return yes if positive else no
+
+
+def _bounds_text(result, name: str, digits: int) -> str:
+    """``; certified lo <= name <= hi``, and the width when the bracket did not converge."""
+    if getattr(result, "bounds", None) is None:
+        return ""
+    lo, hi = result.bounds
+    text = f"; certified {lo:.{digits}g} <= {name} <= {hi:.{digits}g}"
+    if not result.converged:
+        text += f" (not converged: width {hi - lo:.2g})"
+    return text
 
 
 def _values(text: str, flag: str, count: int, convert):
@@ -269,12 +283,12 @@ def _cmd_eligibility(args) -> None:
     with _reading(args.model):
         ids = eligibility.check_elements(ids, "--elements")
     result = eligibility(ids)
-    verdict = "eligible" if result.eligible else "not eligible"
+    verdict = _verdict(result, result.eligible, "eligible", "not eligible")
     _emit(
         args,
         result.to_dict(),
         f"{args.model}: elements {_join(result.elements)}: rho_hat = {result.rho_hat:.9g} "
-        f"({verdict})",
+        f"({verdict})" + _bounds_text(result, "rho_hat", 9),
     )
 
 
@@ -303,13 +317,13 @@ def _cmd_select(args) -> None:
         )
     finally:
         close()
-    verdict = "eligible" if result.eligible else "not eligible"
+    verdict = _verdict(result, result.eligible, "eligible", "not eligible")
     _emit(
         args,
         {"algorithm": args.algorithm, **result.to_dict()},
         f"{args.model}: {args.algorithm}: elements {_join(result.elements)}: "
-        f"rho_hat = {result.rho_hat:.9g} ({verdict}); {result.evaluations} evaluations "
-        f"in {result.seconds:.2f} s",
+        f"rho_hat = {result.rho_hat:.9g} ({verdict}){_bounds_text(result, 'rho_hat', 6)}; "
+        f"{result.evaluations} evaluations in {result.seconds:.2f} s",
     )
     if not result.eligible:
         raise MethodError(
@@ -338,10 +352,8 @@ def _placement_options(args, seeded: bool) -> PlacementOptions:
 
 
 def _placement_text(result) -> str:
-    verdict = "force closure" if result.force_closure else "not force closure"
-    bounds = ""
-    if result.bounds is not None:
-        bounds = f"; certified {result.bounds[0]:.6g} <= rho <= {result.bounds[1]:.6g}"
+    verdict = _verdict(result, result.force_closure)
+    bounds = _bounds_text(result, "rho", 6)
     lines = [
         f"rho = {result.rho:.9g} ({verdict}){bounds}; centroids gave {result.start_rho:.6g}; "
         f"{result.seconds:.2f} s"

@@ -17,7 +17,13 @@ import numpy as np
 
 from .contacts import ContactSpec
 from .elements import Model
-from .quality import SolverStats, SupportMinimizer, signed_distance
+from .quality import (
+    SolverStats,
+    SupportMinimizer,
+    SupportMinimum,
+    certified_rho,
+    signed_distance,
+)
 from .validation import as_number
 from .wrenches import WrenchSlots
 
@@ -47,6 +53,13 @@ class EligibilityResult:
     direction : (6,) float
         Unit ``u*`` at which the support function attains ``-rho_hat``.
     stats : SolverStats
+    bounds : (float, float) or None
+        Certified ``(lo, hi)`` with ``lo <= rho_hat <= hi``; None for the search alone
+        (``certify=False``, inside the selection loops).
+    marginal : bool
+        The bounds reach within the tolerance of zero; never eligible then.
+    converged : bool
+        ``hi - lo`` within the tolerance (1e-6 relative).
     """
 
     elements: tuple[int, ...]
@@ -54,14 +67,22 @@ class EligibilityResult:
     eligible: bool
     direction: np.ndarray
     stats: SolverStats
+    bounds: tuple[float, float] | None = None
+    marginal: bool = False
+    converged: bool = True
 
     def to_dict(self) -> dict:
-        return {
+        out = {
             "elements": list(self.elements),
             "rho_hat": self.rho_hat,
             "eligible": self.eligible,
             "direction": self.direction.tolist(),
         }
+        if self.bounds is not None:
+            out["bounds"] = [float(self.bounds[0]), float(self.bounds[1])]
+            out["marginal"] = self.marginal
+            out["converged"] = self.converged
+        return out
 
 
 class Eligibility:
@@ -126,16 +147,43 @@ class Eligibility:
             rows.append((G, spec.type, spec.mu, spec.mu_s, spec.f_max))
         return WrenchSlots.build(rows)
 
-    def __call__(self, elements, warm_start=None, partial: bool = False) -> EligibilityResult:
+    def __call__(
+        self, elements, warm_start=None, partial: bool = False, certify: bool = True
+    ) -> EligibilityResult:
         """rho_hat of ``elements`` (m ids; with ``partial``, the first ``k <= m`` contacts).
 
-        ``warm_start`` adds a start direction (e.g. the ``u*`` of a neighbouring set).
+        ``warm_start`` adds a start direction (e.g. the ``u*`` of a neighbouring set). With
+        ``certify`` (the default) the result carries certified bounds and the verdict is theirs;
+        without, it is the search's value alone (for comparisons inside search loops; certify
+        what is reported with :meth:`certify`).
         """
+        if not isinstance(certify, bool):
+            raise TypeError(f"certify: expected a bool, got {type(certify).__name__}")
         elements = self.check_elements(elements, partial=partial)
-        found = self.minimizer(self.slots(elements), warm_start)
+        slots = self.slots(elements)
+        found = self.minimizer(slots, warm_start)
         self.evaluations += 1
-        value = signed_distance(found, self.minimizer.tolerances)
+        if certify:
+            return self._certified(elements, slots, found)
+        value = signed_distance(found, slots, self.minimizer.tolerances)
         return EligibilityResult(elements, value, value < 0.0, found.direction, found.stats)
+
+    def certify(self, result: EligibilityResult) -> EligibilityResult:
+        """``result`` with certified bounds, started at its direction (no new search)."""
+        if result.bounds is not None:
+            return result
+        slots = self.slots(result.elements)
+        u = result.direction
+        value = float(slots.support(u[None])[0])
+        found = SupportMinimum(value, u, slots.support_point(u), result.stats)
+        return self._certified(result.elements, slots, found)
+
+    def _certified(self, elements, slots, found) -> EligibilityResult:
+        r = certified_rho(slots, found, self.minimizer.tolerances)
+        return EligibilityResult(
+            elements, r.rho, r.force_closure, r.direction, r.stats, r.bounds, r.marginal,
+            r.converged,
+        )
 
     def element_values(self, spec_index: int, u: np.ndarray) -> np.ndarray:
         """``max_j p_{W_ij}(u)`` of every element of the model for contact ``spec_index``: (n,)."""

@@ -17,7 +17,7 @@ element sharing that boundary, if that raises the optimum ("occupied and adjacen
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
@@ -28,7 +28,7 @@ from .contacts import ContactSet
 from .elements import simplex_weights
 from .eligibility import Eligibility, padded_rows
 from .progress import Progress
-from .quality import SearchOptions, rho
+from .quality import SearchOptions, rho, search_rho
 from .selection import SCREEN_SEARCH
 from .sphere_search import sphere_samples
 from .wrenches import WrenchSlots
@@ -63,7 +63,9 @@ class PlacementOptions:
         a contact about to start helping is seen (any subset gives a valid lower bound).
     ipopt_tol : float
     certify : bool
-        Also bound the final rho by :func:`closure_nlp.certify.certified_bounds` (``bounds``).
+        Accepted for compatibility and ignored: the start's and the final rho are always
+        certified (:func:`closure_nlp.quality.rho`); the exchange rounds compare the search's
+        values.
         At optimised placements many directions are equally weak, and the bounds often stop
         at their budget wider than 1e-6: they are valid, and the README says how wide.
     probe_rounds : int
@@ -159,7 +161,7 @@ class PlacementResult:
         The placed contacts with their specs, ready for :func:`closure_nlp.quality.rho`.
     rho : float
         rho(0, W_c^M) of the placed contacts, recomputed by the rho solver from the final
-        positions (and certified, unless ``options.certify`` is off).
+        positions, and certified.
     force_closure : bool
     direction : (6,) float
         Their weakest direction ``u*``.
@@ -174,6 +176,8 @@ class PlacementResult:
     seconds : float
     bounds : (float, float) or None
         Certified ``lo <= rho <= hi`` of the placed contacts.
+    marginal, converged : bool
+        As in :class:`~closure_nlp.quality.RhoResult`.
     """
 
     contacts: tuple[PlacedContact, ...]
@@ -187,6 +191,8 @@ class PlacementResult:
     moves: tuple[Move, ...]
     seconds: float
     bounds: tuple[float, float] | None = None
+    marginal: bool = False
+    converged: bool = True
 
     @property
     def elements(self) -> tuple[int, ...]:
@@ -203,7 +209,12 @@ class PlacementResult:
             "rounds": self.rounds,
             "moves": [vars(m) for m in self.moves],
             "seconds": self.seconds,
-            **({"bounds": list(self.bounds)} if self.bounds is not None else {}),
+            **(
+                {"bounds": list(self.bounds), "marginal": self.marginal,
+                 "converged": self.converged}
+                if self.bounds is not None
+                else {}
+            ),
         }
 
     def contact_file(self, name: str = "", units: str = "") -> dict:
@@ -411,7 +422,7 @@ class Placer:
             vertex_G.append(np.concatenate([G, np.repeat(G[-1:], k - len(G), axis=0)]))
         f_max = np.array([spec.f_max for spec in specs])
         best_w = [np.asarray(w, float) for w in weights]
-        best = initial or rho(self.contact_set(elements, best_w), minimizer=minimizer)
+        best = initial or search_rho(self.contact_set(elements, best_w), minimizer=minimizer)
         U = list(sphere_samples(self.options.random_directions, seed=1))
         U.append(best.direction)
         # A trust region around the best weights: the restricted model is only good nearby, and
@@ -432,7 +443,7 @@ class Placer:
                 found = rho(trial, minimizer=light, warm_start=warm)
                 warm = found.direction
             if not self.options.screen or found.rho < best.rho:
-                found = rho(trial, minimizer=minimizer, warm_start=warm)
+                found = search_rho(trial, minimizer=minimizer, warm_start=warm)
             U.append(found.direction)
             if found.rho < best.rho:
                 best, best_w, c_best = found, w, c
@@ -459,7 +470,8 @@ class Placer:
         weights = [
             simplex_weights(w, k, f"weights[{i}]") for i, (w, k) in enumerate(zip(weights, counts))
         ]
-        start = rho(self.contact_set(elements, weights), minimizer=self.eligibility.minimizer)
+        start_elements, start_set = tuple(elements), self.contact_set(elements, weights)
+        start = rho(start_set, minimizer=self.eligibility.minimizer)
         rng = np.random.default_rng(self.options.seed)
         probe = self.options.probe_rounds if self.options.starts > 1 else 0
         # With probe rounds, the first starts get that many rounds each and only the best of
@@ -496,10 +508,6 @@ class Placer:
                 progress("neighbour move", len(moves), found.rho)
             elements[i] = target
             best_w, best, predicted = w_new, found, up
-        placed = tuple(
-            PlacedContact(e, w, model.elements[e].position(w), model.elements[e].inward_normal)
-            for e, w in zip(elements, best_w)
-        )
         # The exchange kept the weights where the rho solver reported the lowest rho, so any
         # miss of its global search was selected for: recompute with a wider search (and certify).
         contact_set = self.contact_set(elements, best_w)
@@ -509,10 +517,17 @@ class Placer:
             contact_set,
             minimizer=self.eligibility.minimizer.with_search(FINAL_SEARCH),
             warm_start=best.direction,
-            certify=self.options.certify,
         )
-        if best.rho > final.rho:  # the exchange's direction is weaker still: report it
-            final = replace(best, bounds=final.bounds)
+        if final.rho > start.rho:
+            # The exchange steered by the search's values, which can miss; certified, the start
+            # is better: keep it, so that the result is never worse than the start it reports.
+            elements, best_w, moves, contact_set, final = (
+                list(start_elements), weights, [], start_set, start
+            )
+        placed = tuple(
+            PlacedContact(e, w, model.elements[e].position(w), model.elements[e].inward_normal)
+            for e, w in zip(elements, best_w)
+        )
         if progress:
             progress("certification", 1, final.rho)
         return PlacementResult(
@@ -527,6 +542,8 @@ class Placer:
             tuple(moves),
             time.perf_counter() - t0,
             final.bounds,
+            final.marginal,
+            final.converged,
         )
 
     def _try_moves(self, elements, weights, best, progress=None):

@@ -20,7 +20,7 @@ the support function at the returned unit direction, never the epigraph variable
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import casadi as ca
 import numpy as np
@@ -133,7 +133,13 @@ class RhoResult:
     support_point : (6,) float
     stats : SolverStats
     bounds : (float, float) or None
-        Certified ``(lo, hi)`` with ``lo <= rho <= hi`` (``rho(..., certify=True)``), else None.
+        Certified ``(lo, hi)`` with ``lo <= rho <= hi``; None only for results of the search
+        alone (inside the selection and placement loops).
+    marginal : bool
+        The bounds reach within the tolerance of zero: within numerical accuracy of a set
+        without interior; never force closure.
+    converged : bool
+        ``hi - lo`` within the tolerance (1e-6 relative); otherwise the bounds are valid but wider.
     """
 
     rho: float
@@ -142,6 +148,8 @@ class RhoResult:
     support_point: np.ndarray
     stats: SolverStats = field(repr=False)
     bounds: tuple[float, float] | None = None
+    marginal: bool = False
+    converged: bool = True
 
     def to_dict(self) -> dict:
         out = {
@@ -155,6 +163,8 @@ class RhoResult:
         }
         if self.bounds is not None:
             out["bounds"] = [float(self.bounds[0]), float(self.bounds[1])]
+            out["marginal"] = self.marginal
+            out["converged"] = self.converged
         return out
 
 
@@ -328,7 +338,10 @@ class SupportMinimizer:
         U0 = sphere_samples(search.samples)
         if warm_start is not None:
             u0 = as_vector(warm_start, "warm_start", 6)
-            U0 = np.vstack([u0 / max(np.linalg.norm(u0), 1e-300), U0])
+            u0 = u0 / np.max(np.abs(u0)) if np.any(u0) else u0  # no overflow in the norm
+            if not np.linalg.norm(u0) > 0:
+                raise ValueError("warm_start: must be a non-zero direction, got all zeros")
+            U0 = np.vstack([u0 / np.linalg.norm(u0), U0])
         U, values = descend(slots, U0, search.descent_iterations)
         if search.smoothing:
             U_s, values_s = smoothed_descent(
@@ -366,9 +379,9 @@ def rho(
     *,
     minimizer: SupportMinimizer | None = None,
     warm_start=None,
-    certify: bool = False,
+    certify: bool = True,
 ) -> RhoResult:
-    """rho(0, W_c^M) of a contact set (eq 24).
+    """rho(0, W_c^M) of a contact set (eq 24), with certified bounds.
 
     Parameters
     ----------
@@ -376,16 +389,16 @@ def rho(
     minimizer : SupportMinimizer, optional
         Holds the cached NLPs and the options; a shared default is used when omitted.
     warm_start : (6,) float, optional
-        A direction to add to the starts (e.g. the previous ``u*`` in a loop).
+        A non-zero direction to add to the starts (e.g. the previous ``u*`` in a loop).
     certify : bool
-        Also compute certified bounds (:func:`closure_nlp.certify.certified_bounds`, started
-        at ``u*``). When their search finds a direction with a lower support value than IPOPT's,
-        the result reports that direction, so that ``lo <= rho <= hi`` always holds.
+        Accepted for compatibility: the bounds are always computed.
 
     Returns
     -------
     RhoResult
-        ``bounds`` is set when ``certify`` is true.
+        ``rho`` is the lowest support value found (IPOPT's or the certificate's), inside the
+        certified ``bounds``; ``force_closure`` only when the bounds are below zero by more than
+        the tolerance, ``marginal`` when they reach within it.
     """
     if not isinstance(contact_set, ContactSet):
         raise TypeError(f"contact_set: expected a ContactSet, got {type(contact_set).__name__}")
@@ -393,29 +406,54 @@ def rho(
         raise TypeError(f"certify: expected a bool, got {type(certify).__name__}")
     minimizer = minimizer or _DEFAULT_MINIMIZER
     slots = WrenchSlots.from_contacts(contact_set)
-    found = minimizer(slots, warm_start)
-    if not certify:
-        return _as_rho(found, minimizer.tolerances)
-    from .certify import certified_bounds  # cvxpy and qhull only when asked for
+    return certified_rho(slots, minimizer(slots, warm_start), minimizer.tolerances)
 
-    bounds = certified_bounds(slots, found.direction, tolerances=minimizer.tolerances)
-    if -bounds.lo < found.value:  # the bounds' search found a lower support value
+
+def search_rho(
+    contact_set: ContactSet, *, minimizer: SupportMinimizer | None = None, warm_start=None
+) -> RhoResult:
+    """rho of the search alone, without bounds (``bounds`` None): for the comparisons inside
+    search loops (placement), where a looser answer is fine; every reported value goes through
+    :func:`rho`."""
+    if not isinstance(contact_set, ContactSet):
+        raise TypeError(f"contact_set: expected a ContactSet, got {type(contact_set).__name__}")
+    minimizer = minimizer or _DEFAULT_MINIMIZER
+    slots = WrenchSlots.from_contacts(contact_set)
+    found = minimizer(slots, warm_start)
+    value = signed_distance(found, slots, minimizer.tolerances)
+    return RhoResult(value, value < 0.0, found.direction, found.support_point, found.stats)
+
+
+def certified_rho(slots: WrenchSlots, found: SupportMinimum, tolerances: Tolerances) -> RhoResult:
+    """The search's minimum made certain: bounds started at its direction, the lower value wins."""
+    from .certify import certified_bounds
+
+    bounds = certified_bounds(slots, found.direction, tolerances=tolerances)
+    if -bounds.lo < found.value:  # the certificate's search found a lower support value
         u = bounds.direction
         found = SupportMinimum(-bounds.lo, u, slots.support_point(u), found.stats)
-    result = _as_rho(found, minimizer.tolerances)
-    return replace(result, bounds=(bounds.lo, bounds.hi))
-
-
-def signed_distance(found: SupportMinimum, tolerances: Tolerances) -> float:
-    """``-min p(u)``, with round-off around 0 snapped to exactly 0 (no interior: not closure)."""
     value = -found.value
-    scale = max(1.0, float(np.linalg.norm(found.support_point)))
-    return 0.0 if abs(value) <= tolerances.zero_rho * scale else value
+    if bounds.marginal and bounds.lo <= 0.0 <= bounds.hi:
+        value = 0.0  # no interior, within numerical accuracy
+    return RhoResult(
+        value,
+        bounds.force_closure,
+        found.direction,
+        found.support_point,
+        found.stats,
+        (bounds.lo, bounds.hi),
+        bounds.marginal,
+        bounds.converged,
+    )
 
 
-def _as_rho(found: SupportMinimum, tolerances: Tolerances) -> RhoResult:
-    value = signed_distance(found, tolerances)
-    return RhoResult(value, value < 0.0, found.direction, found.support_point, found.stats)
+def signed_distance(found: SupportMinimum, slots: WrenchSlots, tolerances: Tolerances) -> float:
+    """``-min p(u)`` of the search alone, with round-off around 0 (relative to the set's scale)
+    snapped to exactly 0 (no interior: not closure)."""
+    from .certify import tolerance_unit
+
+    value = -found.value
+    return 0.0 if abs(value) <= tolerances.zero_rho * tolerance_unit(slots) else value
 
 
 __all__ = [
@@ -425,6 +463,8 @@ __all__ = [
     "SupportMinProblem",
     "SupportMinimizer",
     "SupportMinimum",
+    "certified_rho",
     "rho",
+    "search_rho",
     "signed_distance",
 ]

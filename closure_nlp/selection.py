@@ -88,6 +88,11 @@ class SelectionResult:
     eligible_sets : tuple of (tuple of int, float)
         Iterative algorithm: the other eligible sets it evaluated and their rho_hat, lowest
         first (the next candidates when placement on the result fails).
+    bounds : (float, float)
+        Certified ``lo <= rho_hat <= hi`` of the final set (the search steered by the search's
+        values; the reported one is certified).
+    marginal, converged : bool
+        As in :class:`~closure_nlp.eligibility.EligibilityResult`.
     """
 
     elements: tuple[int, ...]
@@ -100,12 +105,23 @@ class SelectionResult:
     rounds: int = 0
     eligible_sets: tuple[tuple[tuple[int, ...], float], ...] = ()
     screened: int = 0
+    bounds: tuple[float, float] | None = None
+    marginal: bool = False
+    converged: bool = True
 
     def to_dict(self) -> dict:
+        certified = {}
+        if self.bounds is not None:
+            certified = {
+                "bounds": [float(b) for b in self.bounds],
+                "marginal": self.marginal,
+                "converged": self.converged,
+            }
         return {
             "elements": list(self.elements),
             "rho_hat": self.rho_hat,
             "eligible": self.eligible,
+            **certified,
             "direction": self.direction.tolist(),
             "history": [{"iteration": k, "rho_hat": v} for k, v in self.history],
             "evaluations": self.evaluations,
@@ -161,12 +177,12 @@ def heuristic(
         else:
             chosen = rng.integers(0, n, options.initial).tolist()
         history = []
-        found = eligibility(chosen, partial=True)
+        found = eligibility(chosen, partial=True, certify=False)
         history.append((0, found.rho_hat))
         while len(chosen) < m:
             values = eligibility.element_values(len(chosen), found.direction)
             chosen.append(int(np.argmax(values)))
-            found = eligibility(chosen, found.direction, partial=True)
+            found = eligibility(chosen, found.direction, partial=True, certify=False)
             history.append((len(history), found.rho_hat))
             if progress:
                 progress("heuristic", len(history) - 1, found.rho_hat)
@@ -175,6 +191,8 @@ def heuristic(
         if found.eligible:
             break
     found, history = best
+    found = eligibility.certify(found)
+    history[-1] = (history[-1][0], found.rho_hat)
     return SelectionResult(
         found.elements,
         found.rho_hat,
@@ -184,6 +202,9 @@ def heuristic(
         eligibility.evaluations - evaluations0,
         time.perf_counter() - t0,
         round_,
+        bounds=found.bounds,
+        marginal=found.marginal,
+        converged=found.converged,
     )
 
 
@@ -214,7 +235,7 @@ def iterative(
     def evaluate(elements, warm):
         key = _multiset(eligibility, elements)
         if key not in seen:
-            seen[key] = eligibility(elements, warm)
+            seen[key] = eligibility(elements, warm, certify=False)
         return seen[key]
 
     def screen(elements, warm) -> tuple[float, np.ndarray]:
@@ -223,8 +244,9 @@ def iterative(
         if key in seen:
             return seen[key].rho_hat, seen[key].direction
         if key not in screened:
-            found = light(eligibility.slots(elements), warm)
-            screened[key] = (signed_distance(found, light.tolerances), found.direction)
+            slots = eligibility.slots(elements)
+            found = light(slots, warm)
+            screened[key] = (signed_distance(found, slots, light.tolerances), found.direction)
             light_calls[0] += 1
         return screened[key]
 
@@ -273,6 +295,8 @@ def iterative(
         if progress:
             progress("iterative", step, best.rho_hat)
     others = sorted((r.rho_hat, r.elements) for r in seen.values() if r.eligible and r is not best)
+    best = eligibility.certify(best)
+    history[-1] = (history[-1][0], best.rho_hat)
     return SelectionResult(
         best.elements,
         best.rho_hat,
@@ -283,6 +307,9 @@ def iterative(
         time.perf_counter() - t0,
         eligible_sets=tuple((elements, value) for value, elements in others),
         screened=light_calls[0],
+        bounds=best.bounds,
+        marginal=best.marginal,
+        converged=best.converged,
     )
 
 

@@ -97,14 +97,17 @@ class WrenchSlots:
     def rows_per_slot(self) -> tuple[int, ...]:
         return tuple(np.diff(np.append(self.starts, len(self.G))).tolist())
 
-    def row_scales(self) -> tuple[float, float]:
-        """Upper bounds on the force part and the torque part of any row's extreme wrench.
+    def row_scales(self, friction: bool = True) -> tuple[float, float]:
+        """Upper bounds on the force part and the torque part of any row's extreme wrench
+        (``friction=False``: of its normal force alone, ``f_max`` times the rows of ``G``).
 
         A row's force ``(f_n, f_t)`` has ``|f_t|^2 <= (sum of its friction weights) f_n^2`` and
         ``f_n <= f_max``; the first three rows of ``G`` map it to the force, the last three to
         the torque.
         """
-        force = self.f_max * np.sqrt(1.0 + self.pieces[:, :, 1:].sum(axis=(1, 2)))
+        force = self.f_max * (
+            np.sqrt(1.0 + self.pieces[:, :, 1:].sum(axis=(1, 2))) if friction else 1.0
+        )
         top = np.linalg.norm(self.G[:, :3, :], ord=2, axis=(1, 2))
         bottom = np.linalg.norm(self.G[:, 3:, :], ord=2, axis=(1, 2))
         return float(np.max(top * force)), float(np.max(bottom * force))

@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from closure_nlp.certify import CertifiedBounds, CertifyOptions, certified_bounds, min_norm_point
+from closure_nlp.branch_bound import BranchBoundOptions
+from closure_nlp.certify import CertifiedBounds, CertifyOptions, certified_bounds
 from closure_nlp.cli import main
 from closure_nlp.contacts import Contact, ContactSet, ContactType, grasp_matrices
 from closure_nlp.crosscheck import (
@@ -18,7 +19,8 @@ from closure_nlp.crosscheck import (
     force_closure_check,
     force_closure_cvxpy,
 )
-from closure_nlp.quality import SearchOptions, SupportMinimizer, rho
+from closure_nlp.nearest_point import min_norm_point
+from closure_nlp.quality import SearchOptions, SupportMinimizer, rho, search_rho
 from closure_nlp.random_sets import random_contact_set
 from closure_nlp.tolerances import Tolerances
 from closure_nlp.wrenches import WrenchSlots
@@ -111,8 +113,9 @@ def test_bounds_stay_valid_when_the_budget_stops_them():
     # which the refinement cannot resolve in one step: wider, still valid, bounds.
     cs = ContactSet((one("sfce", (0, 0, 1), (0, 0, -1)), one("sfce", (0, 0, -1), (0, 0, 1))))
     ours = rho(cs)
-    bounds = certified_bounds(cs, ours.direction, options=CertifyOptions(max_iter=1))
-    assert not bounds.converged and bounds.iterations == 1
+    stopped = CertifyOptions(branch_bound=BranchBoundOptions(max_rounds=3))
+    bounds = certified_bounds(cs, ours.direction, options=stopped)
+    assert not bounds.converged and bounds.iterations == 3
     assert bounds.lo <= ours.rho + 1e-9 and ours.rho <= bounds.hi
     assert bounds.hi < 0 and bounds.force_closure is True
 
@@ -162,7 +165,7 @@ def test_degenerate_sets_get_the_right_verdict(name):
     ours = rho(cs)
     assert ours.force_closure is closure
     assert force_closure_cvxpy(cs) is closure
-    bounds = certified_bounds(cs, ours.direction, options=CertifyOptions(max_iter=3))
+    bounds = certified_bounds(cs, ours.direction)
     assert bounds.force_closure is closure
     tol = CERTIFY_TOL * max(1.0, abs(ours.rho))  # IPOPT is ~1e-6 off at some cone apexes
     assert bounds.lo - tol <= ours.rho <= bounds.hi + tol
@@ -223,7 +226,7 @@ def test_multi_row_slots_agree(kind, seed):
         assert force_closure_cvxpy(slots) == (value > 0)
     if value < -1e-6:
         assert distance_cvxpy(slots) == pytest.approx(-value, abs=1e-6)
-    lo, hi = certified_bounds(slots, found.direction, options=CertifyOptions(max_iter=10))
+    lo, hi = certified_bounds(slots, found.direction)
     assert -value <= hi + 1e-9  # any unit direction's p bounds min p from above
     assert lo - 1e-6 * max(1.0, abs(value)) <= -value  # ... and IPOPT's must be the global one
 
@@ -237,7 +240,7 @@ def test_plain_descent_alone_misses_what_the_smoothed_one_finds():
         Tolerances(distinct_start=0.2), SearchOptions(smoothing=(), element_ipopt_starts=3)
     )(slots)
     ours = SupportMinimizer()(slots)
-    lo, _ = certified_bounds(slots, ours.direction, options=CertifyOptions(max_iter=10))
+    lo, _ = certified_bounds(slots, ours.direction)
     assert plain.value > -lo + 1e-3  # the trap is real: certified lower p exists
     assert ours.value <= -lo + 1e-6 * max(1.0, abs(lo))
 
@@ -268,7 +271,9 @@ def test_ball_minimum_reports_the_support_function():
 
 def test_min_norm_point_is_in_the_hull():
     P = np.array([[1.0, 1, 0, 0, 0, 0], [1.0, -1, 0, 0, 0, 0], [3.0, 0, 0, 0, 0, 0]])
-    np.testing.assert_allclose(min_norm_point(P), [1, 0, 0, 0, 0, 0], atol=1e-6)
+    x, weights = min_norm_point(P)
+    np.testing.assert_allclose(x, [1, 0, 0, 0, 0, 0], atol=1e-15)
+    np.testing.assert_allclose(weights, [0.5, 0.5, 0.0], atol=1e-15)
 
 
 def test_certified_bounds_unpack_and_validate():
@@ -285,21 +290,25 @@ def test_certified_bounds_unpack_and_validate():
         certified_bounds([1, 2, 3])
     with pytest.raises(TypeError, match="slots"):
         force_closure_cvxpy("box")
-    with pytest.raises(ValueError, match="batch"):
-        CertifyOptions(batch=0)
-    with pytest.raises(ValueError, match="scales"):
-        CertifyOptions(scales=(0.1, 2.0))
+    with pytest.raises(ValueError, match="max_iter"):
+        CertifyOptions(max_iter=0)
+    with pytest.raises(ValueError, match="fw_steps"):
+        BranchBoundOptions(fw_steps=0)
+    with pytest.raises(TypeError, match="branch_bound"):
+        CertifyOptions(branch_bound=3)
 
 
-def test_rho_certify_option_adds_bounds_only_when_asked():
+def test_rho_always_carries_bounds_and_certify_changes_nothing():
     cs = make("pcwf", 4, 0)
-    plain = rho(cs)
-    assert plain.bounds is None and "bounds" not in plain.to_dict()
-    certified = rho(cs, certify=True)
+    certified = rho(cs)
     lo, hi = certified.bounds
     assert lo <= certified.rho <= hi
-    assert certified.to_dict()["bounds"] == [lo, hi]
-    assert certified.rho >= plain.rho  # the bounds' search can only find a weaker direction
+    out = certified.to_dict()
+    assert out["bounds"] == [lo, hi] and out["marginal"] is False and out["converged"] is True
+    assert rho(cs, certify=True).to_dict()["bounds"] == out["bounds"]
+    searched = search_rho(cs)
+    assert searched.bounds is None and "bounds" not in searched.to_dict()
+    assert certified.rho >= searched.rho  # the certificate can only find a weaker direction
     with pytest.raises(TypeError, match="certify"):
         rho(cs, certify="yes")
 
@@ -320,11 +329,11 @@ def test_cli_rho_certify_json(tmp_path, capsys):
         assert lo <= r["rho"] <= hi
         assert hi - lo <= CERTIFY_TOL * max(1.0, abs(r["rho"]))
     code = main(["rho", str(EXAMPLE)])
-    out, _ = capsys.readouterr()
-    assert "certified" not in out
+    plain, _ = capsys.readouterr()
     code = main(["rho", str(EXAMPLE), "--certify"])
     out, _ = capsys.readouterr()
-    assert code == 0 and "certified -0.0883" in out and "<= rho <=" in out
+    assert code == 0 and out == plain  # --certify is accepted and changes nothing
+    assert "certified -0.0883" in out and "<= rho <=" in out
 
 
 # --- the comparison script -------------------------------------------------------------------
