@@ -31,6 +31,7 @@ lint: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python -m closure_nlp.bench rho
 	$(BIN)/python -m closure_nlp.bench rho-hat
+	$(BIN)/python -m closure_nlp.bench certify
 	$(BIN)/python -m closure_nlp.bench select
 	$(BIN)/python -m closure_nlp.bench plan
 

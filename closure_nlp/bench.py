@@ -1,4 +1,4 @@
-"""Benchmarks that print JSON: ``python -m closure_nlp.bench rho|rho-hat|select|plan``.
+"""Benchmarks that print JSON: ``python -m closure_nlp.bench rho|rho-hat|certify|select|plan``.
 
 Timings are medians over seeded random cases with every solver built and warmed up first, and
 each is compared in the same process with a paper-style baseline: scipy SLSQP started from the
@@ -93,6 +93,68 @@ def bench_rho(cases: int = 30, repeats: int = 3, seed: int = 0) -> dict:
             "baseline_worst_error": float(base_err.max()),
             "baseline_misses": int(np.sum(base_err > 1e-6 * np.maximum(1, np.abs(best_v)))),
             "ours_misses": int(np.sum(ours_err > 1e-6 * np.maximum(1, np.abs(best_v)))),
+        }
+    return report
+
+
+def bench_certify(cases: int = 20, seed: int = 0, models_dir=None) -> dict:
+    """Certified rho (search + certificate) per family and certified rho_hat of 4 lamp facets.
+
+    Reports, in one process: ms of the search alone (what rho cost before), of the certificate
+    alone and of both, against SLSQP from ``+-e_k`` (uncertified, the paper's approach); the
+    bracket widths relative to ``max(|rho|, unit)``; how many brackets converged to 1e-6.
+    """
+    from .certify import certified_bounds, tolerance_unit
+
+    minimizer = SupportMinimizer()
+    families = {name: types for name, types in BENCH_CASES.items()}
+    report = {"benchmark": "certify", "cases_per_family": cases, "families": {}}
+    eligibility = paper_eligibility("lamp", models_dir or MODELS_DIR)
+    rng = np.random.default_rng(seed)
+    lamp = [eligibility.slots(rng.integers(0, len(eligibility.model), 4).tolist())]
+    lamp += [
+        eligibility.slots(rng.integers(0, len(eligibility.model), 4).tolist())
+        for _ in range(cases - 1)
+    ]
+    groups = {
+        name: [
+            WrenchSlots.from_contacts(random_contact_set(np.random.default_rng(seed + k), types))
+            for k in range(cases)
+        ]
+        for name, types in families.items()
+    }
+    groups["rho_hat lamp 4 facets"] = lamp
+    for name, sets in groups.items():
+        minimizer(sets[0])  # build and warm the solver once: we measure reuse
+        search_ms, cert_ms, base_ms, widths, converged, closure = [], [], [], [], [], []
+        for slots in sets:
+            t0 = time.perf_counter()
+            found = minimizer(slots)
+            t1 = time.perf_counter()
+            bounds = certified_bounds(slots, found.direction)
+            t2 = time.perf_counter()
+            paper_baseline(slots)
+            t3 = time.perf_counter()
+            search_ms.append(1e3 * (t1 - t0))
+            cert_ms.append(1e3 * (t2 - t1))
+            base_ms.append(1e3 * (t3 - t2))
+            scale = max(abs(bounds.lo), tolerance_unit(slots))
+            widths.append(bounds.gap / scale)
+            converged.append(bounds.converged)
+            closure.append(bounds.force_closure)
+        total = np.add(search_ms, cert_ms)
+        closed = np.array(closure)
+        report["families"][name] = {
+            "force_closure_share": float(closed.mean()),
+            "search_ms": _stats(search_ms),
+            "certificate_ms": _stats(cert_ms),
+            "certified_total_ms": _stats(total),
+            "certified_total_ms_closure_sets": _stats(total[closed]) if closed.any() else None,
+            "baseline_slsqp_ms": _stats(base_ms),
+            "certified_vs_search_median": float(np.median(total) / np.median(search_ms)),
+            "baseline_vs_certified_median": float(np.median(base_ms) / np.median(total)),
+            "relative_width_max": float(max(widths)),
+            "converged": f"{sum(converged)}/{len(converged)}",
         }
     return report
 
@@ -282,6 +344,9 @@ def main(argv=None) -> int:
     p.add_argument("--cases", type=int, default=20)
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--seed", type=int, default=0)
+    p = sub.add_parser("certify", help="certified rho and rho_hat: search, certificate, SLSQP")
+    p.add_argument("--cases", type=int, default=20)
+    p.add_argument("--seed", type=int, default=0)
     p = sub.add_parser("select", help="heuristic and iterative selection on the example models")
     p.add_argument("--seeds", type=int, default=10)
     p = sub.add_parser("characterize", help="seconds and peak memory of characterize")
@@ -294,6 +359,8 @@ def main(argv=None) -> int:
         report = bench_rho(args.cases, args.repeats, args.seed)
     elif args.what == "rho-hat":
         report = bench_rho_hat(args.cases, args.repeats, args.seed)
+    elif args.what == "certify":
+        report = bench_certify(args.cases, args.seed)
     elif args.what == "characterize":
         report = bench_characterize(args.subdivisions)
     elif args.what == "plan":

@@ -17,7 +17,7 @@ and the same relative bracket.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -27,6 +27,10 @@ from .sphere_search import descend, sphere_samples
 from .tolerances import DEFAULT_TOLERANCES, Tolerances
 from .validation import as_vector
 from .wrenches import WrenchSlots, as_slots
+
+# Torque rows this many times larger or smaller than force rows: verdicts on a whitened copy.
+WHITEN = 100.0
+ANISOTROPIC_CELLS = 4000
 
 
 @dataclass(frozen=True)
@@ -46,8 +50,10 @@ class CertifyOptions:
 
     def __post_init__(self) -> None:
         if not isinstance(self.branch_bound, BranchBoundOptions):
-            raise TypeError(f"options.branch_bound: expected BranchBoundOptions, got "
-                            f"{type(self.branch_bound).__name__}")
+            raise TypeError(
+                f"options.branch_bound: expected BranchBoundOptions, got "
+                f"{type(self.branch_bound).__name__}"
+            )
         value = self.max_iter
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             raise ValueError(f"options.max_iter: must be an integer >= 1, got {value!r}")
@@ -147,7 +153,15 @@ def certified_bounds(
         raise ValueError(f"tol: must be a number in (0, 1), got {tol!r}")
     if not isinstance(options, CertifyOptions):
         raise TypeError(f"options: expected CertifyOptions, got {type(options).__name__}")
+    verdict = _whitened_verdict(slots, tol, options, tolerances)
+    budget = options.branch_bound
+    if verdict is not None:
+        # The set's own bracket would need cells finer than its anisotropy: a small budget
+        # (valid, usually unconverged bounds); the verdict is the whitened set's.
+        budget = replace(budget, max_cells=min(budget.max_cells, ANISOTROPIC_CELLS))
     unit = tolerance_unit(slots)
+    # Every step below is scale-free; run it on the set scaled to unit size and scale back.
+    slots = slots.scaled(1.0 / unit)
     if direction is None:
         U, values = descend(slots, sphere_samples(64), 30)
         u0 = U[int(np.argmin(values))]
@@ -160,32 +174,71 @@ def certified_bounds(
     value0 = float(slots.support(u0[None])[0])
 
     def gap(value: float) -> float:
-        return tol * max(abs(value), unit)
+        return tol * max(abs(value), 1.0)
 
+    if verdict is not None and verdict[2] is not None:
+        u0 = verdict[2] / np.linalg.norm(verdict[2])
+        value0 = float(slots.support(u0[None])[0])
     if value0 >= 0:
-        found = sphere_minimum(slots, u0, gap=gap(value0), options=options.branch_bound)
+        found = sphere_minimum(slots, u0, gap=gap(value0), options=budget)
         if found.upper >= 0:  # the origin is not outside: rho = -min p
             lo, hi = -found.upper, -found.lower
-            return _result(lo, hi, found.converged, found.rounds, found.evaluations,
-                           start_time, found.direction, tol, unit)
+            return _result(
+                lo,
+                hi,
+                found.converged,
+                found.rounds,
+                found.evaluations,
+                start_time,
+                found.direction,
+                tol,
+                unit,
+                verdict,
+            )
         u0, value0 = found.direction, found.upper
         evaluations, rounds = found.evaluations, found.rounds
     else:
         evaluations = rounds = 0
     # The origin is outside W: rho = dist(0, W) > 0.
     lo, hi, u, converged, more = nearest_point_bounds(slots, u0, gap(value0), options.max_iter)
-    return _result(lo, hi, converged, rounds, evaluations + more, start_time, u, tol, unit)
+    return _result(lo, hi, converged, rounds, evaluations + more, start_time, u, tol, unit, verdict)
 
 
-def _result(lo, hi, converged, iterations, points, start_time, direction, tol, unit):
+def _whitened_verdict(slots, tol, options, tolerances):
+    """The verdicts (force closure, marginal) of a set whose torque rows are more than
+    :data:`WHITEN` times larger or smaller than its force rows, decided on the set with torques
+    rescaled to the forces' size: a linear map, which keeps the origin inside or outside, while
+    the set's own bracket would need cells finer than the anisotropy. None otherwise."""
+    force, torque = slots.row_scales(friction=False)
+    if not (force > 0 and torque > 0) or max(force, torque) <= WHITEN * min(force, torque):
+        return None
+    G = slots.G.copy()
+    G[:, 3:, :] *= force / torque
+    whitened = WrenchSlots(G, slots.starts, slots.f_max, slots.pieces, slots.types, slots.n_pieces)
+    bounds = certified_bounds(whitened, tol=tol, options=options, tolerances=tolerances)
+    # A direction separating the whitened set from the origin separates the set itself once
+    # mapped back (p_W(D u) = p_{DW}(u) with D = diag(1, 1, 1, f/t, f/t, f/t)).
+    separating = None
+    if bounds.lo > 0 and not bounds.marginal:
+        separating = bounds.direction * np.repeat([1.0, force / torque], 3)
+    return bounds.force_closure, bounds.marginal, separating
+
+
+def _result(lo, hi, converged, iterations, points, start_time, direction, tol, unit, verdict):
+    """Bounds of the unit-size set scaled back by ``unit``, with the verdicts (``verdict``
+    when decided on a whitened set)."""
     hi = max(hi, lo)  # roundoff of two exact bounds of the same number
+    lo, hi = lo * unit, hi * unit
     zero = tol * unit
+    closure, marginal = verdict[:2] if verdict else (hi < -zero, hi >= -zero and lo <= zero)
+    if closure:  # decided on the whitened set: rho < 0 whatever the bracket's own width
+        hi = min(hi, 0.0)
     return CertifiedBounds(
         float(lo),
         float(hi),
         bool(converged),
-        bool(hi < -zero),
-        bool(hi >= -zero and lo <= zero),
+        bool(closure),
+        bool(marginal),
         int(iterations),
         int(points),
         time.perf_counter() - start_time,

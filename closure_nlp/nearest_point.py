@@ -33,8 +33,14 @@ def min_norm_point(points: np.ndarray, tol: float = 1e-15):
     """
     P = np.asarray(points, dtype=float)
     n = len(P)
-    scale = max(float(np.max(np.einsum("ij,ij->i", P, P))), 1e-300)
-    S = [int(np.argmin(np.einsum("ij,ij->i", P, P)))]
+    # Wolfe's steps are scale-free; run them on points of unit size (any f_max, any units).
+    size = float(np.max(np.abs(P))) if P.size else 0.0
+    if not size > 0:
+        return np.zeros(P.shape[1]), np.eye(n)[0]
+    P = P / size
+    norms2 = np.einsum("ij,ij->i", P, P)
+    scale = max(float(norms2.max()), 1e-300)
+    S = [int(np.argmin(norms2))]
     lam = np.array([1.0])
     for _ in range(50 * (n + 1)):
         x = lam @ P[S]
@@ -43,7 +49,7 @@ def min_norm_point(points: np.ndarray, tol: float = 1e-15):
             break
         S.append(j)
         lam = np.append(lam, 0.0)
-        while True:  # minor cycle: the affine minimiser, or the farthest step towards it
+        for _ in range(len(S)):  # minor cycle: each step drops a point, so it ends
             mu = _affine_minimizer(P[S])
             if np.all(mu > 0):
                 lam = mu
@@ -57,7 +63,7 @@ def min_norm_point(points: np.ndarray, tol: float = 1e-15):
             lam /= lam.sum()
     weights = np.zeros(n)
     weights[S] = lam
-    return weights @ P, weights
+    return weights @ (P * size), weights
 
 
 def _affine_minimizer(P: np.ndarray) -> np.ndarray:

@@ -332,6 +332,17 @@ class SupportMinimizer:
         return self._problems[key]
 
     def __call__(self, slots: WrenchSlots, warm_start=None) -> SupportMinimum:
+        """The search on the slots scaled to unit size (so IPOPT's absolute tolerances mean the
+        same for any f_max, units or torque_scale), its value and support point scaled back."""
+        from .certify import tolerance_unit
+
+        unit = tolerance_unit(slots)
+        found = self._search(slots.scaled(1.0 / unit), warm_start)
+        return SupportMinimum(
+            found.value * unit, found.direction, found.support_point * unit, found.stats
+        )
+
+    def _search(self, slots: WrenchSlots, warm_start=None) -> SupportMinimum:
         start_time = time.perf_counter()
         problem = self.problem(slots)
         search = self.search

@@ -89,6 +89,13 @@ class WrenchSlots:
             (G[i], c.type, c.mu, c.mu_s, c.f_max) for i, c in enumerate(contact_set.contacts)
         )
 
+    def scaled(self, factor: float) -> WrenchSlots:
+        """The same slots with every ``f_max`` times ``factor``: the support function, support
+        points and rho scale by ``factor``, directions do not."""
+        return WrenchSlots(
+            self.G, self.starts, self.f_max * factor, self.pieces, self.types, self.n_pieces
+        )
+
     @property
     def m(self) -> int:
         return len(self.starts)
