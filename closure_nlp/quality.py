@@ -8,7 +8,7 @@ The minimum is a CasADi NLP solved by IPOPT, smooth through an epigraph:
         s_r >= 0,  s_r**2 >= q_k(G_r^T u)          friction term of row r, every piece k
         P_i >= f_r * ((G_r^T u)_n + s_r)           every row r of slot i (max over vertices)
         z_i >= P_i,  z_i >= 0                      z_i = max(P_i, 0) at the optimum
-        t >= P_i + sum_{j != i} z_j                every slot i
+        t >= P_i + sum_z - z_i,  sum_z = sum_j z_j  every slot i (O(m) nonzeros)
 
 The last line is the max over non-empty subsets in O(m) constraints, including the branch where
 every ``P_i`` is negative (the contacts are then not force closure and ``rho > 0`` is the distance
@@ -191,7 +191,7 @@ class SupportMinProblem:
         self.rows_per_slot = tuple(rows_per_slot)
         m = len(self.n_pieces)
         u = ca.SX.sym("u", 6)
-        z, t = ca.SX.sym("z", m), ca.SX.sym("t")
+        z, t, total = ca.SX.sym("z", m), ca.SX.sym("t"), ca.SX.sym("sum_z")
         s_vars, P_vars, params, g = [], [], [], []
         for i, (pieces, rows) in enumerate(zip(self.n_pieces, self.rows_per_slot)):
             values = []
@@ -215,10 +215,11 @@ class SupportMinProblem:
                 P_vars.append(P_i)
                 g += [P_i - v for v in values]
             g.append(z[i] - P_i)
-            g.append(t - P_i - (ca.sum1(z) - z[i]))
+            g.append(t - P_i - (total - z[i]))
         n_ineq = len(g)
+        g.append(total - ca.sum1(z))  # one sum for all slots: O(m) nonzeros, not O(m^2)
         g.append(ca.dot(u, u))
-        x = ca.vertcat(u, *s_vars, *P_vars, z, t)
+        x = ca.vertcat(u, *s_vars, *P_vars, z, t, total)
         self._n_s, self._n_P = len(s_vars), len(P_vars)
         nlp = {"x": x, "p": ca.vertcat(*params), "f": t, "g": ca.vertcat(*g)}
         opts = {
@@ -242,12 +243,13 @@ class SupportMinProblem:
         }
         self._solver = ca.nlpsol("support_min", "ipopt", nlp, opts)
         inf = np.inf
-        self._lbg = np.concatenate([np.zeros(n_ineq), [1.0]])
-        self._ubg = np.concatenate([np.full(n_ineq, inf), [1.0]])
+        self._lbg = np.concatenate([np.zeros(n_ineq), [0.0, 1.0]])
+        self._ubg = np.concatenate([np.full(n_ineq, inf), [0.0, 1.0]])
         self._lbx = np.concatenate(
-            [np.full(6, -2.0), np.zeros(self._n_s), np.full(self._n_P, -inf), np.zeros(m), [-inf]]
+            [np.full(6, -2.0), np.zeros(self._n_s), np.full(self._n_P, -inf), np.zeros(m),
+             [-inf, 0.0]]
         )
-        self._ubx = np.concatenate([np.full(6, 2.0), np.full(self._n_s + self._n_P + m + 1, inf)])
+        self._ubx = np.concatenate([np.full(6, 2.0), np.full(self._n_s + self._n_P + m + 2, inf)])
 
     @staticmethod
     def key(slots: WrenchSlots) -> tuple:
@@ -271,7 +273,7 @@ class SupportMinProblem:
         P = slots.slot_values(u)[0] + 1e-8
         z = np.maximum(P, 0.0) + 1e-8
         t = np.max(P + z.sum() - z) + 1e-8
-        return np.concatenate([u, s, P[np.array(self.rows_per_slot) > 1], z, [t]])
+        return np.concatenate([u, s, P[np.array(self.rows_per_slot) > 1], z, [t, z.sum()]])
 
     def solve(self, slots: WrenchSlots, u0: np.ndarray, params: np.ndarray | None = None):
         """One IPOPT run from ``u0``; returns (unit u, iterations, return status, success)."""
