@@ -4,10 +4,8 @@ import numpy as np
 import pytest
 
 from closure_nlp.contacts import Contact, ContactSet, contact_set_from_dict
-from closure_nlp.quality import SearchOptions, SupportMinimizer, rho
+from closure_nlp.quality import rho
 from closure_nlp.random_sets import random_contact_set
-from closure_nlp.tolerances import Tolerances
-from closure_nlp.wrenches import WrenchSlots
 from tests import reference
 
 
@@ -121,19 +119,16 @@ def test_reference_suite_covers_both_signs():
     assert 0.2 < np.mean(signs) < 0.8
 
 
-def test_finds_global_minimum_where_weaker_starts_fail():
-    """A 5-SFCe grasp with a narrow global basin: one IPOPT start with IPOPT's default
-    barrier (which drifts out of the start's basin) ends in a local minimum 1e-3 too high."""
+def test_finds_the_global_minimum_of_a_narrow_basin():
+    """A 5-SFCe grasp with a narrow global basin. One IPOPT start with IPOPT's default barrier
+    used to end 1e-3 above it; since the search runs on the set scaled to unit size, that weaker
+    search no longer misses here (nor on 23 other seeded 5-contact sets), so only the answer is
+    checked: the certified rho equals the independent reference's minimum."""
     cs = make("sfce", 5, 1)
-    slots = WrenchSlots.from_contacts(cs)
-    weaker = SupportMinimizer(
-        Tolerances(distinct_start=0.2),
-        SearchOptions(smoothing=(), ipopt_starts=1),
-        ipopt_options={"mu_init": 0.1},
-    )
     ref_value, _ = reference.reference_min(reference.from_contact_set(cs), samples=2000, starts=10)
-    assert weaker(slots).value > ref_value + 1e-4  # the trap is real
-    assert -rho(cs).rho == pytest.approx(ref_value, abs=1e-6)
+    result = rho(cs)
+    assert -result.rho == pytest.approx(ref_value, abs=1e-6)
+    assert -ref_value <= result.bounds[1] + 1e-9  # any direction bounds rho from below
 
 
 # --- bad input -------------------------------------------------------------------------------
