@@ -127,25 +127,29 @@ def _face_points(axis, sign, y):
     return x
 
 
-def _directions(axis, sign, y):
-    """Unit directions of cube-face points: axis (N,), sign (N,), y (N, ..., 5) -> (N, ..., 6)."""
-    x = _face_points(axis, sign, y)
+def _directions(axis, sign, y, metric):
+    """Unit directions of cube-face points mapped by the diagonal ``metric``:
+    axis (N,), sign (N,), y (N, ..., 5) -> (N, ..., 6)."""
+    x = _face_points(axis, sign, y) * metric
     return x / np.linalg.norm(x, axis=-1, keepdims=True)
 
 
-def _cells(axis, sign, lo, hi):
-    """What the bounds need of each cell.
+def _cells(axis, sign, lo, hi, metric):
+    """What the bounds need of each cell: the cone of ``metric * x`` over the box's points ``x``.
 
-    Returns the cap's centre (N, 6) and angular radius (N,), the corners on the cube face
-    (N, 32, 6) and their unit directions, and the smallest ``|x|`` over the box (N,).
+    Returns the cap's centre (N, 6) and angular radius (N,), the cell's 32 corners (N, 32, 6)
+    and their unit directions, and a lower bound on ``|x|`` over the cell's cross-section (N,).
+    A linear map keeps the cross-section a convex polytope with the mapped corners as vertices,
+    so every bound of :func:`_box_bound` holds as on the cube's faces.
     """
     mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
-    c = _directions(axis, sign, mid)
+    c = _directions(axis, sign, mid, metric)
     corners = _face_points(axis, sign, mid[:, None, :] + half[:, None, :] * _CORNERS[None])
+    corners = corners * metric
     unit = corners / np.linalg.norm(corners, axis=2, keepdims=True)
     cos = np.einsum("nkr,nr->nk", unit, c).min(axis=1)
     nearest = np.sqrt(1.0 + np.sum(np.maximum(np.maximum(lo, -hi), 0.0) ** 2, axis=1))
-    return c, np.arccos(np.clip(cos, -1.0, 1.0)), corners, unit, nearest
+    return c, np.arccos(np.clip(cos, -1.0, 1.0)), corners, unit, nearest * metric.min()
 
 
 def _box_bound(W, corners, corners_unit, nearest):
@@ -297,6 +301,7 @@ def sphere_minimum(
     incumbent: np.ndarray | None = None,
     *,
     gap: float,
+    metric=None,
     options: BranchBoundOptions = BranchBoundOptions(),
 ) -> SphereBounds:
     """Certified bounds on ``min_{|u|=1} p(u)`` with ``upper - lower <= gap`` when converged.
@@ -308,12 +313,18 @@ def sphere_minimum(
         A good direction (e.g. a local solver's): its value starts the incumbent.
     gap : float
         Absolute gap to reach (callers make it relative to the wrench scale).
+    metric : (6,) float, optional
+        Positive diagonal ``D``: the cells are boxes of the cube's faces mapped by ``D``, so a
+        set whose torque rows are ``k`` times its force rows is partitioned as evenly as an
+        isotropic one with ``D = (1, 1, 1, 1/k, 1/k, 1/k)`` (``p_W(D v / |D v|) = p_{DW}(v) /
+        |D v|``). Any positive ``D`` covers the sphere: only the work changes.
     options : BranchBoundOptions
 
     The search stops early, unconverged, when it finds ``p(u) < 0`` while ``stop_below_zero``:
     the origin is then outside the set, where :mod:`closure_nlp.nearest_point` is exact.
     """
     start = time.perf_counter()
+    metric = np.ones(6) if metric is None else np.asarray(metric, dtype=float)
     margin = ROUNDOFF * max(slots.row_scales()) * max(1, slots.m)
     state = _Incumbent(slots)
     if incumbent is not None:
@@ -323,9 +334,9 @@ def sphere_minimum(
     cells = rounds = 0
     converged = False
     while True:
-        c, delta, corners, corners_unit, nearest = _cells(axis, sign, lo, hi)
+        c, delta, corners, corners_unit, nearest = _cells(axis, sign, lo, hi, metric)
         mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
-        U = _directions(axis, sign, mid[:, None, :] + half[:, None, :] * _AXES[None])
+        U = _directions(axis, sign, mid[:, None, :] + half[:, None, :] * _AXES[None], metric)
         values, points = state.consider(U.reshape(-1, 6), with_values=True)
         points = points.reshape(len(lo), -1, 6)
         cells += len(lo)

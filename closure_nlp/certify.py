@@ -46,7 +46,7 @@ class CertifyOptions:
     """
 
     branch_bound: BranchBoundOptions = BranchBoundOptions()
-    max_iter: int = 500
+    max_iter: int = 200
 
     def __post_init__(self) -> None:
         if not isinstance(self.branch_bound, BranchBoundOptions):
@@ -180,7 +180,9 @@ def certified_bounds(
         u0 = verdict[2] / np.linalg.norm(verdict[2])
         value0 = float(slots.support(u0[None])[0])
     if value0 >= 0:
-        found = sphere_minimum(slots, u0, gap=gap(value0), options=budget)
+        found = sphere_minimum(
+            slots, u0, gap=gap(value0), metric=_metric(slots), options=budget
+        )
         if found.upper >= 0:  # the origin is not outside: rho = -min p
             lo, hi = -found.upper, -found.lower
             return _result(
@@ -202,6 +204,15 @@ def certified_bounds(
     # The origin is outside W: rho = dist(0, W) > 0.
     lo, hi, u, converged, more = nearest_point_bounds(slots, u0, gap(value0), options.max_iter)
     return _result(lo, hi, converged, rounds, evaluations + more, start_time, u, tol, unit, verdict)
+
+
+def _metric(slots: WrenchSlots) -> np.ndarray:
+    """The diagonal that partitions the sphere evenly for this set: torque directions scaled by
+    the force scale over the torque scale (lever arms of 10-100 units at torque_scale 1 make
+    the torque rows 10-100x the force rows)."""
+    force, torque = slots.row_scales(friction=False)
+    ratio = force / torque if force > 0 and torque > 0 else 1.0
+    return np.repeat([1.0, float(np.clip(ratio, 1.0 / WHITEN, WHITEN))], 3)
 
 
 def _whitened_verdict(slots, tol, options, tolerances):

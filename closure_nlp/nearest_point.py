@@ -14,6 +14,8 @@ import numpy as np
 
 from .wrenches import WrenchSlots
 
+STALL = 10  # steps without progress after which the bracket is returned as it is
+
 
 def min_norm_point(points: np.ndarray, tol: float = 1e-15):
     """Wolfe's algorithm: the point of ``conv(points)`` nearest the origin.
@@ -91,9 +93,10 @@ def nearest_point_bounds(slots: WrenchSlots, u0: np.ndarray, gap: float, max_ite
     hi = float(np.linalg.norm(x))
     kept = points[w > 0]
     evaluations = len(U)
+    stalled = 0
     for _ in range(max_iter):
-        if hi - lo <= gap or not hi > 0:
-            break
+        if hi - lo <= gap or not hi > 0 or stalled >= STALL:
+            break  # converged, or the last steps added nothing (the bracket stays valid)
         u = -x / np.linalg.norm(x)
         value, point = slots.evaluate(u[None])
         evaluations += 1
@@ -101,7 +104,9 @@ def nearest_point_bounds(slots: WrenchSlots, u0: np.ndarray, gap: float, max_ite
             lo, best_u = -float(value[0]), u
         kept = np.vstack([kept, point])
         x, w = min_norm_point(kept)
-        hi = min(hi, float(np.linalg.norm(x)))
+        norm = float(np.linalg.norm(x))
+        stalled = stalled + 1 if norm >= hi * (1.0 - 1e-15) else 0
+        hi = min(hi, norm)
         kept = kept[w > 0]
     return lo, max(hi, lo), best_u, hi - lo <= gap, evaluations
 
