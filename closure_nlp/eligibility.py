@@ -21,6 +21,7 @@ from .quality import (
     SolverStats,
     SupportMinimizer,
     SupportMinimum,
+    certificate_keys,
     certified_rho,
     signed_distance,
 )
@@ -72,17 +73,13 @@ class EligibilityResult:
     converged: bool = True
 
     def to_dict(self) -> dict:
-        out = {
+        return {
             "elements": list(self.elements),
             "rho_hat": self.rho_hat,
             "eligible": self.eligible,
             "direction": self.direction.tolist(),
+            **certificate_keys(self),
         }
-        if self.bounds is not None:
-            out["bounds"] = [float(self.bounds[0]), float(self.bounds[1])]
-            out["marginal"] = self.marginal
-            out["converged"] = self.converged
-        return out
 
 
 class Eligibility:

@@ -28,7 +28,7 @@ from .contacts import ContactSet
 from .elements import simplex_weights
 from .eligibility import Eligibility, padded_rows
 from .progress import Progress
-from .quality import SearchOptions, rho, search_rho
+from .quality import SearchOptions, certificate_keys, rho, search_rho
 from .selection import SCREEN_SEARCH
 from .sphere_search import sphere_samples
 from .wrenches import WrenchSlots
@@ -209,12 +209,7 @@ class PlacementResult:
             "rounds": self.rounds,
             "moves": [vars(m) for m in self.moves],
             "seconds": self.seconds,
-            **(
-                {"bounds": list(self.bounds), "marginal": self.marginal,
-                 "converged": self.converged}
-                if self.bounds is not None
-                else {}
-            ),
+            **certificate_keys(self),
         }
 
     def contact_file(self, name: str = "", units: str = "") -> dict:

@@ -152,7 +152,7 @@ class RhoResult:
     converged: bool = True
 
     def to_dict(self) -> dict:
-        out = {
+        return {
             "rho": self.rho,
             "force_closure": self.force_closure,
             "direction": self.direction.tolist(),
@@ -160,12 +160,18 @@ class RhoResult:
             "ipopt_runs": self.stats.ipopt_runs,
             "iterations": self.stats.iterations,
             "seconds": self.stats.seconds,
+            **certificate_keys(self),
         }
-        if self.bounds is not None:
-            out["bounds"] = [float(self.bounds[0]), float(self.bounds[1])]
-            out["marginal"] = self.marginal
-            out["converged"] = self.converged
-        return out
+
+
+def certificate_keys(result) -> dict:
+    """The JSON keys of a result's certificate (``bounds``, ``marginal``, ``converged``), or
+    none for the search alone; shared by every result that reports rho or rho_hat."""
+    if getattr(result, "bounds", None) is None:
+        return {}
+    lo, hi = result.bounds
+    return {"bounds": [float(lo), float(hi)], "marginal": result.marginal,
+            "converged": result.converged}
 
 
 class SupportMinProblem:
@@ -476,6 +482,7 @@ __all__ = [
     "SupportMinProblem",
     "SupportMinimizer",
     "SupportMinimum",
+    "certificate_keys",
     "certified_rho",
     "rho",
     "search_rho",

@@ -18,7 +18,7 @@ from .contact_count import require_closure_count
 from .eligibility import Eligibility, EligibilityResult
 from .errors import MethodError
 from .progress import Progress
-from .quality import SearchOptions, signed_distance
+from .quality import SearchOptions, certificate_keys, signed_distance
 
 # The light search that ranks the iterative algorithm's neighbours: few samples, one IPOPT run.
 SCREEN_SEARCH = SearchOptions(samples=16, smoothing=(), ipopt_starts=1, element_ipopt_starts=1)
@@ -110,18 +110,11 @@ class SelectionResult:
     converged: bool = True
 
     def to_dict(self) -> dict:
-        certified = {}
-        if self.bounds is not None:
-            certified = {
-                "bounds": [float(b) for b in self.bounds],
-                "marginal": self.marginal,
-                "converged": self.converged,
-            }
         return {
             "elements": list(self.elements),
             "rho_hat": self.rho_hat,
             "eligible": self.eligible,
-            **certified,
+            **certificate_keys(self),
             "direction": self.direction.tolist(),
             "history": [{"iteration": k, "rho_hat": v} for k, v in self.history],
             "evaluations": self.evaluations,
