@@ -159,18 +159,26 @@ FRESH_RUNS = 8  # new heuristic + iterative runs at most, when placements keep f
 
 def _alternatives(eligibility, seed, selection, second, progress):
     """Further eligible element sets to place, each multiset once: the next set of the pool
-    (eligible sets the iterative runs met, lowest rho_hat first), then the result of a new
-    heuristic + iterative run (seed derived from ``seed``), and so on alternately."""
+    (sets the iterative runs met, lowest rho_hat first; those only screened by a light search
+    are evaluated first and skipped unless eligible), then the result of a new heuristic +
+    iterative run (seed derived from ``seed``), and so on alternately."""
     tried = {_multiset(eligibility, second.elements)}
-    pool = list(second.eligible_sets)
+    pool = _pool([], second)
     runs = 0
     while pool or runs < FRESH_RUNS:
         while pool:
-            elements, value = pool.pop(0)
-            if _multiset(eligibility, elements) not in tried:
-                tried.add(_multiset(eligibility, elements))
-                yield elements, "iterative history", value
-                break
+            elements, value, proven = pool.pop(0)
+            key = _multiset(eligibility, elements)
+            if key in tried:
+                continue
+            tried.add(key)
+            if not proven:
+                found = eligibility(elements, certify=False)
+                if not found.eligible:
+                    continue
+                value = found.rho_hat
+            yield elements, "iterative history", value
+            break
         if runs == FRESH_RUNS:
             continue
         runs += 1
@@ -179,11 +187,19 @@ def _alternatives(eligibility, seed, selection, second, progress):
         )
         found = heuristic(eligibility, seed=derived, options=selection, progress=progress)
         fresh = iterative(eligibility, found.elements, options=selection, progress=progress)
-        pool = sorted(pool + list(fresh.eligible_sets), key=lambda item: item[1])
+        pool = _pool(pool, fresh)
         key = _multiset(eligibility, fresh.elements)
         if fresh.eligible and key not in tried:
             tried.add(key)
             yield fresh.elements, f"new selection {runs} (heuristic + iterative)", fresh.rho_hat
+
+
+def _pool(pool, run: SelectionResult) -> list:
+    """``pool`` with ``run``'s evaluated and screened sets, (elements, value, proven), lowest
+    value first."""
+    pool = pool + [(e, v, True) for e, v in run.eligible_sets]
+    pool += [(e, v, False) for e, v in run.candidate_sets]
+    return sorted(pool, key=lambda item: item[1])
 
 
 @lru_cache(maxsize=1)

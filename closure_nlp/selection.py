@@ -88,6 +88,10 @@ class SelectionResult:
     eligible_sets : tuple of (tuple of int, float)
         Iterative algorithm: the other eligible sets it evaluated and their rho_hat, lowest
         first (the next candidates when placement on the result fails).
+    candidate_sets : tuple of (tuple of int, float)
+        Iterative algorithm: neighbour sets the light search ranked but the run never fully
+        evaluated, with light values below zero, lowest first. A light value is never above the
+        full rho_hat, so these are candidates, not proven eligible: evaluate before use.
     bounds : (float, float)
         Certified ``lo <= rho_hat <= hi`` of the final set (the search steered by the search's
         values; the reported one is certified).
@@ -104,6 +108,7 @@ class SelectionResult:
     seconds: float
     rounds: int = 0
     eligible_sets: tuple[tuple[tuple[int, ...], float], ...] = ()
+    candidate_sets: tuple[tuple[tuple[int, ...], float], ...] = ()
     screened: int = 0
     bounds: tuple[float, float] | None = None
     marginal: bool = False
@@ -221,8 +226,7 @@ def iterative(
     current = list(eligibility.check_elements(start, "start"))
     m = eligibility.m
     seen: dict[tuple, EligibilityResult] = {}
-    screened: dict[tuple, tuple[float, np.ndarray]] = {}
-    light_calls = [0]
+    screened: dict[tuple, tuple[float, np.ndarray, tuple[int, ...]]] = {}
     light = eligibility.minimizer.with_search(SCREEN_SEARCH)
 
     def evaluate(elements, warm):
@@ -239,9 +243,9 @@ def iterative(
         if key not in screened:
             slots = eligibility.slots(elements)
             found = light(slots, warm)
-            screened[key] = (signed_distance(found, slots, light.tolerances), found.direction)
-            light_calls[0] += 1
-        return screened[key]
+            value = signed_distance(found, slots, light.tolerances)
+            screened[key] = (value, found.direction, tuple(elements))
+        return screened[key][:2]
 
     best = evaluate(current, None)
     history = [(0, best.rho_hat)]
@@ -288,6 +292,11 @@ def iterative(
         if progress:
             progress("iterative", step, best.rho_hat)
     others = sorted((r.rho_hat, r.elements) for r in seen.values() if r.eligible and r is not best)
+    unproven = sorted(
+        (value, elements)
+        for key, (value, _, elements) in screened.items()
+        if key not in seen and value < 0
+    )
     best = eligibility.certify(best)
     history[-1] = (history[-1][0], best.rho_hat)
     return SelectionResult(
@@ -299,7 +308,8 @@ def iterative(
         eligibility.evaluations - evaluations0,
         time.perf_counter() - t0,
         eligible_sets=tuple((elements, value) for value, elements in others),
-        screened=light_calls[0],
+        candidate_sets=tuple((elements, value) for value, elements in unproven),
+        screened=len(screened),
         bounds=best.bounds,
         marginal=best.marginal,
         converged=best.converged,

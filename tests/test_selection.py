@@ -75,6 +75,15 @@ def test_iterative_improves_a_bad_start_and_counts_its_work(ring):
     assert result.evaluations + result.screened >= 1 + len(result.history) - 1
     assert result.to_dict()["screened"] == result.screened
     assert result.seconds > 0
+    # Sets only screened are offered as candidates: never a fully evaluated one, lowest light
+    # value first, and each light value no higher than the set's full rho_hat.
+    evaluated = {tuple(sorted(e)) for e, _ in result.eligible_sets}
+    assert result.candidate_sets, "the ring's neighbours include screened eligible sets"
+    values = [v for _, v in result.candidate_sets]
+    assert values == sorted(values) and all(v < 0 for v in values)
+    for elements, value in result.candidate_sets:
+        assert tuple(sorted(elements)) not in evaluated
+        assert value <= ring(elements, certify=False).rho_hat + 1e-9 * max(1.0, abs(value))
 
 
 def test_run_selection_chains_heuristic_then_iterative(ring):
