@@ -44,6 +44,7 @@ from .wrenches import WrenchSlots
 ROUNDOFF = 1e-13
 _FREE = np.array([[j for j in range(6) if j != k] for k in range(6)])  # (6, 5)
 _CORNERS = np.array(np.meshgrid(*[[-1.0, 1.0]] * 5, indexing="ij")).reshape(5, -1).T  # (32, 5)
+CELLS_PER_ROUND = 128  # 1.1-1.7x faster than one halving per round (bench certify, process time)
 _AXES = np.vstack([np.zeros(5), np.eye(5), -np.eye(5)])  # (11, 5): centre and the axes' ends
 
 
@@ -209,11 +210,20 @@ def _anchor_cloud(u, scales=(1e-3, 1e-5, 1e-7)):
     Their support points hold every piece of ``p`` that meets at ``u`` (a kink's subgradients),
     so convex combinations of them reach the subgradient parallel to ``u`` at a minimum.
     """
-    Q, _ = np.linalg.qr(np.column_stack([u, np.eye(6)]))
-    E = Q[:, 1:6].T
-    blocks = [u[None]] + [u + eps * sgn * E for eps in scales for sgn in (1.0, -1.0)]
-    U = np.vstack(blocks)
-    return U / np.linalg.norm(U, axis=1, keepdims=True)
+    return _anchor_clouds(np.asarray(u)[None], np.asarray(scales, dtype=float)[None])[0]
+
+
+def _anchor_clouds(U: np.ndarray, scales: np.ndarray) -> np.ndarray:
+    """:func:`_anchor_cloud` of each row of ``U`` (N, 6), with its own scales (N, k)."""
+    N = len(U)
+    Q, _ = np.linalg.qr(
+        np.concatenate([U[:, :, None], np.broadcast_to(np.eye(6), (N, 6, 6))], axis=2)
+    )
+    E = np.swapaxes(Q[:, :, 1:6], 1, 2)  # (N, 5, 6): the tangent basis
+    steps = scales[:, :, None, None] * np.array([1.0, -1.0])[None, None, :, None]  # (N, k, 2, 1)
+    moved = U[:, None, None, None, :] + steps[..., None] * E[:, None, None, :, :]
+    cloud = np.concatenate([U[:, None, :], moved.reshape(N, -1, 6)], axis=1)
+    return cloud / np.linalg.norm(cloud, axis=2, keepdims=True)
 
 
 def _game_weights(M: np.ndarray, max_pivots: int = 300) -> np.ndarray:
@@ -244,24 +254,31 @@ def _game_weights(M: np.ndarray, max_pivots: int = 300) -> np.ndarray:
     basis[:, :C] = K + 1 + np.arange(C)
     basis[:, C] = j0
     eps = 1e-12
+    # Rows at their optimum leave the working arrays: a finished program never pivots again.
+    work = rows
+    done_T, done_basis = np.empty_like(T), np.empty_like(basis)
     for _ in range(max_pivots):
         obj = T[:, C + 1, :V]
         j = np.argmin(obj, axis=1)
-        active = obj[rows, j] < -eps
-        if not active.any():
-            break
-        col = T[rows, : C + 1, j]  # (N, C + 1)
+        here = np.arange(len(work))
+        col = T[here, : C + 1, j]  # (n, C + 1)
         rhs = T[:, : C + 1, -1]
         ratio = np.where(col > eps, rhs / np.where(col > eps, col, 1.0), np.inf)
         i = np.argmin(ratio, axis=1)
-        active &= np.isfinite(ratio[rows, i])
-        if not active.any():
-            break
-        n = rows[active]
-        prow = T[n, i[active], :] / T[n, i[active], j[active]][:, None]
-        T[n] -= T[n, :, j[active]][:, :, None] * prow[:, None, :]
-        T[n, i[active], :] = prow
-        basis[n, i[active]] = j[active]
+        active = (obj[here, j] < -eps) & np.isfinite(ratio[here, i])
+        if not active.all():
+            done_T[work[~active]], done_basis[work[~active]] = T[~active], basis[~active]
+            work, T, basis = work[active], T[active], basis[active]
+            i, j = i[active], j[active]
+            if not len(work):
+                break
+        here = np.arange(len(work))
+        prow = T[here, i, :] / T[here, i, j][:, None]
+        T -= T[here, :, j][:, :, None] * prow[:, None, :]
+        T[here, i, :] = prow
+        basis[here, i] = j
+    done_T[work], done_basis[work] = T, basis
+    T, basis = done_T, done_basis
     lam = np.zeros((N, K))
     values = T[:, : C + 1, -1]
     is_lam = basis < K
@@ -369,9 +386,7 @@ def sphere_minimum(
             # any kink crossing it) and a small cloud around its lowest sample (the pieces of p
             # meeting there), and their best combination, exactly.
             lowest = U[k, np.argmin(values.reshape(len(lo), -1)[k], axis=1)]
-            clouds = np.stack(
-                [_anchor_cloud(u, (0.25 * d, 0.01 * d)) for u, d in zip(lowest, delta[k])]
-            )
+            clouds = _anchor_clouds(lowest, np.outer(delta[k], [0.25, 0.01]))
             more = np.concatenate([corners_unit[k], clouds], axis=1)
             local = state.consider(more.reshape(-1, 6)).reshape(len(k), -1, 6)
             exact = _exact_bound(
@@ -390,8 +405,14 @@ def sphere_minimum(
             break
         axis, sign, lo, hi = _halve(axis[live], sign[live], lo[live], hi[live])
     return SphereBounds(
-        min(lower, state.value), state.value, state.u, converged, cells, state.evaluations,
-        rounds, time.perf_counter() - start,
+        min(lower, state.value),
+        state.value,
+        state.u,
+        converged,
+        cells,
+        state.evaluations,
+        rounds,
+        time.perf_counter() - start,
     )
 
 
@@ -432,17 +453,20 @@ def _initial_cells(splits: int):
     return axis, sign, np.tile(edges[grid], (12, 1)), np.tile(edges[grid + 1], (12, 1))
 
 
-def _halve(axis, sign, lo, hi):
-    """Every cell cut in two across its widest coordinate."""
-    widest = np.argmax(hi - lo, axis=1)
-    rows = np.arange(len(lo))
-    cut = 0.5 * (lo[rows, widest] + hi[rows, widest])
-    lo2, hi2 = lo.copy(), hi.copy()
-    hi[rows, widest] = cut
-    lo2[rows, widest] = cut
-    return (
-        np.concatenate([axis, axis]),
-        np.concatenate([sign, sign]),
-        np.vstack([lo, lo2]),
-        np.vstack([hi, hi2]),
-    )
+def _halve(axis, sign, lo, hi, cells_per_round: int = CELLS_PER_ROUND):
+    """Every cell cut in two across its widest coordinate; while few cells live, each is cut
+    across several coordinates at once (``2^k`` children, ``k <= 5``), so that a round holds
+    about ``cells_per_round``: fewer rounds, whose numpy overhead dominates small batches."""
+    cuts = 1
+    while cuts < 5 and len(lo) * 2 ** (cuts + 1) <= cells_per_round:
+        cuts += 1
+    for _ in range(cuts):
+        widest = np.argmax(hi - lo, axis=1)
+        rows = np.arange(len(lo))
+        cut = 0.5 * (lo[rows, widest] + hi[rows, widest])
+        lo2, hi2 = lo.copy(), hi.copy()
+        hi[rows, widest] = cut
+        lo2[rows, widest] = cut
+        axis, sign = np.concatenate([axis, axis]), np.concatenate([sign, sign])
+        lo, hi = np.vstack([lo, lo2]), np.vstack([hi, hi2])
+    return axis, sign, lo, hi

@@ -1,0 +1,42 @@
+"""The branch and bound's batched matrix-game solver against an independent LP solver (HiGHS)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.optimize import linprog
+
+from closure_nlp.branch_bound import _game_weights
+
+
+def _game_upper_bound(M: np.ndarray) -> float:
+    """An upper bound on max_lam min_c (M lam)_c from HiGHS's dual: corner weights ``mu``
+    give ``max_k (mu M)_k >= the game's value`` whatever their accuracy."""
+    C, K = M.shape
+    cost = np.zeros(K + 1)
+    cost[-1] = -1.0
+    A_ub = np.hstack([-M, np.ones((C, 1))])  # t - (M lam)_c <= 0
+    A_eq = np.hstack([np.ones((1, K)), np.zeros((1, 1))])
+    bounds = [(0, None)] * K + [(None, None)]
+    found = linprog(cost, A_ub=A_ub, b_ub=np.zeros(C), A_eq=A_eq, b_eq=[1.0], bounds=bounds)
+    assert found.status == 0
+    mu = np.maximum(-found.ineqlin.marginals, 0.0)
+    return float(((mu / mu.sum()) @ M).max())
+
+
+@pytest.mark.parametrize("shape", [(32, 11), (32, 95), (5, 40), (40, 3)])
+def test_game_weights_reach_the_lp_value(shape):
+    rng = np.random.default_rng(sum(shape))
+    C, K = shape
+    # Batches mix easy games (a dominant column) with random ones, so rows finish at different
+    # pivots; near-duplicate columns mimic support points of nearby directions.
+    M = rng.normal(size=(24, C, K))
+    M[::3, :, 0] += 5.0
+    M[1::3, :, 1:] = M[1::3, :, :1] + 1e-9 * rng.normal(size=(8, C, K - 1))
+    lam = _game_weights(M)
+    assert np.all(lam >= 0) and np.allclose(lam.sum(axis=1), 1.0, atol=1e-12)
+    values = np.einsum("nck,nk->nc", M, lam).min(axis=1)
+    for n in range(len(M)):
+        # Feasible weights give at most the value; the dual bound at least: both within 1e-9.
+        upper = _game_upper_bound(M[n])
+        assert upper - 1e-9 * max(1.0, abs(upper)) <= values[n] <= upper + 1e-12
