@@ -25,7 +25,7 @@ from .quality import (
     certified_rho,
     signed_distance,
 )
-from .validation import as_number
+from .validation import as_torque_scale
 from .wrenches import WrenchSlots
 
 ROW_BUCKETS = (1, 2, 4, 8, 16, 32, 64)
@@ -112,7 +112,7 @@ class Eligibility:
                 raise TypeError(f"specs[{i}]: expected a ContactSpec, got {type(s).__name__}")
         self.model = model
         self.specs = specs
-        self.torque_scale = as_number(torque_scale, "torque_scale", minimum=0.0, strict=True)
+        self.torque_scale = as_torque_scale(torque_scale)
         self.minimizer = minimizer or SupportMinimizer()
         self.evaluations = 0
         self._vertex_G = [e.grasp_matrices(self.torque_scale) for e in model.elements]

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from closure_nlp.contacts import Contact, ContactSet, contact_set_from_dict, contact_specs
-from closure_nlp.elements import Element
+from closure_nlp.elements import Element, Model
+from closure_nlp.eligibility import Eligibility
 from closure_nlp.files import load_json, read_mesh
 from closure_nlp.validation import (
     MAX_COORDINATE,
@@ -68,6 +69,11 @@ def test_torque_scale_range(torque_scale):
     c = Contact([0, 0, 0], [0, 0, 1])
     with pytest.raises(ValueError, match="torque_scale: .*accepted range"):
         ContactSet((c,), torque_scale)
+    # Element sets take the same range: an Eligibility at 1e300 would overflow its torque rows.
+    square = Element("facet", [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], [0, 0, 1])
+    model = Model((square,), (), "square")
+    with pytest.raises(ValueError, match="torque_scale: .*accepted range"):
+        Eligibility(model, contact_specs(1, type="pcwf"), torque_scale)
 
 
 def test_coordinates_beyond_range():
