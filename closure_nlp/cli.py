@@ -30,6 +30,7 @@ from .files import (
     staged_folder,
     write_json,
 )
+from .interrupts import interruptible
 from .placement import PlacementOptions, Placer
 from .planning import load_contacts, plan, write_report
 from .progress import progress_line
@@ -855,7 +856,7 @@ def main(argv: list[str] | None = None) -> int:
     """Run one command; returns the exit status (module docstring) and never raises."""
     try:
         args = build_parser().parse_args(argv)
-        with _one_line_warnings(), _interruptible():
+        with _one_line_warnings(), interruptible():
             args.run(args)
     except SystemExit as exc:  # argparse: --help (0) or a bad flag (2, its line already printed)
         return exc.code if isinstance(exc.code, int) else 2
@@ -908,54 +909,6 @@ def _one_line_warnings():
         yield
     finally:
         warnings.showwarning = saved
-
-
-@contextlib.contextmanager
-def _interruptible():
-    """Ctrl-C raises ``KeyboardInterrupt`` in Python code, never inside a CasADi call.
-
-    CasADi polls Python's signal handlers during IPOPT and, when one raises, stops the solver and
-    returns its last iterate as if it were the answer (with a warning on stderr). So inside a
-    CasADi call the handler only notes the interrupt and polls with a short timer until Python
-    code runs again, and raises there.
-    """
-    import logging
-    import signal
-    import threading
-
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    import casadi
-
-    casadi_dir = os.path.dirname(casadi.__file__)
-
-    def inside_casadi(frame) -> bool:
-        return frame is not None and frame.f_code.co_filename.startswith(casadi_dir)
-
-    def on_signal(signum, frame):
-        if signum != signal.SIGALRM or interrupted:
-            if inside_casadi(frame):
-                interrupted.append(signum)
-                signal.setitimer(signal.ITIMER_REAL, 0.002)
-                return
-            signal.setitimer(signal.ITIMER_REAL, 0)
-            logging.disable(logging.CRITICAL)  # Dask's teardown logs are not for the user now
-            raise KeyboardInterrupt
-
-    interrupted: list[int] = []
-    # Not SIGTERM: a Python handler runs only between bytecodes, so `kill` or `timeout` would
-    # wait for a long C call (qhull, a big numpy product) instead of ending the process.
-    signums = (signal.SIGINT, signal.SIGALRM)
-    saved = [signal.signal(signum, on_signal) for signum in signums]
-    try:
-        yield
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        for signum, handler in zip(signums, saved):
-            signal.signal(signum, handler)
-        logging.disable(logging.NOTSET)  # an in-process caller gets its logging back
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -27,6 +27,7 @@ from .contact_count import require_closure_count
 from .contacts import ContactSet
 from .elements import simplex_weights
 from .eligibility import Eligibility, padded_rows
+from .interrupts import interruptible
 from .progress import Progress
 from .quality import SearchOptions, certificate_keys, rho, search_rho
 from .selection import SCREEN_SEARCH
@@ -319,7 +320,8 @@ class ExchangeProblem:
         flat = np.concatenate(c0)
         lbx = np.append(np.maximum(flat - radius, 0.0), -np.inf)
         ubx = np.append(np.minimum(flat + radius, 1.0), np.inf)
-        sol = self._solver(x0=x0, p=params, lbx=lbx, ubx=ubx, lbg=self._lbg, ubg=self._ubg)
+        with interruptible():
+            sol = self._solver(x0=x0, p=params, lbx=lbx, ubx=ubx, lbg=self._lbg, ubg=self._ubg)
         x = np.asarray(sol["x"]).ravel()
         weights, at = [], 0
         for k in self.rows:
@@ -517,7 +519,11 @@ class Placer:
             # The exchange steered by the search's values, which can miss; certified, the start
             # is better: keep it, so that the result is never worse than the start it reports.
             elements, best_w, moves, contact_set, final = (
-                list(start_elements), weights, [], start_set, start
+                list(start_elements),
+                weights,
+                [],
+                start_set,
+                start,
             )
         placed = tuple(
             PlacedContact(e, w, model.elements[e].position(w), model.elements[e].inward_normal)

@@ -26,6 +26,7 @@ import casadi as ca
 import numpy as np
 
 from .contacts import ContactSet
+from .interrupts import interruptible
 from .sphere_search import descend, smoothed_descent, sphere_samples
 from .tolerances import DEFAULT_TOLERANCES, Tolerances
 from .validation import as_vector
@@ -170,8 +171,11 @@ def certificate_keys(result) -> dict:
     if getattr(result, "bounds", None) is None:
         return {}
     lo, hi = result.bounds
-    return {"bounds": [float(lo), float(hi)], "marginal": result.marginal,
-            "converged": result.converged}
+    return {
+        "bounds": [float(lo), float(hi)],
+        "marginal": result.marginal,
+        "converged": result.converged,
+    }
 
 
 class SupportMinProblem:
@@ -252,8 +256,13 @@ class SupportMinProblem:
         self._lbg = np.concatenate([np.zeros(n_ineq), [0.0, 1.0]])
         self._ubg = np.concatenate([np.full(n_ineq, inf), [0.0, 1.0]])
         self._lbx = np.concatenate(
-            [np.full(6, -2.0), np.zeros(self._n_s), np.full(self._n_P, -inf), np.zeros(m),
-             [-inf, 0.0]]
+            [
+                np.full(6, -2.0),
+                np.zeros(self._n_s),
+                np.full(self._n_P, -inf),
+                np.zeros(m),
+                [-inf, 0.0],
+            ]
         )
         self._ubx = np.concatenate([np.full(6, 2.0), np.full(self._n_s + self._n_P + m + 2, inf)])
 
@@ -285,14 +294,15 @@ class SupportMinProblem:
         """One IPOPT run from ``u0``; returns (unit u, iterations, return status, success)."""
         if params is None:
             params = self.parameters(slots)
-        sol = self._solver(
-            x0=self.initial_guess(slots, u0),
-            p=params,
-            lbx=self._lbx,
-            ubx=self._ubx,
-            lbg=self._lbg,
-            ubg=self._ubg,
-        )
+        with interruptible():
+            sol = self._solver(
+                x0=self.initial_guess(slots, u0),
+                p=params,
+                lbx=self._lbx,
+                ubx=self._ubx,
+                lbg=self._lbg,
+                ubg=self._ubg,
+            )
         stats = self._solver.stats()
         u = np.asarray(sol["x"][:6]).ravel()
         norm = np.linalg.norm(u)

@@ -167,3 +167,34 @@ def test_ctrl_c_while_starting_is_one_line():
         "assert sys.excepthook is hook\n"
     )
     subprocess.run([sys.executable, "-c", check], env=_env(), timeout=60, check=True)
+
+
+API_LOOP = """
+import os, signal, sys, threading, time
+import numpy as np
+from closure_nlp.bench import random_contact_set
+from closure_nlp.quality import SupportMinimizer
+from closure_nlp.wrenches import WrenchSlots
+
+slots = WrenchSlots.from_contacts(random_contact_set(np.random.default_rng(0), ["pcwf"] * 120))
+problem = SupportMinimizer().problem(slots)
+rng = np.random.default_rng(1)
+problem.solve(slots, np.eye(6)[0])  # built and warm: the loop below is nearly all IPOPT
+threading.Timer(0.5, os.kill, (os.getpid(), signal.SIGINT)).start()
+start = time.perf_counter()
+try:
+    while time.perf_counter() - start < 60:
+        problem.solve(slots, rng.normal(size=6))
+except KeyboardInterrupt:
+    sys.exit(7)
+sys.exit(0)
+"""
+
+
+def test_sigint_during_ipopt_reaches_an_api_caller():
+    """A library caller's Ctrl-C, which lands inside IPOPT nearly always here, is raised as
+    KeyboardInterrupt after the solve instead of being swallowed by CasADi."""
+    proc = subprocess.run(
+        [sys.executable, "-c", API_LOOP], env=_env(), capture_output=True, text=True, timeout=120
+    )
+    assert proc.returncode == 7, proc.stderr

@@ -1,0 +1,62 @@
+"""Ctrl-C during a CasADi solve: a ``KeyboardInterrupt`` once Python code runs again.
+
+CasADi polls Python's signal handlers during IPOPT and, when one raises, stops the solver and
+returns its last iterate as if it were the answer, status and all: the interrupt is lost and a
+half-solved value looks like a result. Inside :func:`interruptible` the SIGINT handler only notes
+an interrupt that lands inside CasADi and raises as soon as Python code runs again (a 2 ms timer),
+or when the block ends. The CLI holds it around a whole command; every solver call of the API
+holds it too, so library users get the interrupt as well. Nested uses cost nothing.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import signal
+import threading
+
+_active = threading.local()
+
+
+@contextlib.contextmanager
+def interruptible():
+    """Ctrl-C raises ``KeyboardInterrupt`` in Python code, never inside a CasADi call.
+
+    Only in the main thread (signal handlers live there); elsewhere, and inside another
+    ``interruptible`` block, it does nothing.
+    """
+    if threading.current_thread() is not threading.main_thread() or getattr(_active, "on", False):
+        yield
+        return
+    import casadi
+
+    casadi_dir = os.path.dirname(casadi.__file__)
+    interrupted: list[int] = []
+
+    def on_signal(signum, frame):
+        if signum != signal.SIGALRM or interrupted:
+            if frame is not None and frame.f_code.co_filename.startswith(casadi_dir):
+                interrupted.append(signum)
+                signal.setitimer(signal.ITIMER_REAL, 0.002)
+                return
+            signal.setitimer(signal.ITIMER_REAL, 0)
+            logging.disable(logging.CRITICAL)  # Dask's teardown logs are not for the user now
+            raise KeyboardInterrupt
+
+    # Not SIGTERM: a Python handler runs only between bytecodes, so `kill` or `timeout` would
+    # wait for a long C call (qhull, a big numpy product) instead of ending the process.
+    signums = (signal.SIGINT, signal.SIGALRM)
+    saved = [signal.signal(signum, on_signal) for signum in signums]
+    _active.on = True
+    try:
+        yield
+        if interrupted:  # noted inside CasADi; the timer had not fired yet
+            raise KeyboardInterrupt
+    finally:
+        _active.on = False
+        if interrupted:
+            signal.setitimer(signal.ITIMER_REAL, 0)
+        for signum, handler in zip(signums, saved):
+            signal.signal(signum, handler)
+        logging.disable(logging.NOTSET)  # an in-process caller gets its logging back
