@@ -14,7 +14,7 @@ from closure_nlp.contacts import ContactSet, contact_specs, load_contact_set
 from closure_nlp.elements import Element, Model, save_model
 from closure_nlp.eligibility import Eligibility
 from closure_nlp.placement import PlacementOptions, Placer, nearest_weights
-from closure_nlp.quality import rho
+from closure_nlp.quality import rho, search_rho
 from tests import reference
 from tests.shapes import box_model
 
@@ -63,7 +63,12 @@ def test_given_weights_start_and_bad_weights():
         s.at(eligibility.model.elements[e].position(w), eligibility.model.elements[e].inward_normal)
         for s, e, w in zip(eligibility.specs, [0, 1, 2, 3], start)
     ]
-    assert result.start_rho == pytest.approx(rho(ContactSet(tuple(contacts))).rho, abs=1e-9)
+    # The start's search value (certified only when the final rho does not beat it) ...
+    start_set = ContactSet(tuple(contacts))
+    found = search_rho(start_set, minimizer=eligibility.minimizer)
+    assert result.start_rho == pytest.approx(found.rho, abs=1e-9)
+    # ... is never above the certified one, so the final rho beats the certified start too.
+    assert result.start_rho <= rho(start_set).rho + 1e-9
     assert result.rho <= result.start_rho
     with pytest.raises(ValueError, match=r"weights\[1\]: weights must be >= 0 and sum to 1"):
         placer([0, 1, 2, 3], weights=[start[0], [0.5, 0.6, 0.0, 0.0], start[0], start[0]])
@@ -95,6 +100,46 @@ def test_contact_moves_to_a_neighbour_only_when_that_helps():
         assert move.rho < stay.rho
     else:
         assert move.rho == pytest.approx(stay.rho, abs=1e-9)
+
+
+def test_rounds_count_every_exchange_round(monkeypatch):
+    """Neighbour trials that do not help still cost rounds: ``rounds`` counts every solve of
+    the exchange NLP, with and without shared working sets."""
+    from closure_nlp import placement
+
+    solves = []
+    solve = placement.ExchangeProblem.solve
+    monkeypatch.setattr(
+        placement.ExchangeProblem,
+        "solve",
+        lambda self, *args: solves.append(1) or solve(self, *args),
+    )
+    model = _strip_model()
+    eligibility = Eligibility(model, contact_specs(4, type="pcwf", mu=0.5), torque_scale=0.5)
+    for share in (True, False):
+        solves.clear()
+        options = PlacementOptions(starts=2, share_directions=share)
+        result = Placer(eligibility, options)([0, 2, 3, 4])
+        assert result.rounds == len(solves) > 0
+        assert result.force_closure and result.rho <= result.start_rho
+
+
+def test_frictionless_exchange_matches_the_general_form(monkeypatch):
+    """Frictionless contacts get the linear exchange NLP; forced into the general form (zero
+    friction pieces under the square root) the placement is the same."""
+    from closure_nlp import placement
+
+    eligibility = Eligibility(box_model(1.0), contact_specs(7, type="fpc"))
+    options = PlacementOptions(starts=1, extra_starts=0, neighbour_moves=0)
+    elements = [0, 1, 2, 3, 4, 5, 0]
+    linear = Placer(eligibility, options)
+    fast = linear(elements)
+    assert all(key[-1] == (True,) * 7 for key in linear._problems)
+    monkeypatch.setattr(placement, "friction_pieces", lambda *args: np.ones((1, 4)))
+    general = Placer(eligibility, options)
+    slow = general(elements)
+    assert all(key[-1] == (False,) * 7 for key in general._problems)
+    assert fast.rho == pytest.approx(slow.rho, abs=1e-6 * max(1.0, abs(slow.rho)))
 
 
 def test_nearest_weights():

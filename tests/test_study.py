@@ -268,6 +268,9 @@ def test_serial_run_matches_plan(tiny, serial_rows):
     assert abs(row.rho - result.placement.rho) <= 1e-9
     assert abs(row.iterative_rho_hat - result.iterative.rho_hat) <= 1e-9
     assert row.rho < 0 and row.force_closure
+    if Path("/proc/self/status").exists():  # the worker's memory, read from /proc on Linux
+        assert (serial_rows.peak_rss_mib >= serial_rows.rss_mib).all()
+        assert (serial_rows.rss_mib > 10).all()  # a Python process with numpy holds more
 
 
 def test_a_new_model_releases_the_solvers_of_the_previous_one(tmp_path):

@@ -40,8 +40,9 @@ A result row (:data:`ROW_COLUMNS`) holds the task's inputs, ``status`` (``ok`` o
 ``seconds``; the placement's ``elements``, ``rho``, ``force_closure``, ``start_rho``, rounds,
 moves, seconds and the placed contacts (JSON); the task's ``seconds`` (the three steps),
 ``setup_seconds`` (model and problem objects; CasADi builds its solvers lazily, inside the first
-step), ``wall_seconds``, ``solvers_built`` (this task met an empty cache), ``worker``
-(``host:pid``) and ``finished`` (UTC).
+step), ``wall_seconds``, ``solvers_built`` (this task met an empty cache), ``rss_mib`` and
+``peak_rss_mib`` (the worker's resident set at the task's end and its peak so far, Linux),
+``worker`` (``host:pid``) and ``finished`` (UTC).
 The package has one module per concept: :mod:`.grid` (the study file, its grid, the task groups),
 :mod:`.tasks` (a task and running it on a worker), :mod:`.store` (the Parquet result files),
 :mod:`.running` (the driver, on Dask or serially), :mod:`.summary` (tables) and :mod:`.plots`.

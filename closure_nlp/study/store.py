@@ -45,6 +45,8 @@ def _columns() -> list[tuple[str, str]]:
         ("setup_seconds", "real"),
         ("solvers_built", "flag"),
         ("wall_seconds", "real"),
+        ("rss_mib", "real"),
+        ("peak_rss_mib", "real"),
         *[(k, "text") for k in ("worker", "finished", "closure_nlp")],
     ]
 

@@ -225,8 +225,26 @@ def run_task(task: Task, model_text: str | None = None) -> dict:
         setup_seconds=setup,
         solvers_built=built,
         wall_seconds=time.perf_counter() - t0,
+        **worker_memory(),
     )
     return row
+
+
+def worker_memory() -> dict:
+    """This process's resident set now and its peak so far, in MiB (Linux ``/proc``; empty
+    elsewhere): a study's ``results.csv`` shows what its workers held."""
+    keys = {"VmRSS:": "rss_mib", "VmHWM:": "peak_rss_mib"}
+    try:
+        with open("/proc/self/status", encoding="ascii") as status:
+            lines = status.read().splitlines()
+    except OSError:
+        return {}
+    found = {}
+    for line in lines:
+        parts = line.split()
+        if parts and parts[0] in keys:
+            found[keys[parts[0]]] = int(parts[1]) / 1024.0  # kB
+    return found
 
 
 def task_row(task: Task) -> dict:
