@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: install demo test test-fast lint bench clean
+.PHONY: install demo test test-fast lint bench compare-peers clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -34,6 +34,30 @@ bench: $(STAMP)
 	$(BIN)/python -m closure_nlp.bench certify
 	$(BIN)/python -m closure_nlp.bench select
 	$(BIN)/python -m closure_nlp.bench plan
+
+# The outside implementations compared in examples/compare_solvers.py --peers, each in its own
+# environment under .peers/ (never part of `make test`). graspnetAPI's own requirements do not
+# install on Python 3.11 (it pins numpy==1.20.3; opencv-python's build wants numpy==1.21.2), so
+# it goes in without them, beside what Dex-Net's quality module imports, with numpy < 2 (pyhull
+# needs it). The GraspIt!-style epsilon is ours and runs in .venv.
+PEERS := .peers
+KLAMPT_PACKAGES := klampt==0.10.1.post1 'numpy<2.5'
+DEXNET_PACKAGES := 'numpy<2' pyhull==2015.2.1 cvxopt scipy matplotlib ipython trimesh \
+	scikit-image scikit-learn autolab_core
+
+$(PEERS)/klampt/.installed:
+	$(PYTHON) -m venv $(PEERS)/klampt
+	$(PEERS)/klampt/bin/python -m pip install --quiet $(KLAMPT_PACKAGES)
+	touch $@
+
+$(PEERS)/dexnet/.installed:
+	$(PYTHON) -m venv $(PEERS)/dexnet
+	$(PEERS)/dexnet/bin/python -m pip install --quiet $(DEXNET_PACKAGES)
+	$(PEERS)/dexnet/bin/python -m pip install --quiet --no-deps graspnetapi==1.2.11
+	touch $@
+
+compare-peers: $(STAMP) $(PEERS)/klampt/.installed $(PEERS)/dexnet/.installed
+	MPLBACKEND=Agg $(BIN)/python examples/compare_solvers.py --peers
 
 clean:
 	rm -rf $(VENV) build *.egg-info

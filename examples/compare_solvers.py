@@ -35,6 +35,7 @@ import csv
 import io
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import matplotlib
@@ -43,17 +44,20 @@ from scipy.spatial import ConvexHull, QhullError
 
 from closure_nlp.bench import paper_baseline
 from closure_nlp.certify import certified_bounds
-from closure_nlp.contacts import ContactType, contact_specs
+from closure_nlp.contacts import ContactSet, ContactType, contact_specs, load_contact_set
 from closure_nlp.crosscheck import ball_minimum, force_closure_check
 from closure_nlp.elements import load_model
 from closure_nlp.eligibility import Eligibility
 from closure_nlp.files import write_atomic
-from closure_nlp.quality import search_rho
+from closure_nlp.quality import rho, search_rho
 from closure_nlp.random_sets import random_contact_set
 from closure_nlp.wrenches import WrenchSlots
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402  (after the backend is chosen)
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import peers  # noqa: E402  (examples/peers.py: the outside implementations)
 
 ROOT = Path(__file__).resolve().parents[1]
 TYPES = ["fpc", "pcwf", "sfcl", "sfce"]
@@ -93,19 +97,24 @@ def element_suite(small: bool, seeds: int):
             yield f"{name} {kind}", m, seed, eligibility, rng.choice(len(model), m).tolist()
 
 
-def edge_wrenches(contact_set) -> np.ndarray:
-    """Wrenches of every contact's polyhedral cone edges at ``f_max``: (k, 6)."""
+def edge_wrenches(contact_set, edges: int = EDGES, owners: bool = False):
+    """Wrenches of every contact's polyhedral cone edges at ``f_max``: (k, 6).
+
+    The edges lie on the cone (an inscribed pyramid); soft fingers add the two spin tips. With
+    ``owners``, also the (k,) index of the contact each row belongs to.
+    """
     G = contact_set.grasp_matrices()
-    angles = 2 * np.pi * np.arange(EDGES) / EDGES
-    out = []
-    for Gi, c in zip(G, contact_set.contacts):
+    angles = 2 * np.pi * np.arange(edges) / edges
+    out, owner = [], []
+    for i, (Gi, c) in enumerate(zip(G, contact_set.contacts)):
         forces = [np.array([1.0, 0.0, 0.0, 0.0])]
         if c.type is not ContactType.FPC:
             forces = [np.array([1.0, c.mu * np.cos(a), c.mu * np.sin(a), 0.0]) for a in angles]
         if c.type in (ContactType.SFCL, ContactType.SFCE):
             forces += [np.array([1.0, 0.0, 0.0, s * c.mu_s]) for s in (1.0, -1.0)]
         out += [c.f_max * Gi @ f for f in forces]
-    return np.array(out)
+        owner += [i] * len(forces)
+    return (np.array(out), np.array(owner)) if owners else np.array(out)
 
 
 def graspit_rho(contact_set) -> float:
@@ -294,14 +303,315 @@ def chart(rows: list[dict], path: Path) -> None:
     write_atomic(path, buffer.getvalue())
 
 
+# --- outside implementations (--peers) ----------------------------------------------------------
+
+PEER_EDGES = {"klampt_4": 4, "klampt_8": 8, "klampt_64": 64}  # the others use EDGES
+LINF_POINTS = 200_000  # GraspIt!'s sum of all point combinations: skip sets with more
+VARIANTS = ("original", "flipped", "scaled")  # all normals negated; positions x10
+
+
+def variant(contact_set: ContactSet, name: str) -> ContactSet:
+    """The same grasp up to a change that cannot change force closure.
+
+    Negating every normal negates every wrench (W -> -W: same distance to the origin); scaling
+    positions about the reference point is an invertible map of the torques.
+    """
+    if name == "original":
+        return contact_set
+    p = contact_set.reference_point
+    if name == "flipped":
+        changed = [replace(c, inward_normal=-c.inward_normal) for c in contact_set.contacts]
+    else:
+        changed = [replace(c, position=p + 10.0 * (c.position - p)) for c in contact_set.contacts]
+    return ContactSet(tuple(changed), contact_set.torque_scale, p)
+
+
+def peer_sets(small: bool, seeds: int):
+    """(family, kind, m, seed, ContactSet): the seeded suite, then examples/peer_cases."""
+    for kind, m, seed, cs in suite(small, seeds):
+        yield "suite", kind, m, seed, cs
+    for path in sorted(peers.CASES.glob("*.contacts.json")):
+        cs = load_contact_set(path)
+        yield "cases", path.name.removesuffix(".contacts.json"), len(cs), 0, cs
+
+
+def run_peers(small: bool, seeds: int, timeout: float) -> list[dict]:
+    """One row per (set, variant, metric): ours (certified rho) and every installed peer's."""
+    workers = {}
+    for name in peers.PEERS:
+        if peers.peer_python(name) is None:
+            print(f"peer {name}: not set up (make compare-peers), skipped", file=sys.stderr)
+        else:
+            workers[name] = peers.PeerWorker(name, timeout)
+    rows, linf_stop = [], {}
+    try:
+        for family, kind, m, seed, cs in peer_sets(small, seeds):
+            search_rho(cs)  # build and warm the NLP of this shape: we time reuse
+            ours, ours_ms = timed(rho, cs)
+            lo, hi = ours.bounds
+            wrenches = {k: edge_wrenches(cs, k) for k in (4, EDGES, 64)}
+            base = {
+                "family": family, "kind": kind, "m": m, "seed": seed, "lo": lo, "hi": hi,
+                "certified": ours.force_closure, "marginal": ours.marginal,
+                "fpc": sum(t is ContactType.FPC for t in cs.types),
+                "l1_ours": max(0.0, -graspit_rho(cs)),
+                **{f"lin_{k}": peers.polyhedral_closure(w) for k, w in wrenches.items()},
+            }  # fmt: skip
+            rows.append({**base, "variant": "original", "metric": "closure_nlp",
+                         "status": "ok", "verdict": ours.force_closure, "value": ours.rho,
+                         "ms": ours_ms})  # fmt: skip
+            for name in VARIANTS:
+                changed = variant(cs, name)
+                W, owner = edge_wrenches(changed, owners=True)
+                request = peers.request(changed, W, owner)
+                for peer, worker in workers.items():
+                    if peer == "graspit":
+                        if name != "original":
+                            continue  # its verdicts cannot change: our own qhull
+                        points = np.prod(np.bincount(owner) + 1.0)
+                        if m >= linf_stop.get(kind, np.inf) or points > LINF_POINTS:
+                            answer = {
+                                "skipped": f"{points:.0f} sums; a smaller set timed out"
+                                if points <= LINF_POINTS
+                                else f"{points:.0f} sums"
+                            }
+                        else:
+                            answer = worker.ask(request)
+                            if "timeout" in answer:
+                                linf_stop[kind] = m
+                    else:
+                        answer = worker.ask(request)
+                    rows += peer_rows({**base, "variant": name}, peer, answer)
+            print(f"{family} {kind} m={m} seed={seed}: certified {ours.force_closure} "
+                  f"[{lo:+.6f}, {hi:+.6f}]", file=sys.stderr)  # fmt: skip
+    finally:
+        for worker in workers.values():
+            worker.close()
+    return rows
+
+
+def peer_rows(base: dict, peer: str, answer: dict) -> list[dict]:
+    """Rows of one peer's answer: every metric it offers, with its status."""
+    rows = []
+    for metric in peers.PEERS[peer][1]:
+        row = {**base, "metric": metric, "verdict": None, "value": None, "ms": None}
+        failure = next((k for k in ("crash", "timeout", "skipped", "error") if k in answer), None)
+        if failure:
+            rows.append({**row, "status": failure, "message": answer[failure]})
+            continue
+        if metric not in answer:
+            continue  # not offered for this set (Dex-Net's antipodal test: 2 PCwF only)
+        result = answer[metric]
+        if "error" in result:
+            status = "unsupported" if result["error"].startswith("unsupported") else "error"
+            rows.append({**row, "status": status, "message": result["error"]})
+            continue
+        rows.append({**row, "status": "ok", **result})
+        if row["variant"] == "original" and result["verdict"] != base["certified"]:
+            rows[-1]["cause"] = disagreement_cause(rows[-1], answer)
+    return rows
+
+
+def disagreement_cause(row: dict, answer: dict) -> str:
+    """Why a peer's verdict differs from the certified one, from what was measured on the set.
+
+    ``answer`` holds the peer's other metrics on the same set (Klampt's 64-edge verdict).
+    """
+    metric = row["metric"]
+    edges = PEER_EDGES.get(metric, EDGES)
+    if row["certified"]:  # the peer misses a closure
+        finer = answer.get("klampt_64", {}).get("verdict") if metric.startswith("klampt") else None
+        if finer or not row[f"lin_{edges}"]:
+            return f"linearisation: the inscribed {edges}-edge cones lose closure (" + (
+                "Klampt's 64-edge test finds it)" if finer else "our LP on them agrees)"
+            )
+        return f"unexplained: our LP on {edges}-edge cones finds closure"
+    if metric == "dexnet_antipodal":
+        return "peer's model: the antipodal test ignores the twist about the contact line"
+    if metric.startswith("dexnet") and (row.get("hull_distance") or 0.0) < 1e-3:
+        return (
+            "peer's tolerance: origin outside the hull but within 1e-3 (absolute) of it "
+            f"({row['hull_distance']:.1e}), taken as inside: an equilibrium test"
+        )
+    if metric.startswith("klampt") and row["fpc"] > 0:
+        return (
+            "peer bug: a frictionless contact (friction 0) acts as a free force; any 3 "
+            "non-collinear ones are called force closure"
+        )
+    if row["marginal"]:
+        return "degeneracy: the certified bracket reaches 0 (a set without interior)"
+    if row[f"lin_{edges}"]:
+        return f"unexplained: our LP on the {edges}-edge cones finds closure, the certificate not"
+    return f"peer bug: closure claimed, but the {edges}-edge cones cannot give it (our LP)"
+
+
+def _percentile(values, q) -> float | None:
+    return float(np.percentile(values, q)) if values else None
+
+
+def peer_summary(rows: list[dict]) -> list[dict]:
+    """Per metric: agreement with the certified verdict, ms, failures, invariance, values."""
+    out = []
+    for metric, label in {"closure_nlp": "closure_nlp rho (certified)", **peers.METRICS}.items():
+        mine = [r for r in rows if r["metric"] == metric]
+        if not mine:
+            continue
+        original = [r for r in mine if r["variant"] == "original"]
+        ok = [r for r in original if r["status"] == "ok"]
+        ms = [r["ms"] for r in ok]
+        verdicts = {(r["family"], r["kind"], r["m"], r["seed"]): r["verdict"] for r in ok}
+        changed = {
+            (r["family"], r["kind"], r["m"], r["seed"])
+            for r in mine
+            if r["variant"] != "original" and r["status"] == "ok"
+            and verdicts.get((r["family"], r["kind"], r["m"], r["seed"]), r["verdict"])
+            != r["verdict"]
+        }  # fmt: skip
+        count = {s: sum(r["status"] == s for r in mine) for s in ("error", "crash", "timeout")}
+        entry = {
+            "metric": metric, "label": label, "sets": len(original), "answered": len(ok),
+            "agree": sum(r["verdict"] == r["certified"] for r in ok),
+            "false_closure": sum(r["verdict"] and not r["certified"] for r in ok),
+            "missed_closure": sum(r["certified"] and not r["verdict"] for r in ok),
+            "variant_changes": len(changed),
+            "unsupported": sum(r["status"] == "unsupported" for r in original),
+            "skipped": sum(r["status"] == "skipped" for r in original),
+            "errors": count["error"], "crashes": count["crash"], "timeouts": count["timeout"],
+            "median_ms": _percentile(ms, 50), "p95_ms": _percentile(ms, 95),
+        }  # fmt: skip
+        entry["values"] = value_check(metric, ok)
+        out.append(entry)
+    return out
+
+
+def value_check(metric: str, ok: list[dict]) -> str:
+    """What the metric's values say against ours, where they are comparable at all."""
+    closure = [r for r in ok if r["certified"] and r["value"] is not None and r["value"] > 0]
+    slack = lambda r: 1e-6 * max(1.0, abs(r["lo"]))  # noqa: E731  (the certificate's tolerance)
+    if metric == "dexnet_l1" and ok:
+        diff = max(abs(r["value"] - r["l1_ours"]) for r in ok)
+        above = sum(r["value"] > -r["lo"] + slack(r) for r in closure)
+        return (f"L1 epsilon, another set: <= -rho on {len(closure) - above}/{len(closure)}; "
+                f"scipy qhull on the same edges within {diff:.0e}")  # fmt: skip
+    if metric == "graspit_linf" and closure:
+        above = sum(r["value"] > -r["lo"] + slack(r) for r in closure)
+        ratio = np.median([r["value"] / -r["lo"] for r in closure])
+        return (f"L-inf epsilon <= -rho on {len(closure) - above}/{len(closure)}; "
+                f"median epsilon / -rho {ratio:.3f}")  # fmt: skip
+    if metric == "closure_nlp":
+        return "rho in certified [lo, hi]"
+    return "verdict only"
+
+
+def peer_table(rows: list[dict]) -> str:
+    stats = peer_summary(rows)
+    n = len({(r["family"], r["kind"], r["m"], r["seed"]) for r in rows})
+    closure = sum(r["verdict"] for r in rows if r["metric"] == "closure_nlp")
+    lines = [
+        f"**Peers on {n} contact sets** ({closure} certified force closure); verdicts against "
+        "the certified one, on the original sets",
+        "",
+        "| implementation | answered | agree | false closure | missed closure "
+        "| changed by flip/x10 | median ms | p95 ms | crashes / errors / timeouts (all variants) "
+        "| not run | values |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for s in stats:
+        not_run = []
+        if s["unsupported"]:
+            not_run.append(f"{s['unsupported']} soft")
+        if s["skipped"]:
+            not_run.append(f"{s['skipped']} too large")
+        lines.append(
+            f"| {s['label']} | {s['answered']}/{s['sets']} | {s['agree']} | {s['false_closure']} "
+            f"| {s['missed_closure']} | {s['variant_changes']} | {_fmt(s['median_ms'], '.2f')} "
+            f"| {_fmt(s['p95_ms'], '.2f')} | {s['crashes']} / {s['errors']} / {s['timeouts']} "
+            f"| {', '.join(not_run) or '-'} | {s['values']} |"
+        )
+    lines += ["", "**Disagreements with the certified verdict**", "",
+              "| set | implementation | peer says | certified [lo, hi] | cause |",
+              "|---|---|---|---|---|"]  # fmt: skip
+    for r in rows:
+        if r.get("cause"):
+            name = f"{r['family']} {r['kind']} m={r['m']} seed={r['seed']}"
+            if r["family"] == "cases":
+                name = f"peer_cases/{r['kind']}"
+            claim = "closure" if r["verdict"] else "not closure"
+            lines.append(f"| {name} | {r['metric']} | {claim} | [{r['lo']:+.2e}, {r['hi']:+.2e}] "
+                         f"| {r['cause']} |")  # fmt: skip
+    failures = [r for r in rows if r["status"] in ("crash", "error", "timeout")]
+    if failures:
+        lines += ["", "**Crashes, errors and timeouts**", ""]
+        lines += [f"- {r['family']} {r['kind']} m={r['m']} seed={r['seed']} ({r['variant']}), "
+                  f"{r['metric']}: {r['status']}: {r['message']}" for r in failures]  # fmt: skip
+    return "\n".join(lines) + "\n"
+
+
+def peer_chart(rows: list[dict], path: Path) -> None:
+    stats = peer_summary(rows)
+    labels = [s["label"] for s in stats]
+    fig, (left, right) = plt.subplots(1, 2, figsize=(14, 5), sharey=True)
+    y = np.arange(len(stats))
+    median = [s["median_ms"] or np.nan for s in stats]
+    p95 = [s["p95_ms"] or np.nan for s in stats]
+    left.barh(y + 0.2, median, height=0.4, color="tab:blue", label="median")
+    left.barh(y - 0.2, p95, height=0.4, color="tab:cyan", label="95th percentile")
+    left.set_xscale("log")
+    left.set_xlabel("ms per set (the peer's call alone)")
+    left.legend(loc="lower right")
+    parts = [("agree", "tab:green"), ("false_closure", "tab:red"),
+             ("missed_closure", "tab:orange")]  # fmt: skip
+    start = np.zeros(len(stats))
+    for key, color in parts:
+        widths = np.array([s[key] for s in stats], float)
+        right.barh(y, widths, left=start, color=color, label=key.replace("_", " "))
+        start += widths
+    rest = np.array([s["sets"] - s["answered"] for s in stats], float)
+    right.barh(y, rest, left=start, color="lightgrey", label="not answered (soft, large, failed)")
+    right.set_xlabel("original sets: verdict against the certified one")
+    right.legend(loc="lower right", fontsize=8)
+    left.set_yticks(y, labels)
+    left.invert_yaxis()
+    fig.tight_layout()
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=100)
+    plt.close(fig)
+    write_atomic(path, buffer.getvalue())
+
+
+def write_peers(rows: list[dict], out: Path) -> str:
+    markdown = peer_table(rows)
+    buffer = io.StringIO()
+    fields = ["family", "kind", "m", "seed", "variant", "metric", "status", "verdict", "value",
+              "ms", "certified", "marginal", "lo", "hi", "l1_ours", "lin_4", f"lin_{EDGES}",
+              "lin_64", "hull_distance", "cause", "message"]  # fmt: skip
+    writer = csv.DictWriter(buffer, fieldnames=fields, extrasaction="ignore")
+    writer.writeheader()
+    writer.writerows(rows)
+    write_atomic(out / "compare_peers.csv", buffer.getvalue())
+    write_atomic(out / "compare_peers.md", markdown)
+    peer_chart(rows, out / "compare_peers.png")
+    return markdown
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--small", action="store_true", help="CI-sized suite")
     parser.add_argument("--seeds", type=int, default=3, help="seeds per (kind, m), full suite")
     parser.add_argument("--out", type=Path, default=ROOT / "examples" / "out")
+    parser.add_argument(
+        "--peers", action="store_true",
+        help="run the outside implementations instead (make compare-peers sets them up)",
+    )  # fmt: skip
+    parser.add_argument("--timeout", type=float, default=20.0, help="--peers: s per set and peer")
     args = parser.parse_args(argv)
     if args.seeds < 1:
         parser.error(f"--seeds: must be >= 1, got {args.seeds}")
+    if not args.timeout > 0:
+        parser.error(f"--timeout: must be > 0, got {args.timeout}")
+    if args.peers:
+        print(write_peers(run_peers(args.small, args.seeds, args.timeout), args.out))
+        return 0
     rows = run(args.small, args.seeds)
     markdown = table(rows)
     buffer = io.StringIO()
