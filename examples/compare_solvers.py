@@ -314,7 +314,8 @@ def variant(contact_set: ContactSet, name: str) -> ContactSet:
     """The same grasp up to a change that cannot change force closure.
 
     Negating every normal negates every wrench (W -> -W: same distance to the origin); scaling
-    positions about the reference point is an invertible map of the torques.
+    every length (positions about the reference point, and mu_s, a length) by 10 multiplies
+    every torque by 10, an invertible linear map.
     """
     if name == "original":
         return contact_set
@@ -322,7 +323,10 @@ def variant(contact_set: ContactSet, name: str) -> ContactSet:
     if name == "flipped":
         changed = [replace(c, inward_normal=-c.inward_normal) for c in contact_set.contacts]
     else:
-        changed = [replace(c, position=p + 10.0 * (c.position - p)) for c in contact_set.contacts]
+        changed = [
+            replace(c, position=p + 10.0 * (c.position - p), mu_s=10.0 * c.mu_s)
+            for c in contact_set.contacts
+        ]
     return ContactSet(tuple(changed), contact_set.torque_scale, p)
 
 
@@ -360,6 +364,7 @@ def run_peers(small: bool, seeds: int, timeout: float) -> list[dict]:
             rows.append({**base, "variant": "original", "metric": "closure_nlp",
                          "status": "ok", "verdict": ours.force_closure, "value": ours.rho,
                          "ms": ours_ms})  # fmt: skip
+            originals = {}
             for name in VARIANTS:
                 changed = variant(cs, name)
                 W, owner = edge_wrenches(changed, owners=True)
@@ -381,7 +386,9 @@ def run_peers(small: bool, seeds: int, timeout: float) -> list[dict]:
                                 linf_stop[kind] = m
                     else:
                         answer = worker.ask(request)
-                    rows += peer_rows({**base, "variant": name}, peer, answer)
+                    if name == "original":
+                        originals[peer] = answer
+                    rows += peer_rows({**base, "variant": name}, peer, answer, originals[peer])
             print(f"{family} {kind} m={m} seed={seed}: certified {ours.force_closure} "
                   f"[{lo:+.6f}, {hi:+.6f}]", file=sys.stderr)  # fmt: skip
     finally:
@@ -390,8 +397,12 @@ def run_peers(small: bool, seeds: int, timeout: float) -> list[dict]:
     return rows
 
 
-def peer_rows(base: dict, peer: str, answer: dict) -> list[dict]:
-    """Rows of one peer's answer: every metric it offers, with its status."""
+def peer_rows(base: dict, peer: str, answer: dict, original: dict) -> list[dict]:
+    """Rows of one peer's answer: every metric it offers, with its status.
+
+    A verdict against the certified one (original sets), or one that a variant changed from the
+    peer's own on the original set, gets its cause.
+    """
     rows = []
     for metric in peers.PEERS[peer][1]:
         row = {**base, "metric": metric, "verdict": None, "value": None, "ms": None}
@@ -409,7 +420,25 @@ def peer_rows(base: dict, peer: str, answer: dict) -> list[dict]:
         rows.append({**row, "status": "ok", **result})
         if row["variant"] == "original" and result["verdict"] != base["certified"]:
             rows[-1]["cause"] = disagreement_cause(rows[-1], answer)
+        before = original.get(metric, {}).get("verdict")
+        if row["variant"] != "original" and before is not None and before != result["verdict"]:
+            rows[-1]["cause"] = variant_cause(rows[-1], original[metric])
     return rows
+
+
+def variant_cause(row: dict, before: dict) -> str:
+    """Why flipping the normals or scaling the lengths changed a peer's verdict."""
+    if row["variant"] == "flipped":
+        # Both build a pyramid's edges in a frame taken from the normal: a flipped normal
+        # gives other pyramids, which matters near the boundary.
+        return "linearisation: flipped normals give other inscribed pyramids"
+    if row["metric"].startswith("dexnet"):
+        return (
+            "peer's tolerance: absolute thresholds against torques x10 (hull distance "
+            f"{before.get('hull_distance', float('nan')):.1e} -> "
+            f"{row.get('hull_distance') or float('nan'):.1e})"
+        )
+    return "peer's numerics: same normals and pyramids, lengths x10 (another unit), other verdict"
 
 
 def disagreement_cause(row: dict, answer: dict) -> str:
@@ -528,23 +557,39 @@ def peer_table(rows: list[dict]) -> str:
             f"| {_fmt(s['p95_ms'], '.2f')} | {s['crashes']} / {s['errors']} / {s['timeouts']} "
             f"| {', '.join(not_run) or '-'} | {s['values']} |"
         )
-    lines += ["", "**Disagreements with the certified verdict**", "",
-              "| set | implementation | peer says | certified [lo, hi] | cause |",
+    lines += ["", "**Disagreements with the certified verdict** (original sets)", "",
+              "| set | implementations | peer says | certified [lo, hi] | cause |",
               "|---|---|---|---|---|"]  # fmt: skip
-    for r in rows:
-        if r.get("cause"):
-            name = f"{r['family']} {r['kind']} m={r['m']} seed={r['seed']}"
-            if r["family"] == "cases":
-                name = f"peer_cases/{r['kind']}"
-            claim = "closure" if r["verdict"] else "not closure"
-            lines.append(f"| {name} | {r['metric']} | {claim} | [{r['lo']:+.2e}, {r['hi']:+.2e}] "
-                         f"| {r['cause']} |")  # fmt: skip
+    lines += _cause_lines([r for r in rows if r.get("cause") and r["variant"] == "original"])
+    lines += ["", "**Verdicts changed by flipping every normal or scaling every length x10** "
+              "(the certified verdict cannot change)", "",
+              "| set | implementations | peer says | certified [lo, hi] | cause |",
+              "|---|---|---|---|---|"]  # fmt: skip
+    lines += _cause_lines([r for r in rows if r.get("cause") and r["variant"] != "original"])
     failures = [r for r in rows if r["status"] in ("crash", "error", "timeout")]
     if failures:
         lines += ["", "**Crashes, errors and timeouts**", ""]
         lines += [f"- {r['family']} {r['kind']} m={r['m']} seed={r['seed']} ({r['variant']}), "
                   f"{r['metric']}: {r['status']}: {r['message']}" for r in failures]  # fmt: skip
     return "\n".join(lines) + "\n"
+
+
+def _cause_lines(rows: list[dict]) -> list[str]:
+    """One table line per (set, variant, verdict, cause), the metrics that share it joined."""
+    groups = {}
+    for r in rows:
+        name = f"{r['family']} {r['kind']} m={r['m']} seed={r['seed']}"
+        if r["family"] == "cases":
+            name = f"peer_cases/{r['kind']}"
+        if r["variant"] != "original":
+            name += f" ({r['variant']})"
+        key = (name, r["verdict"], r["cause"], f"[{r['lo']:+.2e}, {r['hi']:+.2e}]")
+        groups.setdefault(key, []).append(r["metric"])
+    return [
+        f"| {name} | {', '.join(metrics)} | {'closure' if verdict else 'not closure'} "
+        f"| {bracket} | {cause} |"
+        for (name, verdict, cause, bracket), metrics in groups.items()
+    ]
 
 
 def peer_chart(rows: list[dict], path: Path) -> None:
