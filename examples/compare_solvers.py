@@ -428,10 +428,12 @@ def peer_rows(base: dict, peer: str, answer: dict, original: dict) -> list[dict]
 
 def variant_cause(row: dict, before: dict) -> str:
     """Why flipping the normals or scaling the lengths changed a peer's verdict."""
-    if row["variant"] == "flipped":
+    if row["variant"] == "flipped" and row["certified"]:
         # Both build a pyramid's edges in a frame taken from the normal: a flipped normal
-        # gives other pyramids, which matters near the boundary.
+        # gives other pyramids, and inscribed ones may lose a closure near the boundary.
         return "linearisation: flipped normals give other inscribed pyramids"
+    if row["variant"] == "flipped":  # inscribed pyramids cannot give a closure the set lacks
+        return "peer bug: one of the two verdicts claims a closure no inscribed cone can give"
     if row["metric"].startswith("dexnet"):
         return (
             "peer's tolerance: absolute thresholds against torques x10 (hull distance "
@@ -471,7 +473,7 @@ def disagreement_cause(row: dict, answer: dict) -> str:
         return "degeneracy: the certified bracket reaches 0 (a set without interior)"
     if row[f"lin_{edges}"]:
         return f"unexplained: our LP on the {edges}-edge cones finds closure, the certificate not"
-    return f"peer bug: closure claimed, but the {edges}-edge cones cannot give it (our LP)"
+    return "peer bug: closure claimed, which no inscribed cone can give (nor our LP on its edges)"
 
 
 def _percentile(values, q) -> float | None:
@@ -507,6 +509,7 @@ def peer_summary(rows: list[dict]) -> list[dict]:
             "skipped": sum(r["status"] == "skipped" for r in original),
             "errors": count["error"], "crashes": count["crash"], "timeouts": count["timeout"],
             "median_ms": _percentile(ms, 50), "p95_ms": _percentile(ms, 95),
+            "median_ms_closure": _percentile([r["ms"] for r in ok if r["certified"]], 50),
         }  # fmt: skip
         entry["values"] = value_check(metric, ok)
         out.append(entry)
@@ -541,9 +544,10 @@ def peer_table(rows: list[dict]) -> str:
         "the certified one, on the original sets",
         "",
         "| implementation | answered | agree | false closure | missed closure "
-        "| changed by flip/x10 | median ms | p95 ms | crashes / errors / timeouts (all variants) "
+        "| changed by flip/x10 | median ms | p95 ms | median ms, closure "
+        "| crashes / errors / timeouts (all variants) "
         "| not run | values |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for s in stats:
         not_run = []
@@ -554,7 +558,8 @@ def peer_table(rows: list[dict]) -> str:
         lines.append(
             f"| {s['label']} | {s['answered']}/{s['sets']} | {s['agree']} | {s['false_closure']} "
             f"| {s['missed_closure']} | {s['variant_changes']} | {_fmt(s['median_ms'], '.2f')} "
-            f"| {_fmt(s['p95_ms'], '.2f')} | {s['crashes']} / {s['errors']} / {s['timeouts']} "
+            f"| {_fmt(s['p95_ms'], '.2f')} | {_fmt(s['median_ms_closure'], '.2f')} "
+            f"| {s['crashes']} / {s['errors']} / {s['timeouts']} "
             f"| {', '.join(not_run) or '-'} | {s['values']} |"
         )
     lines += ["", "**Disagreements with the certified verdict** (original sets)", "",
@@ -595,7 +600,7 @@ def _cause_lines(rows: list[dict]) -> list[str]:
 def peer_chart(rows: list[dict], path: Path) -> None:
     stats = peer_summary(rows)
     labels = [s["label"] for s in stats]
-    fig, (left, right) = plt.subplots(1, 2, figsize=(14, 5), sharey=True)
+    fig, (left, right) = plt.subplots(1, 2, figsize=(14, 6), sharey=True)
     y = np.arange(len(stats))
     median = [s["median_ms"] or np.nan for s in stats]
     p95 = [s["p95_ms"] or np.nan for s in stats]
@@ -603,7 +608,7 @@ def peer_chart(rows: list[dict], path: Path) -> None:
     left.barh(y - 0.2, p95, height=0.4, color="tab:cyan", label="95th percentile")
     left.set_xscale("log")
     left.set_xlabel("ms per set (the peer's call alone)")
-    left.legend(loc="lower right")
+    left.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2)
     parts = [("agree", "tab:green"), ("false_closure", "tab:red"),
              ("missed_closure", "tab:orange")]  # fmt: skip
     start = np.zeros(len(stats))
@@ -614,7 +619,7 @@ def peer_chart(rows: list[dict], path: Path) -> None:
     rest = np.array([s["sets"] - s["answered"] for s in stats], float)
     right.barh(y, rest, left=start, color="lightgrey", label="not answered (soft, large, failed)")
     right.set_xlabel("original sets: verdict against the certified one")
-    right.legend(loc="lower right", fontsize=8)
+    right.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2, fontsize=9)
     left.set_yticks(y, labels)
     left.invert_yaxis()
     fig.tight_layout()
