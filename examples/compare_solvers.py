@@ -26,6 +26,11 @@ support function of the union of the elements' vertex wrench sets, with many mor
 
 Writes ``compare_solvers.csv``, ``compare_solvers.md`` and ``compare_solvers.png`` to ``--out``
 and prints the Markdown table. ``--small`` runs a CI-sized suite (about 30 s).
+
+``--peers`` runs the contact-set suite and ``examples/peer_cases`` through the implementations
+users run instead (``examples/peers.py``: Klampt, Dex-Net, a GraspIt!-style L-inf epsilon; ``make
+compare-peers`` sets up their environments), each set also with all normals flipped and all
+lengths x10, against our certified verdict; writes ``compare_peers.csv/.md/.png``.
 """
 
 from __future__ import annotations
