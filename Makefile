@@ -57,7 +57,7 @@ $(PEERS)/dexnet/.installed:
 	touch $@
 
 compare-peers: $(STAMP) $(PEERS)/klampt/.installed $(PEERS)/dexnet/.installed
-	MPLBACKEND=Agg $(BIN)/python examples/compare_solvers.py --peers
+	CLOSURE_NLP_PEERS=$(abspath $(PEERS)) MPLBACKEND=Agg $(BIN)/python examples/compare_solvers.py --peers
 
 clean:
 	rm -rf $(VENV) build *.egg-info
