@@ -15,6 +15,7 @@ import numpy as np
 from .wrenches import WrenchSlots
 
 STALL = 10  # steps without progress after which the bracket is returned as it is
+MAX_LINE_STEPS = 20  # Wolfe's fallback steps in a row (roundoff) before it returns its point
 
 
 def min_norm_point(points: np.ndarray, tol: float = 1e-15):
@@ -44,11 +45,22 @@ def min_norm_point(points: np.ndarray, tol: float = 1e-15):
     scale = max(float(norms2.max()), 1e-300)
     S = [int(np.argmin(norms2))]
     lam = np.array([1.0])
+    fallbacks = 0  # steps since the last proper Wolfe step: line steps are slow, a few polish
     for _ in range(50 * (n + 1)):
         x = lam @ P[S]
         j = int(np.argmin(P @ x))
-        if x @ x - x @ P[j] <= tol * scale or j in S:
+        if x @ x - x @ P[j] <= tol * scale or fallbacks == MAX_LINE_STEPS:
             break
+        fallbacks += 1
+        if j in S:
+            # x is not quite the affine minimiser of S (roundoff of a nearly singular system,
+            # e.g. points that nearly repeat): step towards P[j] instead.
+            step = _line_step(S, lam, x, P, j)
+            if step is None:
+                break
+            S, lam = step
+            continue
+        before = (list(S), lam.copy())
         S.append(j)
         lam = np.append(lam, 0.0)
         for _ in range(len(S)):  # minor cycle: each step drops a point, so it ends
@@ -63,20 +75,47 @@ def min_norm_point(points: np.ndarray, tol: float = 1e-15):
             S = [s for s, k in zip(S, keep) if k]
             lam = lam[keep]
             lam /= lam.sum()
+        if j in S:
+            fallbacks = 0
+        else:
+            # Roundoff in a nearly singular minor cycle dropped the improving point again (a
+            # cycle Wolfe's exact arithmetic excludes): step towards it instead.
+            S, lam = before
+            step = _line_step(S, lam, x, P, j)
+            if step is None:
+                break
+            S, lam = step
     weights = np.zeros(n)
     weights[S] = lam
     return weights @ (P * size), weights
 
 
+def _line_step(S, lam, x, P, j):
+    """``x`` moved towards ``P[j]`` by exact line search, as new (S, lam); None when the step
+    is zero. It shortens ``x`` whenever ``x . P[j] < x . x``."""
+    S, lam = list(S), lam.copy()
+    d = P[j] - x
+    gamma = float(np.clip(-(x @ d) / (d @ d), 0.0, 1.0)) if d @ d > 0 else 0.0
+    if not gamma > 0:
+        return None
+    lam *= 1.0 - gamma
+    if j in S:
+        lam[S.index(j)] += gamma
+    else:
+        S, lam = S + [j], np.append(lam, gamma)
+    return S, lam
+
+
 def _affine_minimizer(P: np.ndarray) -> np.ndarray:
-    """Weights ``mu`` (summing to 1) of the point of the affine hull of ``P`` nearest 0."""
-    k = len(P)
-    K = np.zeros((k + 1, k + 1))
-    K[:k, :k] = P @ P.T
-    K[:k, k] = K[k, :k] = 1.0
-    rhs = np.zeros(k + 1)
-    rhs[k] = 1.0
-    return np.linalg.lstsq(K, rhs, rcond=None)[0][:k]
+    """Weights ``mu`` (summing to 1) of the point of the affine hull of ``P`` nearest 0.
+
+    ``P[0] + sum_i z_i (P[i] - P[0])``, least squares on the differences: not on their Gram
+    matrix, whose condition number is the square (points that nearly repeat made the Gram
+    system lose the last digits that decide which point leaves)."""
+    if len(P) == 1:
+        return np.ones(1)
+    z = np.linalg.lstsq((P[1:] - P[0]).T, -P[0], rcond=None)[0]
+    return np.concatenate([[1.0 - z.sum()], z])
 
 
 def nearest_point_bounds(slots: WrenchSlots, u0: np.ndarray, gap: float, max_iter: int = 200):

@@ -276,6 +276,30 @@ def test_min_norm_point_is_in_the_hull():
     np.testing.assert_allclose(weights, [0.5, 0.5, 0.0], atol=1e-15)
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_min_norm_point_is_optimal_on_nearly_degenerate_clouds(seed):
+    """Wolfe's point x is optimal when every point has P_j . x >= |x|^2 (the hyperplane through
+    x normal to it separates the hull from the origin): checked on clouds whose points nearly
+    repeat, where roundoff in the minor cycle once made it drop the improving point for good."""
+    rng = np.random.default_rng(seed)
+    base = rng.normal(size=(8, 6)) + [3.0, 0, 0, 0, 0, 0]
+    P = np.vstack([base, base + 1e-9 * rng.normal(size=base.shape), rng.normal(size=(40, 6)) + 4])
+    x, weights = min_norm_point(P)
+    assert np.all(weights >= 0) and weights.sum() == pytest.approx(1.0, abs=1e-14)
+    np.testing.assert_allclose(weights @ P, x, atol=1e-14)
+    assert (P @ x).min() >= (x @ x) * (1 - 1e-12)
+
+
+def test_nearest_point_bracket_of_a_lamp_element_set_closes():
+    """Four lamp facets whose rho_hat > 0: the bracket stalled 2.1e-6 wide before the line-search
+    fallback of Wolfe's minor cycle."""
+    from closure_nlp.bench import paper_eligibility
+
+    slots = paper_eligibility("lamp").slots([28, 34, 55, 41])
+    bounds = certified_bounds(slots, SupportMinimizer()(slots).direction)
+    assert bounds.lo > 0 and bounds.converged, bounds
+
+
 def test_certified_bounds_unpack_and_validate():
     cs = make("fpc", 3, 0)
     bounds = certified_bounds(cs)
