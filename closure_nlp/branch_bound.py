@@ -76,7 +76,7 @@ class BranchBoundOptions:
     max_cells: int = 40_000
     max_rounds: int = 200
     fw_steps: int = 12
-    refine_below: float = 0.05
+    refine_below: float = 0.4  # 0.05 -> 0.4: eligible lamp sets 2.3x faster (CPU), others 0.9-1.15x
     stop_below_zero: bool = True
 
     def __post_init__(self) -> None:
