@@ -299,6 +299,20 @@ def test_a_new_model_releases_the_solvers_of_the_previous_one(tmp_path):
 
 
 @pytest.mark.slow
+def test_a_worker_over_the_memory_limit_drops_its_solvers(tiny, monkeypatch):
+    from closure_nlp.study import tasks
+
+    task = load_study(tiny).tasks[0]
+    clear_cache()
+    tasks.run_task(task)
+    assert tasks._local.cache  # kept for the next task while the worker is small
+    monkeypatch.setattr(tasks, "worker_memory", lambda: {"rss_mib": 1e6, "peak_rss_mib": 1e6})
+    row = tasks.run_task(task)
+    assert row["status"] == "ok" and not hasattr(tasks._local, "cache")
+    clear_cache()
+
+
+@pytest.mark.slow
 def test_solvers_are_built_once_per_process(tiny, monkeypatch):
     import casadi
 
