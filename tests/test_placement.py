@@ -142,6 +142,22 @@ def test_frictionless_exchange_matches_the_general_form(monkeypatch):
     assert fast.rho == pytest.approx(slow.rho, abs=1e-6 * max(1.0, abs(slow.rho)))
 
 
+def test_screened_rounds_are_not_certified(monkeypatch):
+    """Only the start (when needed) and the final rho are certified, screening or not."""
+    from closure_nlp import quality
+
+    calls = []
+    certified = quality.certified_rho
+    monkeypatch.setattr(
+        quality, "certified_rho", lambda *args: calls.append(1) or certified(*args)
+    )
+    eligibility = Eligibility(box_model(1.0), contact_specs(4, type="pcwf", mu=0.5))
+    options = PlacementOptions(starts=1, extra_starts=0, neighbour_moves=0, screen=True)
+    result = Placer(eligibility, options)([0, 1, 2, 3])
+    assert result.force_closure and result.rounds > 2
+    assert 1 <= len(calls) <= 2
+
+
 def test_nearest_weights():
     square = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
     w = nearest_weights(square, np.array([0.25, 0.5, 0.0]))
