@@ -20,6 +20,7 @@ the support function at the returned unit direction, never the epigraph variable
 from __future__ import annotations
 
 import time
+from collections import OrderedDict
 from dataclasses import dataclass, field
 
 import casadi as ca
@@ -315,6 +316,9 @@ class SupportMinProblem:
         )
 
 
+MAX_PROBLEMS = 32  # cached NLP shapes per minimizer: ~7 MB each (a study worker held 42)
+
+
 class SupportMinimizer:
     """Global ``min_{|u|=1} p(u)`` for any :class:`WrenchSlots`, one cached NLP per shape.
 
@@ -333,7 +337,7 @@ class SupportMinimizer:
         self.tolerances = tolerances
         self.search = search
         self.ipopt_options = dict(ipopt_options or {})
-        self._problems: dict[tuple, SupportMinProblem] = {}
+        self._problems: OrderedDict[tuple, SupportMinProblem] = OrderedDict()
 
     def with_search(self, search: SearchOptions) -> SupportMinimizer:
         """The same NLPs (the cache is shared) with another start strategy."""
@@ -342,11 +346,17 @@ class SupportMinimizer:
         return other
 
     def problem(self, slots: WrenchSlots) -> SupportMinProblem:
+        """The NLP of this shape, built once; the least recently used of more than
+        :data:`MAX_PROBLEMS` shapes is dropped (each holds several MB of CasADi functions)."""
         key = SupportMinProblem.key(slots)
-        if key not in self._problems:
+        if key in self._problems:
+            self._problems.move_to_end(key)
+        else:
             self._problems[key] = SupportMinProblem(
                 *key, self.tolerances, self.search.max_iter, self.ipopt_options
             )
+            while len(self._problems) > MAX_PROBLEMS:
+                self._problems.popitem(last=False)
         return self._problems[key]
 
     def __call__(self, slots: WrenchSlots, warm_start=None) -> SupportMinimum:

@@ -216,3 +216,23 @@ def test_defaults_and_overrides():
         0.1,
     )
     np.testing.assert_allclose(a.inward_normal, [0, 0, -1])
+
+
+def test_nlp_cache_keeps_the_most_recent_shapes(monkeypatch):
+    """Shapes beyond MAX_PROBLEMS evict the least recently used one; answers do not change."""
+    import closure_nlp.quality as quality
+    from closure_nlp.wrenches import WrenchSlots
+
+    monkeypatch.setattr(quality, "MAX_PROBLEMS", 2)
+    minimizer = quality.SupportMinimizer()
+    sets = [
+        WrenchSlots.from_contacts(random_contact_set(np.random.default_rng(m), ["pcwf"] * m))
+        for m in (3, 4, 5)
+    ]
+    first = minimizer(sets[0]).value
+    minimizer(sets[1])
+    minimizer(sets[0])  # used again: now the most recent
+    minimizer(sets[2])  # evicts the 4-contact shape
+    keys = [quality.SupportMinProblem.key(s) for s in sets]
+    assert list(minimizer._problems) == [keys[0], keys[2]]
+    assert minimizer(sets[0]).value == first
