@@ -79,8 +79,8 @@ class PlacementOptions:
         ``max_rounds`` (0, the default: every start runs to ``max_rounds``); a neighbour-move
         trial gets this many rounds when ``move_rounds`` is 0.
         Measured with ``screen`` on 3 seeds of the paper's examples (``bench plan``, mode
-        ``fast``, probe 6): placement 1.6-3.9x faster, median rho 6-10% less negative (less
-        load capacity), so it is not the default.
+        ``fast``, probe 6; rerun on the lamp and the cup for issue 14): placement 1.3-1.7x
+        faster, median rho 6-8% less negative (less load capacity), so it is not the default.
     screen : bool
         Judge each exchange round's new weights by a light search first
         (:data:`~closure_nlp.selection.SCREEN_SEARCH`): when it already finds a direction at
