@@ -115,8 +115,13 @@ class WrenchSlots:
         force = self.f_max * (
             np.sqrt(1.0 + self.pieces[:, :, 1:].sum(axis=(1, 2))) if friction else 1.0
         )
-        top = np.linalg.norm(self.G[:, :3, :], ord=2, axis=(1, 2))
-        bottom = np.linalg.norm(self.G[:, 3:, :], ord=2, axis=(1, 2))
+        # Only the columns a row can use: the spin column (``torque_scale`` times the normal,
+        # whatever the lever arms) is no torque of a contact without spin friction, and counting
+        # it made a 7-FPC fixture look 35x longer in torque than it is.
+        spin = self.pieces[:, :, 3].max(axis=1) > 0
+        G = np.where(spin[:, None, None] | (np.arange(4) < 3), self.G, 0.0)
+        top = np.linalg.norm(G[:, :3, :], ord=2, axis=(1, 2))
+        bottom = np.linalg.norm(G[:, 3:, :], ord=2, axis=(1, 2))
         return float(np.max(top * force)), float(np.max(bottom * force))
 
     # --- evaluation ---------------------------------------------------------------------------
