@@ -218,6 +218,7 @@ def _run_dask(tasks: Sequence[Task], texts, record, runner, client, scheduler, w
         else:
             cluster = local_cluster(workers)
             client = own_client = Client(cluster)
+            client.register_plugin(_ctrl_c_plugin())
     futures = {}
     try:
         used = len(client.scheduler_info().get("workers", {}))
@@ -249,6 +250,23 @@ def _run_dask(tasks: Sequence[Task], texts, record, runner, client, scheduler, w
             own_client.close()
         if cluster is not None:
             cluster.close()
+
+
+def _ctrl_c_plugin():
+    """A worker plugin for our own local workers: they ignore SIGINT. Ctrl-C reaches the whole
+    process group; the client stops the study and closes the cluster, while a worker that took
+    the signal itself printed its asyncio traceback on the user's terminal."""
+    from distributed import WorkerPlugin
+
+    class CtrlCForTheClient(WorkerPlugin):
+        def setup(self, worker):
+            import signal
+            import threading
+
+            if threading.current_thread() is threading.main_thread():
+                signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+    return CtrlCForTheClient()
 
 
 def local_cluster(workers: int | None = None, **kwargs):
