@@ -301,6 +301,11 @@ def chart(rows: list[dict], path: Path) -> None:
     right.set_xscale("log")
     right.set_xlabel("worst error vs certified bounds (gap for the bounds)")
     left.invert_yaxis()
+    _save_png(fig, path)
+
+
+def _save_png(fig, path: Path) -> None:
+    """The figure as a PNG at ``path``, written whole or not at all."""
     fig.tight_layout()
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=100)
@@ -627,11 +632,7 @@ def peer_chart(rows: list[dict], path: Path) -> None:
     right.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2, fontsize=9)
     left.set_yticks(y, labels)
     left.invert_yaxis()
-    fig.tight_layout()
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=100)
-    plt.close(fig)
-    write_atomic(path, buffer.getvalue())
+    _save_png(fig, path)
 
 
 def write_peers(rows: list[dict], out: Path) -> str:
