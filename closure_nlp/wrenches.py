@@ -106,7 +106,8 @@ class WrenchSlots:
 
     def row_scales(self, friction: bool = True) -> tuple[float, float]:
         """Upper bounds on the force part and the torque part of any row's extreme wrench
-        (``friction=False``: of its normal force alone, ``f_max`` times the rows of ``G``).
+        (``friction=False``: ``f_max`` times the norms of the rows of ``G``, the scale of the
+        normal force's wrench; the spin column counts only for rows with spin friction).
 
         A row's force ``(f_n, f_t)`` has ``|f_t|^2 <= (sum of its friction weights) f_n^2`` and
         ``f_n <= f_max``; the first three rows of ``G`` map it to the force, the last three to
