@@ -202,6 +202,19 @@ def test_serial_resume_runs_every_task_once(tiny, tmp_path):
 # --- real tasks: serial against a 2-worker cluster ----------------------------------------------
 
 
+@pytest.fixture(scope="module", autouse=True)
+def small_worker():
+    """These tasks run inside pytest's own process, whose RSS passes a study worker's memory
+    limit over the whole suite and would drop the caches they count; the limit's policy has its
+    own test below."""
+    from closure_nlp.study import tasks
+
+    saved = tasks.MEMORY_LIMIT_MIB
+    tasks.MEMORY_LIMIT_MIB = float("inf")
+    yield
+    tasks.MEMORY_LIMIT_MIB = saved
+
+
 @pytest.fixture(scope="module")
 def serial_rows(tiny, tmp_path_factory):
     out = tmp_path_factory.mktemp("serial")
@@ -302,6 +315,8 @@ def test_a_new_model_releases_the_solvers_of_the_previous_one(tmp_path):
 def test_a_worker_over_the_memory_limit_drops_its_solvers(tiny, monkeypatch):
     from closure_nlp.study import tasks
 
+    monkeypatch.setattr(tasks, "MEMORY_LIMIT_MIB", 450.0)
+    monkeypatch.setattr(tasks, "worker_memory", lambda: {"rss_mib": 100.0, "peak_rss_mib": 100.0})
     task = load_study(tiny).tasks[0]
     clear_cache()
     tasks.run_task(task)
