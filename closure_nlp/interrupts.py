@@ -33,6 +33,7 @@ def interruptible():
 
     casadi_dir = os.path.dirname(casadi.__file__)
     interrupted: list[int] = []
+    silenced: list[bool] = []
 
     def on_signal(signum, frame):
         if signum != signal.SIGALRM or interrupted:
@@ -41,6 +42,7 @@ def interruptible():
                 signal.setitimer(signal.ITIMER_REAL, 0.002)
                 return
             signal.setitimer(signal.ITIMER_REAL, 0)
+            silenced.append(True)
             logging.disable(logging.CRITICAL)  # Dask's teardown logs are not for the user now
             raise KeyboardInterrupt
 
@@ -59,4 +61,5 @@ def interruptible():
             signal.setitimer(signal.ITIMER_REAL, 0)
         for signum, handler in zip(signums, saved):
             signal.signal(signum, handler)
-        logging.disable(logging.NOTSET)  # an in-process caller gets its logging back
+        if silenced:  # only what this block disabled: every solve passes here
+            logging.disable(logging.NOTSET)  # an in-process caller gets its logging back
