@@ -141,8 +141,20 @@ class WrenchSlots:
         qk = np.take_along_axis(q, k[..., None], axis=2)[..., 0]
         return self.f_max * (d[..., 0] + np.sqrt(np.maximum(qk, 0.0))), k, qk
 
+    def _normal_wrenches(self) -> np.ndarray | None:
+        """``f_max`` times each row's normal column (K, 6) when no row has friction (FPC, or
+        mu = mu_s = 0): then every row's support wrench is that one, whatever the direction,
+        and its value a single product, a quarter of :meth:`local` and none of the rim."""
+        if "_normals" not in self.__dict__:
+            normals = None if self.pieces.any() else self.f_max[:, None] * self.G[:, :, 0]
+            object.__setattr__(self, "_normals", normals)
+        return self._normals
+
     def row_values(self, U: np.ndarray) -> np.ndarray:
         """Support function of every row's extreme wrench set ``W_ij``: (N, 6) -> (N, K)."""
+        normals = self._normal_wrenches()
+        if normals is not None:
+            return np.atleast_2d(U) @ normals.T
         return self.row_terms(self.local(U))[0]
 
     def slot_values(self, U: np.ndarray) -> np.ndarray:
@@ -160,34 +172,53 @@ class WrenchSlots:
 
     def row_support(self, U: np.ndarray):
         """Each row's value ``p_{W_ij}(u)`` and support wrench (gradient): (N, K), (N, K, 6)."""
+        normals = self._normal_wrenches()
+        if normals is not None:  # a read-only view: the same wrench for every direction
+            U = np.atleast_2d(U)
+            return U @ normals.T, np.broadcast_to(normals, (len(U), *normals.shape))
         d = self.local(U)
         rows, k, qk = self.row_terms(d)
-        w = self.pieces[np.arange(len(self.G))[None, :], k]  # (N, K, 4)
-        # The argmax force (eqs 9-12): full normal force, tangential part on the cone's rim, which
-        # is the gradient of sqrt(q_k) at d (no tangential force when q_k = 0).
-        rim = w * d / np.sqrt(np.where(qk > 0, qk, np.inf))[..., None]
-        rim[..., 0] += 1.0
-        force = self.f_max[None, :, None] * rim
+        force = self._forces(d, k, qk, np.arange(len(self.G))[None, :])
         # optimize: a BLAS path, 10x faster here
         return rows, np.einsum("krc,nkc->nkr", self.G, force, optimize=True)
 
+    def _forces(self, d, k, qk, index):
+        """The argmax force of rows ``index`` (eqs 9-12) in their frames, from their ``d``, largest
+        piece ``k`` and its square ``qk``: full normal force, tangential part on the cone's rim
+        (the gradient of ``sqrt(q_k)`` at ``d``; none when ``q_k = 0``). (N, R, 4)."""
+        rim = self.pieces[index, k] * d / np.sqrt(np.where(qk > 0, qk, np.inf))[..., None]
+        rim[..., 0] += 1.0
+        return self.f_max[index][..., None] * rim
+
     def evaluate(self, U: np.ndarray):
         """``p(u)`` and a wrench attaining it (its gradient where unique): (N,), (N, 6)."""
-        rows, wrench = self.row_support(np.atleast_2d(U))
-        if len(self.starts) == rows.shape[1]:
-            P, slot_wrench = rows, wrench
-        else:
-            ends = np.append(self.starts[1:], rows.shape[1])
-            best_row = np.stack(
-                [s + np.argmax(rows[:, s:e], axis=1) for s, e in zip(self.starts, ends)], axis=1
-            )
-            P = np.take_along_axis(rows, best_row, axis=1)  # (N, m)
-            slot_wrench = np.take_along_axis(wrench, best_row[..., None], axis=1)
+        U = np.atleast_2d(U)
+        normals = self._normal_wrenches()
+        if len(self.starts) == len(self.G):  # contacts: one row per slot
+            P, slot_wrench = self.row_support(U)
+        elif normals is not None:
+            P, best = self._best_rows(U @ normals.T)
+            slot_wrench = normals[best]
+        else:  # the support wrench of each slot's best row only: m of the K rows
+            d = self.local(U)
+            rows, k, qk = self.row_terms(d)
+            P, best = self._best_rows(rows)
+            d = np.take_along_axis(d, best[..., None], axis=1)
+            k, qk = np.take_along_axis(k, best, axis=1), np.take_along_axis(qk, best, axis=1)
+            slot_wrench = np.einsum("nmrc,nmc->nmr", self.G[best], self._forces(d, k, qk, best))
         chosen = P > 0
         none = ~chosen.any(axis=1)
         chosen[none, np.argmax(P[none], axis=1)] = True  # no positive slot: the largest alone
         points = np.einsum("nm,nmr->nr", chosen, slot_wrench)
         return combine_slots(P), points
+
+    def _best_rows(self, rows: np.ndarray):
+        """Each slot's value (the max over its rows) and the row attaining it: (N, m) twice."""
+        ends = np.append(self.starts[1:], rows.shape[1])
+        best = np.stack(
+            [s + np.argmax(rows[:, s:e], axis=1) for s, e in zip(self.starts, ends)], axis=1
+        )
+        return np.take_along_axis(rows, best, axis=1), best
 
     def support_points(self, U: np.ndarray) -> np.ndarray:
         """Wrenches of the set attaining ``p(u)``: (N, 6) -> (N, 6)."""

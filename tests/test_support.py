@@ -151,3 +151,31 @@ def test_smoothed_support_is_an_upper_bound_with_its_exact_gradient(kind):
         down = [smoothed_support(slots, U - h * e, tau)[0] for e in np.eye(6)]
         numeric = (np.stack(up, axis=1) - np.stack(down, axis=1)) / (2 * h)
         np.testing.assert_allclose(grad, numeric, atol=1e-6 * max(1.0, 1 / tau))
+
+
+@pytest.mark.parametrize("kind", TYPES + ["mixed"])
+@settings(max_examples=15, deadline=None)
+@given(seed=seeds)
+def test_element_slots_values_and_support_points(kind, seed):
+    """Slots of several vertex rows (elements, eq 36): values agree with the reference, and each
+    support point attains its value and lies in the set (no direction sees it beyond ``p``).
+    Only each slot's best row gets a support wrench, and FPC rows have a shortcut: both here."""
+    rng = np.random.default_rng(seed)
+    m = int(rng.integers(1, 5))
+    kinds = list(rng.choice(TYPES, m)) if kind == "mixed" else [kind] * m
+    mu, mu_s, ts = rng.uniform(0.05, 1.0), rng.uniform(0.01, 1.0), rng.uniform(0.1, 3.0)
+    slots_ref = []
+    for k in kinds:
+        n = rng.standard_normal(3)
+        rows = range(rng.integers(1, 5))
+        G = np.array([reference.grasp(rng.standard_normal(3), n, ts) for _ in rows])
+        slots_ref.append((G, k, mu, mu_s, rng.uniform(0.5, 2.0)))
+    slots = WrenchSlots.build(slots_ref)
+    U = unit(rng, 40)
+    values, points = slots.evaluate(U)
+    expected = [reference.support(u, slots_ref) for u in U]
+    np.testing.assert_allclose(values, expected, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(np.einsum("nr,nr->n", points, U), values, rtol=1e-10, atol=1e-12)
+    V = unit(rng, 200)
+    assert np.all(points @ V.T <= slots.support(V)[None, :] + 1e-10)
+
