@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -156,6 +157,35 @@ def test_screened_rounds_are_not_certified(monkeypatch):
     result = Placer(eligibility, options)([0, 1, 2, 3])
     assert result.force_closure and result.rounds > 2
     assert 1 <= len(calls) <= 2
+
+
+def test_neighbour_trials_ruled_out_only_when_no_placement_can_win():
+    """A neighbour trial is skipped when one direction of its elements' support function shows
+    that no placement on them beats the current one; the certified rho_hat of every skipped
+    set (the independent proof: What_c^M holds every placement) confirms it."""
+    from closure_nlp.elements import load_model
+    from closure_nlp.scale import auto_torque_scale
+
+    model = load_model(MODELS / "lamp.model.json")
+    specs = contact_specs(4, type="pcwf", mu=0.2)
+    eligibility = Eligibility(model, specs, auto_torque_scale(model))
+    placer = Placer(eligibility)
+    elements = [36, 10, 40, 14]
+    centroids = [np.full(k, 1.0 / k) for k in (len(model.elements[e].vertices) for e in elements)]
+    best = search_rho(placer.contact_set(elements, centroids))
+    best = dataclasses.replace(best, rho=-0.45)  # a placement that a few neighbours cannot beat
+    margin = 1e-6 * max(1.0, abs(best.rho))
+    skipped = kept = 0
+    for i, e in enumerate(elements):
+        for n in model.neighbours(e):
+            trial = list(elements)
+            trial[i] = n
+            if placer._cannot_beat(trial, best, margin):
+                skipped += 1
+                assert eligibility(trial).bounds[0] >= best.rho - margin
+            else:
+                kept += 1
+    assert skipped and kept  # both kinds occur here (measured: weak sides, and the mirror pairs)
 
 
 def test_nearest_weights():
