@@ -42,6 +42,13 @@ SHARED_DIRECTIONS = 64
 MIN_RADIUS = 1e-9
 # The start strategy of the final, reported rho: four times the samples and runs of the default.
 FINAL_SEARCH = SearchOptions(samples=512, ipopt_starts=12, element_ipopt_starts=12)
+# The search that judges each exchange round's weights: they lie within the trust region of the
+# best ones, whose weak directions the working set holds, so the WARM_DIRECTIONS of them weakest at
+# the new weights start it, besides a quarter of the default's samples. Against the default
+# search from the best direction alone, on 658 rounds of 12 placements (lamp, cup, pistol), each
+# also judged by the other search: it found the weaker direction on 102 rounds, the default on 48.
+ROUND_SEARCH = SearchOptions(samples=32, smoothing=(0.03,), ipopt_starts=2)
+WARM_DIRECTIONS = 4
 
 
 @dataclass(frozen=True)
@@ -87,6 +94,14 @@ class PlacementOptions:
         least as weak as the best weights' rho, the round is rejected as the full search would
         reject it; only promising weights get the full search. ``False`` (default): the full
         search every round.
+    round_search : bool
+        Judge each round's new weights by :data:`ROUND_SEARCH`, started also from the working
+        set's directions weakest there (default); ``False``: by the eligibility's own search
+        from the best weights' direction alone (the former behaviour). Measured against it in
+        one process on 24 placements (lamp, cup, pistol; torque scale 1 and automatic):
+        placement 1.2-2.1x faster (median of the six groups 1.37x); the final rho is better on
+        9, worse on 12 (the path of a local method changes), by -0.097 to +0.052. Every value
+        reported at the end is recomputed with :data:`FINAL_SEARCH` and certified.
     move_rounds : int
         Rounds a neighbour-move trial gets; it runs on to ``max_rounds`` only if it already
         beats the current placement (0: every trial runs to ``max_rounds``, or
@@ -118,6 +133,7 @@ class PlacementOptions:
     probe_rounds: int = 0
     share_directions: bool = False
     move_rounds: int = 8
+    round_search: bool = True
 
     def __post_init__(self) -> None:
         for name in (
@@ -140,7 +156,7 @@ class PlacementOptions:
             value = getattr(self, name)
             if not isinstance(value, (int, float)) or not value > 0:
                 raise ValueError(f"{name}: expected a positive number, got {value!r}")
-        for name in ("certify", "screen", "share_directions"):
+        for name in ("certify", "screen", "share_directions", "round_search"):
             if not isinstance(getattr(self, name), bool):
                 raise TypeError(f"{name}: expected a bool, got {getattr(self, name)!r}")
 
@@ -456,6 +472,7 @@ class Placer:
         model, specs = self.eligibility.model, self.eligibility.specs
         minimizer = self.eligibility.minimizer
         light = minimizer.with_search(SCREEN_SEARCH)
+        judge = minimizer.with_search(ROUND_SEARCH) if self.options.round_search else minimizer
         ts = self.eligibility.torque_scale
         counts = [len(model.elements[e].vertices) for e in elements]
         rows = tuple(padded_rows(k) for k in counts)
@@ -485,13 +502,16 @@ class Placer:
             w = [_unpadded(ci, k) for ci, k in zip(c, counts)]
             trial = self.contact_set(elements, w)
             warm = best.direction
+            if self.options.round_search:
+                values = WrenchSlots.from_contacts(trial).support(np.array(U))
+                warm = np.vstack([warm, np.array(U)[np.argsort(values)[:WARM_DIRECTIONS]]])
             if self.options.screen:
                 # the light search alone: a certificate per screened round cost more than
                 # the full search it was meant to spare (bench plan: fast mode 5-20x slower)
                 found = search_rho(trial, minimizer=light, warm_start=warm)
                 warm = found.direction
             if not self.options.screen or found.rho < best.rho:
-                found = search_rho(trial, minimizer=minimizer, warm_start=warm)
+                found = search_rho(trial, minimizer=judge, warm_start=warm)
             U.append(found.direction)
             if found.rho < best.rho:
                 best, best_w, c_best = found, w, c

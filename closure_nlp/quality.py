@@ -376,11 +376,7 @@ class SupportMinimizer:
         search = self.search
         U0 = sphere_samples(search.samples)
         if warm_start is not None:
-            u0 = as_vector(warm_start, "warm_start", 6)
-            u0 = u0 / np.max(np.abs(u0)) if np.any(u0) else u0  # no overflow in the norm
-            if not np.linalg.norm(u0) > 0:
-                raise ValueError("warm_start: must be a non-zero direction, got all zeros")
-            U0 = np.vstack([u0 / np.linalg.norm(u0), U0])
+            U0 = np.vstack([_warm_starts(warm_start), U0])
         U, values = descend(slots, U0, search.descent_iterations)
         if search.smoothing:
             U_s, values_s = smoothed_descent(
@@ -410,6 +406,21 @@ class SupportMinimizer:
         return SupportMinimum(float(value), u, slots.support_point(u), stats)
 
 
+def _warm_starts(warm_start) -> np.ndarray:
+    """One direction (6,) or several (k, 6), checked and made unit: (k, 6)."""
+    several = np.ndim(warm_start) == 2 and len(warm_start) > 0
+    rows = list(warm_start) if several else [warm_start]
+    starts = []
+    for i, row in enumerate(rows):
+        field = f"warm_start[{i}]" if several else "warm_start"
+        u0 = as_vector(row, field, 6)
+        u0 = u0 / np.max(np.abs(u0)) if np.any(u0) else u0  # no overflow in the norm
+        if not np.linalg.norm(u0) > 0:
+            raise ValueError(f"{field}: must be a non-zero direction, got all zeros")
+        starts.append(u0 / np.linalg.norm(u0))
+    return np.array(starts)
+
+
 _DEFAULT_MINIMIZER = SupportMinimizer()
 
 
@@ -427,8 +438,8 @@ def rho(
     contact_set : ContactSet
     minimizer : SupportMinimizer, optional
         Holds the cached NLPs and the options; a shared default is used when omitted.
-    warm_start : (6,) float, optional
-        A non-zero direction to add to the starts (e.g. the previous ``u*`` in a loop).
+    warm_start : (6,) or (k, 6) float, optional
+        Non-zero directions to add to the starts (e.g. the previous ``u*`` in a loop).
     certify : bool
         Accepted for compatibility: the bounds are always computed.
 

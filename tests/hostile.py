@@ -675,6 +675,12 @@ def _api_cases() -> list[Case]:
                                                 warm_start=[np.nan] * 6).rho, ERROR)
     api("rho(box, warm_start=str)", lambda: rho(contact_set_from_dict(BOX),
                                                 warm_start="abc").rho, ERROR)
+    api("rho(box, warm_start=2 rows)", lambda: rho(contact_set_from_dict(BOX),
+                                                   warm_start=np.eye(6)[:2]).rho, ANSWER)
+    api("rho(box, warm_start=zero row)", lambda: rho(contact_set_from_dict(BOX),
+                                                     warm_start=np.zeros((2, 6))).rho, ERROR)
+    api("rho(box, warm_start=5 columns)", lambda: rho(contact_set_from_dict(BOX),
+                                                      warm_start=np.ones((2, 5))).rho, ERROR)
     api("rho(not a set)", lambda: rho([1, 2, 3]).rho, ERROR)
     for label, element in [
         ("vertices_str", lambda: Element("point", [["0", 0, 0]], [0, 0, 1])),
@@ -711,6 +717,7 @@ def _api_cases() -> list[Case]:
     for label, kwargs in [
         ("starts=0", {"starts": 0}), ("starts=-1", {"starts": -1}), ("starts=2.5", {"starts": 2.5}),
         ("seed=str", {"seed": "1"}), ("certify=str", {"certify": "yes"}), ("bogus", {"bogus": 1}),
+        ("round_search=str", {"round_search": "light"}),
     ]:
         api(f"PlacementOptions({label})", lambda kw=kwargs: PlacementOptions(**kw).starts, ERROR)
     for label, kwargs in [
