@@ -23,6 +23,7 @@ from .quality import (
     SupportMinimum,
     certificate_keys,
     certified_rho,
+    certified_search,
     signed_distance,
 )
 from .validation import as_torque_scale
@@ -162,10 +163,10 @@ class Eligibility:
             raise TypeError(f"certify: expected a bool, got {type(certify).__name__}")
         elements = self.check_elements(elements, partial=partial)
         slots = self.slots(elements)
-        found = self.minimizer(slots, warm_start)
         self.evaluations += 1
         if certify:
-            return self._certified(elements, slots, found)
+            return self._result(elements, certified_search(self.minimizer, slots, warm_start))
+        found = self.minimizer(slots, warm_start)
         value = signed_distance(found, slots, self.minimizer.tolerances)
         return EligibilityResult(elements, value, value < 0.0, found.direction, found.stats)
 
@@ -180,7 +181,10 @@ class Eligibility:
         return self._certified(result.elements, slots, found)
 
     def _certified(self, elements, slots, found) -> EligibilityResult:
-        r = certified_rho(slots, found, self.minimizer.tolerances)
+        return self._result(elements, certified_rho(slots, found, self.minimizer.tolerances))
+
+    @staticmethod
+    def _result(elements, r) -> EligibilityResult:
         return EligibilityResult(
             elements, r.rho, r.force_closure, r.direction, r.stats, r.bounds, r.marginal,
             r.converged,

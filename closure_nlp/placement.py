@@ -29,7 +29,7 @@ from .elements import simplex_weights
 from .eligibility import Eligibility, padded_rows
 from .interrupts import interruptible
 from .progress import Progress
-from .quality import SearchOptions, certificate_keys, rho, search_rho
+from .quality import SearchOptions, certificate_keys, certified_rho, rho, search_rho
 from .selection import SCREEN_SEARCH
 from .sphere_search import sphere_samples
 from .wrenches import WrenchSlots
@@ -592,11 +592,9 @@ class Placer:
         contact_set = self.contact_set(elements, best_w)
         if progress:
             progress("certification", 0, best.rho)
-        final = rho(
-            contact_set,
-            minimizer=self.eligibility.minimizer.with_search(FINAL_SEARCH),
-            warm_start=best.direction,
-        )
+        wide = self.eligibility.minimizer.with_search(FINAL_SEARCH)
+        slots = WrenchSlots.from_contacts(contact_set)
+        final = certified_rho(slots, wide(slots, best.direction), wide.tolerances)
         if final.rho > start.rho:
             start = rho(start_set, minimizer=self.eligibility.minimizer)
         if final.rho > start.rho:

@@ -317,6 +317,13 @@ class SupportMinProblem:
 
 
 MAX_PROBLEMS = 32  # cached NLP shapes per minimizer: ~7 MB each (a study worker held 42)
+# The start strategy when a certificate follows (rho, certified rho_hat): the certificate proves
+# the minimum whatever the incumbent, and lowers it where the search stopped short, so a quarter
+# of the samples, one smoothing temperature and fewer IPOPT runs do. Measured in one process on
+# 20 sets per family, against the default search: every bracket converged either way, the values
+# agree within 8.2e-7 relative (inside the 1e-6 brackets), and the certified medians went
+# 4 PCwF 90 -> 63 ms, 4 SFCe 271 -> 267, 7 FPC 15 -> 5.8, 4 mixed 98 -> 75, lamp rho_hat 73 -> 37.
+SEED_SEARCH = SearchOptions(samples=32, smoothing=(0.03,), ipopt_starts=1, element_ipopt_starts=2)
 
 
 class SupportMinimizer:
@@ -326,6 +333,10 @@ class SupportMinimizer:
     pseudo-random directions (and the warm start, when given), then IPOPT from the lowest end
     points of new basins; the best answer, by the support function evaluated at its unit
     direction, wins.
+
+    ``search`` is the start strategy of a search alone (the comparisons inside selection and
+    placement); ``seed_search`` that of a search whose answer a certificate then proves
+    (:data:`SEED_SEARCH`; None: ``search`` as well).
     """
 
     def __init__(
@@ -333,17 +344,27 @@ class SupportMinimizer:
         tolerances: Tolerances = DEFAULT_TOLERANCES,
         search: SearchOptions = SearchOptions(),
         ipopt_options: dict | None = None,
+        seed_search: SearchOptions | None = SEED_SEARCH,
     ):
+        if not isinstance(search, SearchOptions):
+            raise TypeError(f"search: expected SearchOptions, got {search!r}")
+        if not (seed_search is None or isinstance(seed_search, SearchOptions)):
+            raise TypeError(f"seed_search: expected SearchOptions or None, got {seed_search!r}")
         self.tolerances = tolerances
         self.search = search
+        self.seed_search = seed_search
         self.ipopt_options = dict(ipopt_options or {})
         self._problems: OrderedDict[tuple, SupportMinProblem] = OrderedDict()
 
     def with_search(self, search: SearchOptions) -> SupportMinimizer:
         """The same NLPs (the cache is shared) with another start strategy."""
-        other = SupportMinimizer(self.tolerances, search, self.ipopt_options)
+        other = SupportMinimizer(self.tolerances, search, self.ipopt_options, self.seed_search)
         other._problems = self._problems
         return other
+
+    def seeding(self) -> SupportMinimizer:
+        """The same NLPs with the start strategy of a search that a certificate follows."""
+        return self if self.seed_search is None else self.with_search(self.seed_search)
 
     def problem(self, slots: WrenchSlots) -> SupportMinProblem:
         """The NLP of this shape, built once; the least recently used of more than
@@ -456,7 +477,7 @@ def rho(
         raise TypeError(f"certify: expected a bool, got {type(certify).__name__}")
     minimizer = minimizer or _DEFAULT_MINIMIZER
     slots = WrenchSlots.from_contacts(contact_set)
-    return certified_rho(slots, minimizer(slots, warm_start), minimizer.tolerances)
+    return certified_search(minimizer, slots, warm_start)
 
 
 def search_rho(
@@ -472,6 +493,24 @@ def search_rho(
     found = minimizer(slots, warm_start)
     value = signed_distance(found, slots, minimizer.tolerances)
     return RhoResult(value, value < 0.0, found.direction, found.support_point, found.stats)
+
+
+def certified_search(minimizer: SupportMinimizer, slots: WrenchSlots, warm_start=None) -> RhoResult:
+    """The seed search (:attr:`SupportMinimizer.seed_search`), then its certificate.
+
+    A bracket left unconverged (a continuum of equally weak directions, where the branch and
+    bound stops at its budget) holds a reported value that is only as good as the incumbent: the
+    full search then starts from the certificate's best direction, and when it finds a weaker
+    one the certificate starts again there, so a light seed never costs the headline number.
+    """
+    seed = minimizer.seeding()
+    result = certified_rho(slots, seed(slots, warm_start), minimizer.tolerances)
+    if result.converged or seed is minimizer:
+        return result
+    more = minimizer(slots, result.direction)
+    if more.value >= -result.rho:
+        return result
+    return certified_rho(slots, more, minimizer.tolerances)
 
 
 def certified_rho(slots: WrenchSlots, found: SupportMinimum, tolerances: Tolerances) -> RhoResult:
@@ -515,6 +554,7 @@ __all__ = [
     "SupportMinimum",
     "certificate_keys",
     "certified_rho",
+    "certified_search",
     "rho",
     "search_rho",
     "signed_distance",

@@ -720,6 +720,12 @@ def _api_cases() -> list[Case]:
         ("round_search=str", {"round_search": "light"}),
     ]:
         api(f"PlacementOptions({label})", lambda kw=kwargs: PlacementOptions(**kw).starts, ERROR)
+    from closure_nlp.quality import SupportMinimizer
+
+    for label, kwargs in [
+        ("search=dict", {"search": {"samples": 8}}), ("seed_search=str", {"seed_search": "light"}),
+    ]:
+        api(f"SupportMinimizer({label})", lambda kw=kwargs: SupportMinimizer(**kw).search, ERROR)
     for label, kwargs in [
         ("initial=0", {"initial": 0}), ("restarts=0", {"restarts": 0}),
         ("max_iterations=-1", {"max_iterations": -1}), ("descent=nan", {"descent": float("nan")}),

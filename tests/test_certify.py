@@ -15,7 +15,7 @@ import closure_nlp.branch_bound as branch_bound
 from closure_nlp.certify import certified_bounds, tolerance_unit
 from closure_nlp.contacts import Contact, ContactSet, ContactType, grasp_matrices
 from closure_nlp.crosscheck import ball_minimum
-from closure_nlp.quality import SupportMinimizer, rho
+from closure_nlp.quality import SEED_SEARCH, SupportMinimizer, rho
 from closure_nlp.random_sets import random_contact_set
 from closure_nlp.wrenches import WrenchSlots
 
@@ -250,3 +250,18 @@ def test_scaling_f_max_scales_the_bracket():
         )
         assert scaled.force_closure == base.force_closure and scaled.converged
         np.testing.assert_allclose(scaled.bounds, np.multiply(base.bounds, c), rtol=2e-6)
+
+
+def test_the_light_seed_search_gives_the_same_certified_answer():
+    """``rho`` seeds its certificate with a light search (SEED_SEARCH): the proof does not rest on
+    the seed, so the answer agrees, within the brackets, with one seeded by the full search."""
+    full = SupportMinimizer(seed_search=None)
+    assert full.seeding() is full and SEARCH.seeding().search == SEED_SEARCH
+    assert SEARCH.with_search(SEED_SEARCH).seed_search == SEED_SEARCH  # kept by with_search
+    for name, cs in CONTACT_SETS[::25]:
+        light, wide = rho(cs), rho(cs, minimizer=full)
+        tol = 1e-6 * max(1.0, abs(wide.rho))
+        assert light.converged and wide.converged, name
+        assert light.bounds[0] - tol <= wide.rho <= light.bounds[1] + tol, name
+        assert wide.bounds[0] - tol <= light.rho <= wide.bounds[1] + tol, name
+        assert light.force_closure == wide.force_closure, name
