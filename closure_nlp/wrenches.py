@@ -107,20 +107,20 @@ class WrenchSlots:
     def row_scales(self, friction: bool = True) -> tuple[float, float]:
         """Upper bounds on the force part and the torque part of any row's extreme wrench
         (``friction=False``: ``f_max`` times the norms of the rows of ``G``, the scale of the
-        normal force's wrench; the spin column counts only for rows with spin friction).
+        normal force's wrench), in the units of the set whatever the length unit.
 
         A row's force ``(f_n, f_t)`` has ``|f_t|^2 <= (sum of its friction weights) f_n^2`` and
         ``f_n <= f_max``; the first three rows of ``G`` map it to the force, the last three to
-        the torque.
+        the torque. The spin column (``torque_scale`` times the normal) counts times the spin
+        coefficient ``mu_s``, a length: the spin moment is at most ``mu_s f_n``. Unweighted, it
+        made a 7-FPC fixture (no spin at all) look 35x longer in torque than it is, and a part
+        in metres with soft fingers (``mu_s`` 0.01 R) 1e6 times longer than in millimetres.
         """
-        force = self.f_max * (
-            np.sqrt(1.0 + self.pieces[:, :, 1:].sum(axis=(1, 2))) if friction else 1.0
-        )
-        # Only the columns a row can use: the spin column (``torque_scale`` times the normal,
-        # whatever the lever arms) is no torque of a contact without spin friction, and counting
-        # it made a 7-FPC fixture look 35x longer in torque than it is.
-        spin = self.pieces[:, :, 3].max(axis=1) > 0
-        G = np.where(spin[:, None, None] | (np.arange(4) < 3), self.G, 0.0)
+        spin = np.sqrt(self.pieces[:, :, 3].max(axis=1))  # mu_s, or 0 without spin friction
+        G = self.G.copy()
+        G[:, :, 3] *= spin[:, None]  # the spin column per unit of normal force
+        tangential = self.pieces[:, :, 1:3].sum(axis=(1, 2)) + (spin > 0)
+        force = self.f_max * (np.sqrt(1.0 + tangential) if friction else 1.0)
         top = np.linalg.norm(G[:, :3, :], ord=2, axis=(1, 2))
         bottom = np.linalg.norm(G[:, 3:, :], ord=2, axis=(1, 2))
         return float(np.max(top * force)), float(np.max(bottom * force))
