@@ -667,7 +667,6 @@ class Placer:
                     return (i, n, w_new, found, up), spent
         return None, spent
 
-
     def _cannot_beat(self, elements, best, margin: float) -> bool:
         """Whether no placement on ``elements`` can have rho below ``best.rho - margin``.
 
