@@ -75,6 +75,7 @@ def test_plan_cli_equals_api(capsys, box):
     assert _without_timings(from_cli) == _without_timings(json.loads(json.dumps(api)))
 
 
+@pytest.mark.slow  # 47 s: the fast suite stays near 10 minutes
 def test_select_and_place_cli_equal_api(capsys, box):
     argv = ["select", str(box), "--contacts", "2", "--algorithm", "iterative", "--seed", "5"]
     from_cli = _cli(capsys, *argv, *OPTIONS, "--type", "sfce")

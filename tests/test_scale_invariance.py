@@ -89,6 +89,7 @@ def test_rho_verdict_invariant_to_torque_scale(seed, kinds, exponent):
     assert scaled.force_closure == reference.force_closure
 
 
+@pytest.mark.slow  # 79 s: the fast suite stays near 10 minutes
 @settings(SETTINGS, max_examples=4)  # the range ends below, and 4 draws (each certifies twice)
 @given(
     f_exponent=st.floats(LOW, HIGH),

@@ -47,6 +47,7 @@ def test_heuristic_finds_eligible_sets(ring, seed):
     assert [k for k, _ in result.history] == list(range(len(result.history)))
 
 
+@pytest.mark.slow  # 162 s: the fast suite stays near 10 minutes
 def test_iterative_ends_in_a_local_minimum(ring):
     """No single swap of a contact's element for a neighbour lowers rho_hat (brute force)."""
     start = [0, 1, 2]  # three neighbouring side facets: a poor start
