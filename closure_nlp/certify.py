@@ -25,7 +25,7 @@ from .branch_bound import BranchBoundOptions, sphere_minimum
 from .nearest_point import min_norm_point, nearest_point_bounds
 from .sphere_search import descend, sphere_samples
 from .tolerances import DEFAULT_TOLERANCES, Tolerances
-from .validation import as_vector
+from .validation import as_unit_vector
 from .wrenches import WrenchSlots, as_slots
 
 # Torque rows this many times larger or smaller than force rows: verdicts on a whitened copy.
@@ -168,11 +168,7 @@ def certified_bounds(
         U, values = descend(slots, sphere_samples(64), 30)
         u0 = U[int(np.argmin(values))]
     else:
-        u0 = as_vector(direction, "direction", 6)
-        norm = np.linalg.norm(u0)
-        if not norm > 0:
-            raise ValueError("direction: must be a non-zero 6-vector")
-        u0 = u0 / norm
+        u0 = as_unit_vector(direction, "direction", 6)
     value0 = float(slots.support(u0[None])[0])
 
     def gap(value: float) -> float:

@@ -30,7 +30,7 @@ from .contacts import ContactSet
 from .interrupts import interruptible
 from .sphere_search import descend, smoothed_descent, sphere_samples
 from .tolerances import DEFAULT_TOLERANCES, Tolerances
-from .validation import as_vector
+from .validation import as_unit_vector
 from .wrenches import WrenchSlots, piece_square
 
 
@@ -429,17 +429,15 @@ class SupportMinimizer:
 
 def _warm_starts(warm_start) -> np.ndarray:
     """One direction (6,) or several (k, 6), checked and made unit: (k, 6)."""
-    several = np.ndim(warm_start) == 2 and len(warm_start) > 0
-    rows = list(warm_start) if several else [warm_start]
-    starts = []
-    for i, row in enumerate(rows):
-        field = f"warm_start[{i}]" if several else "warm_start"
-        u0 = as_vector(row, field, 6)
-        u0 = u0 / np.max(np.abs(u0)) if np.any(u0) else u0  # no overflow in the norm
-        if not np.linalg.norm(u0) > 0:
-            raise ValueError(f"{field}: must be a non-zero direction, got all zeros")
-        starts.append(u0 / np.linalg.norm(u0))
-    return np.array(starts)
+    try:
+        several = np.ndim(warm_start) == 2
+    except ValueError:  # rows of unequal lengths: each is refused below, by its index
+        several = True
+    if not (several and len(warm_start) > 0):
+        return as_unit_vector(warm_start, "warm_start", 6)[None]
+    return np.array(
+        [as_unit_vector(row, f"warm_start[{i}]", 6) for i, row in enumerate(warm_start)]
+    )
 
 
 _DEFAULT_MINIMIZER = SupportMinimizer()

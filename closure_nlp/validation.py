@@ -136,13 +136,14 @@ def _check_finite(arr: np.ndarray, field: str, limit: float | None) -> None:
         )
 
 
-def as_unit_vector(value, field: str) -> np.ndarray:
-    """Return a 3-vector normalised to unit length; reject a zero or non-finite one.
+def as_unit_vector(value, field: str, length: int = 3) -> np.ndarray:
+    """Return a vector of ``length`` entries (a normal; a wrench direction with 6) normalised to
+    unit length; reject a zero or non-finite one.
 
     Divided by its largest component first, so a normal of length 1e200 (whose length
     overflows) or 1e-200 (whose square underflows) keeps its direction exactly.
     """
-    arr = as_vector(value, field, 3)
+    arr = as_vector(value, field, length)
     largest = float(np.abs(arr).max())
     if largest == 0.0:
         raise ValueError(f"{field}: zero vector {_short(value)} has no direction")

@@ -681,6 +681,8 @@ def _api_cases() -> list[Case]:
                                                      warm_start=np.zeros((2, 6))).rho, ERROR)
     api("rho(box, warm_start=5 columns)", lambda: rho(contact_set_from_dict(BOX),
                                                       warm_start=np.ones((2, 5))).rho, ERROR)
+    api("rho(box, warm_start=ragged rows)", lambda: rho(contact_set_from_dict(BOX),
+                                                        warm_start=[[1] * 6, [1, 0]]).rho, ERROR)
     api("rho(not a set)", lambda: rho([1, 2, 3]).rho, ERROR)
     for label, element in [
         ("vertices_str", lambda: Element("point", [["0", 0, 0]], [0, 0, 1])),

@@ -236,3 +236,20 @@ def test_nlp_cache_keeps_the_most_recent_shapes(monkeypatch):
     keys = [quality.SupportMinProblem.key(s) for s in sets]
     assert list(minimizer._problems) == [keys[0], keys[2]]
     assert minimizer(sets[0]).value == first
+
+
+def test_several_warm_starts_and_errors_that_name_the_row():
+    from closure_nlp.quality import _warm_starts, search_rho
+
+    starts = _warm_starts([[3, 0, 0, 0, 0, 4], [0, 0, 0, 0, 0, 1e-200]])  # tiny: no underflow
+    np.testing.assert_allclose(starts, [[0.6, 0, 0, 0, 0, 0.8], [0, 0, 0, 0, 0, 1]], atol=1e-15)
+    np.testing.assert_allclose(_warm_starts([0, 2, 0, 0, 0, 0]), [[0, 1, 0, 0, 0, 0]])
+    pair = (Contact([0, 0, 1], [0, 0, -1], "sfce"), Contact([0, 0, -1], [0, 0, 1], "sfce"))
+    cs = ContactSet(pair)
+    for bad, field in (
+        ([[1, 0, 0, 0, 0, 0], [1, 0]], r"warm_start\[1\]: expected 6 numbers"),  # ragged rows
+        ([[1, 0, 0, 0, 0, 0], [0] * 6], r"warm_start\[1\]: zero vector"),
+        ([0] * 6, r"warm_start: zero vector"),
+    ):
+        with pytest.raises(ValueError, match=field):
+            search_rho(cs, warm_start=bad)
