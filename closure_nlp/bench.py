@@ -23,7 +23,7 @@ from .elements import load_model
 from .eligibility import Eligibility
 from .placement import PlacementOptions, Placer
 from .planning import plan
-from .quality import SearchOptions, SupportMinimizer
+from .quality import SearchOptions, SupportMinimizer, certified_rho
 from .random_sets import BENCH_CASES, random_contact_set
 from .selection import SelectionOptions, heuristic, iterative
 from .wrenches import WrenchSlots
@@ -105,7 +105,7 @@ def bench_certify(cases: int = 20, seed: int = 0, models_dir=None) -> dict:
     both), against SLSQP from ``+-e_k`` (uncertified, the paper's approach); the
     bracket widths relative to ``max(|rho|, unit)``; how many brackets converged to 1e-6.
     """
-    from .certify import certified_bounds, tolerance_unit
+    from .certify import tolerance_unit
 
     minimizer = SupportMinimizer()
     families = {name: types for name, types in BENCH_CASES.items()}
@@ -136,7 +136,7 @@ def bench_certify(cases: int = 20, seed: int = 0, models_dir=None) -> dict:
             t1 = time.perf_counter()
             found = seed(slots)  # the certified path: the light seed, then the certificate
             t2 = time.perf_counter()
-            bounds = certified_bounds(slots, found.direction)
+            bounds = certified_rho(slots, found, minimizer)
             t3 = time.perf_counter()
             paper_baseline(slots)
             t4 = time.perf_counter()
@@ -144,8 +144,8 @@ def bench_certify(cases: int = 20, seed: int = 0, models_dir=None) -> dict:
             seed_ms.append(1e3 * (t2 - t1))
             cert_ms.append(1e3 * (t3 - t2))
             base_ms.append(1e3 * (t4 - t3))
-            scale = max(abs(bounds.lo), tolerance_unit(slots))
-            widths.append(bounds.gap / scale)
+            lo, hi = bounds.bounds
+            widths.append((hi - lo) / max(abs(lo), tolerance_unit(slots)))
             converged.append(bounds.converged)
             closure.append(bounds.force_closure)
         total = np.add(seed_ms, cert_ms)

@@ -24,10 +24,14 @@ cell that survives near the minimum gets those of its corners and of a cloud aro
 sample, with a longer search of the weights.
 
 Incumbent. Every evaluated direction gives an upper bound ``p(u) >= min p``; the lowest is the
-incumbent. Cells whose bound reaches the incumbent
-minus the allowed gap are dropped; the others are halved along their widest coordinate, all at
-once in numpy, until none is left or the budget is spent. The minimum over the sphere then lies in
-``[min over dropped and live cells of their bounds, incumbent]``.
+incumbent. When a cell's samples lower it, an optional local solver (``polish``) runs from there:
+samples approach a minimum only to first order in the cell size, and with an incumbent that far
+above the minimum whole neighbourhoods of it survive (an optimised lamp placement whose seed
+search missed the global basin by 0.26%: 18.3 s and unconverged without, 0.9 s with). Cells
+whose bound reaches the incumbent minus the allowed gap are dropped; the others are halved along
+their widest coordinate, all at once in numpy, until none is left or the budget is spent. The
+minimum over the sphere then lies in ``[min over dropped and live cells of their bounds,
+incumbent]``.
 """
 
 from __future__ import annotations
@@ -39,6 +43,7 @@ import numpy as np
 
 from .wrenches import WrenchSlots
 
+MAX_POLISH = 8  # local solves per branch and bound: each a few ms; the first ones do the work
 # Per unit of wrench scale: covers the float64 roundoff of support values and support points
 # (a few ulps of sums of m terms), far below any tolerance of the package.
 ROUNDOFF = 1e-13
@@ -161,8 +166,9 @@ def _box_bound(W, corners, corners_unit, nearest):
     quasi-concave on the box, so its minimum is at a corner: exact. Otherwise the most negative
     ``w . x`` over the corners divided by the smallest ``|x|`` on the box.
     """
-    raw = np.einsum("ncr,nkr->nck", corners, W).min(axis=1)
-    unit = np.einsum("ncr,nkr->nck", corners_unit, W).min(axis=1)
+    Wt = W.transpose(0, 2, 1)  # batched matmul: 9x faster than the einsum of these shapes
+    raw = (corners @ Wt).min(axis=1)
+    unit = (corners_unit @ Wt).min(axis=1)
     return np.where(raw >= 0, unit, raw / nearest[:, None])
 
 
@@ -233,15 +239,19 @@ def _game_weights(M: np.ndarray, max_pivots: int = 300) -> np.ndarray:
     The value of a small matrix game, as ``N`` linear programs solved at once by a dense
     primal simplex (Dantzig's rule): ``max t`` s.t. ``t <= (M lam)_c``, ``sum lam = 1``,
     ``lam >= 0``. Every iterate is feasible, so weights from a capped run still give a valid
-    (if looser) bound; callers recompute the bound from the weights.
+    (if looser) bound; callers recompute the bound from the weights, in float64. So the
+    tableau is float32 (half the memory traffic: 1.5x faster certificates of optimised
+    placements), on each game scaled to [0, 1]: the weights reach the value within about 1e-6
+    of the spread of the game's entries, which is tiny in the small cells near a minimum.
     """
     N, C, K = M.shape
-    shift = M.min(axis=(1, 2), keepdims=True)
-    Mp = M - shift  # >= 0, so t - shift >= 0 at the optimum
+    Mp = M - M.min(axis=(1, 2), keepdims=True)  # >= 0, so t >= 0 at the optimum
+    span = Mp.max(axis=(1, 2), keepdims=True)
+    Mp = Mp / np.where(span > 0, span, 1.0)  # in [0, 1]: the weights are those of M
     j0 = np.argmax(Mp.min(axis=1), axis=1)  # the best single column
     rows = np.arange(N)
     V = K + 1 + C  # columns: lam, t, slacks
-    T = np.zeros((N, C + 2, V + 1))
+    T = np.zeros((N, C + 2, V + 1), dtype=np.float32)
     # Row c: -M' lam + t + s_c = 0, with lam_j0 eliminated through the sum row.
     pivot_col = Mp[rows, :, j0]  # (N, C)
     T[:, :C, :K] = -Mp + pivot_col[:, :, None]
@@ -254,7 +264,7 @@ def _game_weights(M: np.ndarray, max_pivots: int = 300) -> np.ndarray:
     basis = np.empty((N, C + 1), dtype=int)
     basis[:, :C] = K + 1 + np.arange(C)
     basis[:, C] = j0
-    eps = 1e-12
+    eps = 1e-6
     # Rows at their optimum leave the working arrays: a finished program never pivots again.
     work = rows
     done_T, done_basis = np.empty_like(T), np.empty_like(basis)
@@ -293,8 +303,8 @@ def _game_weights(M: np.ndarray, max_pivots: int = 300) -> np.ndarray:
 
 def _exact_bound(points, corners, corners_unit, nearest):
     """The corner bound of the best convex combination of each cell's points: (N,)."""
-    lam = _game_weights(np.einsum("ncr,nkr->nck", corners_unit, points))
-    wbar = np.einsum("nk,nkr->nr", lam, points)[:, None]
+    lam = _game_weights(corners_unit @ points.transpose(0, 2, 1))
+    wbar = lam[:, None, :] @ points  # (N, 1, 6)
     return _box_bound(wbar, corners, corners_unit, nearest)[:, 0]
 
 
@@ -321,6 +331,7 @@ def sphere_minimum(
     gap: float,
     metric=None,
     options: BranchBoundOptions = BranchBoundOptions(),
+    polish=None,
 ) -> SphereBounds:
     """Certified bounds on ``min_{|u|=1} p(u)`` with ``upper - lower <= gap`` when converged.
 
@@ -337,6 +348,10 @@ def sphere_minimum(
         isotropic one with ``D = (1, 1, 1, 1/k, 1/k, 1/k)`` (``p_W(D v / |D v|) = p_{DW}(v) /
         |D v|``). Any positive ``D`` covers the sphere: only the work changes.
     options : BranchBoundOptions
+    polish : callable, optional
+        ``polish(u) -> (6,)``: a local minimiser of ``p`` started at ``u``, run (at most
+        :data:`MAX_POLISH` times) from the incumbent whenever samples lowered it by more than
+        the gap. Its direction only enters as an evaluated sample, so any answer is safe.
 
     The search stops early, unconverged, when it finds ``p(u) < 0`` while ``stop_below_zero``:
     the origin is then outside the set, where :mod:`closure_nlp.nearest_point` is exact.
@@ -349,7 +364,8 @@ def sphere_minimum(
         state.consider(np.asarray(incumbent, dtype=float)[None])
     axis, sign, lo, hi = _initial_cells(options.initial_splits)
     lower_dropped = np.inf
-    cells = rounds = 0
+    cells = rounds = polished = 0
+    polished_at = state.value
     converged = False
     while True:
         c, delta, corners, corners_unit, nearest = _cells(axis, sign, lo, hi, metric)
@@ -359,6 +375,9 @@ def sphere_minimum(
         points = points.reshape(len(lo), -1, 6)
         cells += len(lo)
         rounds += 1
+        if polish is not None and polished < MAX_POLISH and state.value < polished_at - gap:
+            state.consider(np.asarray(polish(state.u), dtype=float)[None])
+            polished, polished_at = polished + 1, state.value
         if options.stop_below_zero and state.value < -margin:
             lower = -np.inf
             break
@@ -374,7 +393,7 @@ def sphere_minimum(
                 [points[k], np.broadcast_to(anchors, (len(k), *anchors.shape))], axis=1
             )
             lam, cap = _frank_wolfe(pool, c[k], delta[k], options.fw_steps)
-            wbar = np.einsum("nk,nkr->nr", lam, pool)[:, None]
+            wbar = lam[:, None, :] @ pool
             box = _box_bound(wbar, corners[k], corners_unit[k], nearest[k])[:, 0]
             bound[k] = np.maximum(bound[k], np.maximum(cap, box) - margin)
             still = bound[k] < target

@@ -128,6 +128,7 @@ def certified_bounds(
     tol: float | None = None,
     options: CertifyOptions = CertifyOptions(),
     tolerances: Tolerances = DEFAULT_TOLERANCES,
+    polish=None,
 ) -> CertifiedBounds:
     """Bounds ``lo <= rho <= hi`` with ``hi - lo <= tol * max(|rho|, unit)``.
 
@@ -141,6 +142,11 @@ def certified_bounds(
         Relative gap to reach; ``tolerances.certify`` (1e-6) when omitted.
     options : CertifyOptions
     tolerances : Tolerances
+    polish : callable, optional
+        ``polish(u) -> (6,)``, a local minimiser of this set's support function from ``u``
+        (:meth:`~closure_nlp.quality.SupportMinimizer.polish`): it keeps the branch and bound's
+        incumbent at a minimum (:func:`~closure_nlp.branch_bound.sphere_minimum`). The bounds
+        do not depend on it.
 
     Returns
     -------
@@ -179,7 +185,7 @@ def certified_bounds(
         value0 = float(slots.support(u0[None])[0])
     if value0 >= 0:
         found = sphere_minimum(
-            slots, u0, gap=gap(value0), metric=_metric(slots), options=budget
+            slots, u0, gap=gap(value0), metric=_metric(slots), options=budget, polish=polish
         )
         if found.upper >= 0:  # the origin is not outside: rho = -min p
             lo, hi = -found.upper, -found.lower

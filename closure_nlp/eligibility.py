@@ -181,7 +181,7 @@ class Eligibility:
         return self._certified(result.elements, slots, found)
 
     def _certified(self, elements, slots, found) -> EligibilityResult:
-        return self._result(elements, certified_rho(slots, found, self.minimizer.tolerances))
+        return self._result(elements, certified_rho(slots, found, self.minimizer))
 
     @staticmethod
     def _result(elements, r) -> EligibilityResult:

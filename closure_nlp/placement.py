@@ -594,7 +594,7 @@ class Placer:
             progress("certification", 0, best.rho)
         wide = self.eligibility.minimizer.with_search(FINAL_SEARCH)
         slots = WrenchSlots.from_contacts(contact_set)
-        final = certified_rho(slots, wide(slots, best.direction), wide.tolerances)
+        final = certified_rho(slots, wide(slots, best.direction), wide)
         if final.rho > start.rho:
             start = rho(start_set, minimizer=self.eligibility.minimizer)
         if final.rho > start.rho:

@@ -323,6 +323,10 @@ MAX_PROBLEMS = 32  # cached NLP shapes per minimizer: ~7 MB each (a study worker
 # 20 sets per family, against the default search: every bracket converged either way, the values
 # agree within 8.2e-7 relative (inside the 1e-6 brackets), and the certified medians went
 # 4 PCwF 90 -> 63 ms, 4 SFCe 271 -> 267, 7 FPC 15 -> 5.8, 4 mixed 98 -> 75, lamp rho_hat 73 -> 37.
+# One IPOPT run from a given direction, nothing else: the certificate's local solver.
+POLISH_SEARCH = SearchOptions(
+    samples=0, descent_iterations=0, smoothing=(), ipopt_starts=1, element_ipopt_starts=1
+)
 SEED_SEARCH = SearchOptions(samples=32, smoothing=(0.03,), ipopt_starts=1, element_ipopt_starts=2)
 
 
@@ -365,6 +369,11 @@ class SupportMinimizer:
     def seeding(self) -> SupportMinimizer:
         """The same NLPs with the start strategy of a search that a certificate follows."""
         return self if self.seed_search is None else self.with_search(self.seed_search)
+
+    def polish(self, slots: WrenchSlots, u: np.ndarray) -> np.ndarray:
+        """A local minimum's direction of ``p`` near ``u`` (one IPOPT run; ``+-e_k`` instead
+        when one is lower): what the certificate's branch and bound polishes its incumbent by."""
+        return self.with_search(POLISH_SEARCH)(slots, u).direction
 
     def problem(self, slots: WrenchSlots) -> SupportMinProblem:
         """The NLP of this shape, built once; the least recently used of more than
@@ -507,7 +516,7 @@ def certified_search(minimizer: SupportMinimizer, slots: WrenchSlots, warm_start
     from .certify import tolerance_unit
 
     seed = minimizer.seeding()
-    result = certified_rho(slots, seed(slots, warm_start), minimizer.tolerances)
+    result = certified_rho(slots, seed(slots, warm_start), minimizer)
     if result.converged or result.marginal or seed is minimizer:
         return result
     more = minimizer(slots, result.direction)
@@ -525,11 +534,19 @@ def certified_search(minimizer: SupportMinimizer, slots: WrenchSlots, warm_start
     )
 
 
-def certified_rho(slots: WrenchSlots, found: SupportMinimum, tolerances: Tolerances) -> RhoResult:
-    """The search's minimum made certain: bounds started at its direction, the lower value wins."""
+def certified_rho(
+    slots: WrenchSlots, found: SupportMinimum, minimizer: SupportMinimizer
+) -> RhoResult:
+    """The search's minimum made certain: bounds started at its direction (and polished by the
+    minimizer's local solver), the lower value wins."""
     from .certify import certified_bounds
 
-    bounds = certified_bounds(slots, found.direction, tolerances=tolerances)
+    bounds = certified_bounds(
+        slots,
+        found.direction,
+        tolerances=minimizer.tolerances,
+        polish=lambda u: minimizer.polish(slots, u),
+    )
     if -bounds.lo < found.value:  # the certificate's search found a lower support value
         u = bounds.direction
         found = SupportMinimum(-bounds.lo, u, slots.support_point(u), found.stats)
