@@ -38,6 +38,9 @@ DIRECTION_BUCKETS = (16, 32, 64, 128, 256)
 # Weak directions of earlier exchange runs on the same elements that start a later run's working
 # set: with the random ones and one run's rounds (max_rounds 40) it stays within 128.
 SHARED_DIRECTIONS = 64
+# Vertex rows above which a contact's position enters the exchange NLP through three variables
+# (:class:`ExchangeProblem`): 7 PCwF on the pistol, 24- and 18-vertex facets, 9.5x per solve.
+AFFINE_ROWS = 4
 # The trust region's smallest radius (barycentric weights): below it the weights cannot move.
 MIN_RADIUS = 1e-9
 # The start strategy of the final, reported rho: four times the samples and runs of the default.
@@ -278,17 +281,24 @@ class ExchangeProblem:
     """``max r`` over weights ``c`` s.t. a smooth lower bound of ``p(u_k; c)`` is ``>= r``.
 
     For direction ``k`` the bound is ``sum_{i in S_k} f_i (d_n + sqrt(q_ik + eps^2) - eps)`` with
-    ``d = sum_j c_ij G_ij^T u_k``, ``S_k`` the contacts with ``P_ik > -margin * f_i`` at the
-    current weights (the largest alone if none; a contact about to help must be seen) and
-    ``q_ik`` the friction piece that is largest there. Every term is at most the true one (a sum
-    over one subset, one piece, ``sqrt(q + eps^2) - eps <= sqrt(q)``), so a solution's ``r`` is
-    met by the true support function: each solve is a restriction, and re-choosing ``S_k`` and
-    the pieces at the new weights tightens it again.
+    ``d = G_i(x_i)^T u_k`` at the contact's position ``x_i``, ``S_k`` the contacts with
+    ``P_ik > -margin * f_i`` at the current weights (the largest alone if none; a contact about
+    to help must be seen) and ``q_ik`` the friction piece that is largest there. Every term is
+    at most the true one (a sum over one subset, one piece, ``sqrt(q + eps^2) - eps <=
+    sqrt(q)``), so a solution's ``r`` is met by the true support function: each solve is a
+    restriction, and re-choosing ``S_k`` and the pieces at the new weights tightens it again.
+
+    ``d`` is linear in the weights (``sum_j c_ij G_ij^T u_k``), and affine in the position. On an
+    element with more than :data:`AFFINE_ROWS` vertex rows the position enters through three
+    variables ``xi_i`` (offset from the centroid over the size, :class:`ElementFrame`) tied to
+    the weights by the linear constraint ``xi_i = Xi_i^T c_i``: the curvature, most of a solve's
+    time, then sits in a 3 x 3 block instead of a dense block over all the rows (a pistol set
+    with 24- and 18-vertex facets, 7 PCwF: 482 -> 51 ms per solve). On smaller elements the
+    extra variables cost more than they save (segments and triangles: 10-35% slower).
 
     Built once per shape; ``capacity`` directions, unused ones masked out by parameters.
     A contact marked in ``frictionless`` (no friction piece: FPC, or mu = mu_s = 0) has the
-    linear term ``f_i d_n`` alone: the same value, and no curvature for IPOPT's Hessian, which
-    is most of a solve's time.
+    linear term ``f_i d_n`` alone: the same value, and no curvature at all.
     """
 
     EPS = 1e-9
@@ -298,30 +308,41 @@ class ExchangeProblem:
     ):
         self.margin = margin
         self.rows, self.capacity = tuple(rows), capacity
+        self.affine = tuple(k > AFFINE_ROWS for k in self.rows)
         frictionless = tuple(frictionless) or (False,) * len(self.rows)
         m, K = len(self.rows), capacity
         c = [ca.SX.sym(f"c{i}", k) for i, k in enumerate(self.rows)]
         r = ca.SX.sym("r")
-        D = [ca.SX.sym(f"D{i}", 4 * k, K) for i, k in enumerate(self.rows)]  # G_ij^T u_k
         W = [ca.SX.sym(f"W{i}", 4, K) for i in range(m)]  # chosen friction piece per direction
         mask = ca.SX.sym("mask", m, K)  # S_k
         f_max = ca.SX.sym("f_max", m)
         active = ca.SX.sym("active", K)
-        total = 0
-        for i in range(m):
-            d = sum(c[i][j] * D[i][4 * j : 4 * j + 4, :] for j in range(self.rows[i]))
+        total, xis, ties, data = 0, [], [], []
+        for i, k in enumerate(self.rows):
+            if self.affine[i]:
+                xi = ca.SX.sym(f"xi{i}", 3)
+                Xi = ca.SX.sym(f"Xi{i}", k, 3)  # the vertices' xi
+                A, B = ca.SX.sym(f"A{i}", 4, K), ca.SX.sym(f"B{i}", 12, K)
+                d = A + sum(xi[j] * B[4 * j : 4 * j + 4, :] for j in range(3))
+                xis.append(xi)
+                ties.append(xi - ca.mtimes(Xi.T, c[i]))
+                data += [Xi, A, B]
+            else:
+                D = ca.SX.sym(f"D{i}", 4 * k, K)  # G_ij^T u_k
+                d = sum(c[i][j] * D[4 * j : 4 * j + 4, :] for j in range(k))
+                data.append(D)
             if frictionless[i]:  # its pieces are zero: sqrt(0 + eps^2) - eps = 0
                 P = f_max[i] * d[0, :]
             else:
                 q = ca.sum1(W[i] * d**2)
                 P = f_max[i] * (d[0, :] + ca.sqrt(q + self.EPS**2) - self.EPS)
             total = total + mask[i, :] * P
-        g = ca.vertcat(*[ca.sum1(ci) for ci in c], (total - active.T * r).T)
-        self._lbg = np.concatenate([np.ones(m), np.zeros(K)])
-        self._ubg = np.concatenate([np.ones(m), np.full(K, np.inf)])
-        x = ca.vertcat(*c, r)
-        p = ca.vertcat(*[ca.vec(a) for a in (*D, *W)], ca.vec(mask), f_max, active)
-        self._n_c = sum(self.rows)
+        g = ca.vertcat(*[ca.sum1(ci) for ci in c], *ties, (total - active.T * r).T)
+        n_tie = 3 * len(xis)
+        self._lbg = np.concatenate([np.ones(m), np.zeros(n_tie), np.zeros(K)])
+        self._ubg = np.concatenate([np.ones(m), np.zeros(n_tie), np.full(K, np.inf)])
+        x = ca.vertcat(*c, *xis, r)
+        p = ca.vertcat(*[ca.vec(a) for a in (*data, *W)], ca.vec(mask), f_max, active)
         self._solver = ca.nlpsol(
             "exchange",
             "ipopt",
@@ -339,9 +360,10 @@ class ExchangeProblem:
             },
         )
 
-    def solve(self, vertex_G, slots_at_c, f_max, U, c0, radius):
+    def solve(self, frames, slots_at_c, f_max, U, c0, radius):
         """One solve from weights ``c0`` (padded), each weight within ``radius`` of its start;
-        ``slots_at_c`` are the contacts at ``c0``.
+        ``frames`` holds each contact's :class:`ElementFrame`, ``slots_at_c`` the contacts at
+        ``c0``.
 
         Returns the new padded weights (list) and ``r``.
         """
@@ -354,22 +376,30 @@ class ExchangeProblem:
         none = ~mask[:, :n].any(axis=0)
         mask[np.argmax(P[none], axis=1), np.flatnonzero(none)] = 1.0
         chosen = slots_at_c.pieces[np.arange(m)[None, :], piece]  # (n, m, 4)
-        D_parts, W_parts = [], []
-        for i, G in enumerate(vertex_G):
-            D_i = np.zeros((4 * len(G), K))
-            D_i[:, :n] = np.einsum("jrc,kr->jck", G, U).reshape(4 * len(G), n)
-            W_i = np.zeros((4, K))
-            W_i[:, :n] = chosen[:, i, :].T
-            D_parts.append(D_i.ravel(order="F"))
-            W_parts.append(W_i.ravel(order="F"))
+
+        def padded(a):  # (rows, n) -> (rows, K), flattened column-major as CasADi reads it
+            out = np.zeros((len(a), K))
+            out[:, :n] = a
+            return out.ravel(order="F")
+
+        data, W_parts, xi0 = [], [], []
+        for i, frame in enumerate(frames):
+            if self.affine[i]:
+                A, B = frame.affine(U)
+                data += [frame.offsets.ravel(order="F"), padded(A), padded(B)]
+                xi0.append(frame.offsets.T @ c0[i])
+            else:
+                data.append(padded(frame.local(U).reshape(-1, n)))
+            W_parts.append(padded(chosen[:, i, :].T))
         active = np.zeros(K)
         active[:n] = 1.0
-        params = np.concatenate([*D_parts, *W_parts, mask.ravel(order="F"), f_max, active])
+        params = np.concatenate([*data, *W_parts, mask.ravel(order="F"), f_max, active])
         r0 = float(np.min(np.where(mask[:, :n] > 0, P.T, 0.0).sum(axis=0))) - 1e-6
-        x0 = np.concatenate([*c0, [r0]])
+        x0 = np.concatenate([*c0, *xi0, [r0]])
         flat = np.concatenate(c0)
-        lbx = np.append(np.maximum(flat - radius, 0.0), -np.inf)
-        ubx = np.append(np.minimum(flat + radius, 1.0), np.inf)
+        free = np.full(3 * len(xi0), np.inf)
+        lbx = np.concatenate([np.maximum(flat - radius, 0.0), -free, [-np.inf]])
+        ubx = np.concatenate([np.minimum(flat + radius, 1.0), free, [np.inf]])
         with interruptible():
             sol = self._solver(x0=x0, p=params, lbx=lbx, ubx=ubx, lbg=self._lbg, ubg=self._ubg)
         x = np.asarray(sol["x"]).ravel()
@@ -378,6 +408,44 @@ class ExchangeProblem:
             weights.append(x[at : at + k])
             at += k
         return weights, float(x[-1])
+
+
+class ElementFrame:
+    """A contact's element in the exchange NLP: its (padded) vertices' grasp matrices ``G``, and
+    ``d = G(x)^T u`` as an affine function of the scaled offset ``xi = (x - centre) / size`` of
+    the position (``G`` is affine in ``x``).
+
+    ``offsets`` (rows, 3) are the vertices' ``xi``; the affine map is fitted to the vertices' own
+    ``d`` by least squares, exact on their affine hull, where every convex combination lies (the
+    minimum-norm fit leaves out a facet's normal direction, which no weights reach).
+    """
+
+    @classmethod
+    def padded(cls, element, torque_scale: float) -> ElementFrame:
+        """The frame of ``element`` with its last vertex repeated up to
+        :func:`~closure_nlp.eligibility.padded_rows` rows (NLP shapes are shared by buckets)."""
+        G, V = element.grasp_matrices(torque_scale), element.vertices
+        pad = padded_rows(len(V)) - len(V)
+        return cls(
+            np.concatenate([V, np.repeat(V[-1:], pad, axis=0)]),
+            np.concatenate([G, np.repeat(G[-1:], pad, axis=0)]),
+        )
+
+    def __init__(self, vertices: np.ndarray, G: np.ndarray):
+        centre = vertices.mean(axis=0)
+        size = float(np.max(np.linalg.norm(vertices - centre, axis=1)))
+        self.offsets = (vertices - centre) / (size if size > 0 else 1.0)
+        self.G = G  # (rows, 6, 4)
+        self._fit = np.linalg.pinv(np.hstack([np.ones((len(vertices), 1)), self.offsets]))
+
+    def local(self, U: np.ndarray) -> np.ndarray:
+        """``G_j^T u_k`` of every vertex row: (rows, 4, n)."""
+        return np.einsum("jrc,kr->jck", self.G, U)
+
+    def affine(self, U: np.ndarray):
+        """``A`` (4, n) and ``B`` (12, n), ``B[4 j : 4 j + 4]`` the derivative along ``xi_j``."""
+        coef = np.tensordot(self._fit, self.local(U), axes=(1, 0))  # constant, then xi_1..3
+        return coef[0], coef[1:].reshape(12, -1)
 
 
 def _padded(weights: np.ndarray, size: int) -> np.ndarray:
@@ -475,11 +543,8 @@ class Placer:
         judge = minimizer.with_search(ROUND_SEARCH) if self.options.round_search else minimizer
         ts = self.eligibility.torque_scale
         counts = [len(model.elements[e].vertices) for e in elements]
-        rows = tuple(padded_rows(k) for k in counts)
-        vertex_G = []
-        for e, k in zip(elements, rows):
-            G = model.elements[e].grasp_matrices(ts)
-            vertex_G.append(np.concatenate([G, np.repeat(G[-1:], k - len(G), axis=0)]))
+        frames = [ElementFrame.padded(model.elements[e], ts) for e in elements]
+        rows = tuple(len(frame.G) for frame in frames)
         f_max = np.array([spec.f_max for spec in specs])
         best_w = [np.asarray(w, float) for w in weights]
         best = initial or search_rho(self.contact_set(elements, best_w), minimizer=minimizer)
@@ -496,7 +561,7 @@ class Placer:
             rounds += 1
             at_best = WrenchSlots.from_contacts(self.contact_set(elements, best_w))
             problem = self._problem(rows, len(U))
-            c, predicted = problem.solve(vertex_G, at_best, f_max, np.array(U), c_best, radius)
+            c, predicted = problem.solve(frames, at_best, f_max, np.array(U), c_best, radius)
             if predicted + best.rho <= self.options.gap * max(1.0, abs(best.rho)):
                 break  # the model sees no better weights within the trust region
             w = [_unpadded(ci, k) for ci, k in zip(c, counts)]
@@ -689,6 +754,7 @@ def place(
 
 
 __all__ = [
+    "ElementFrame",
     "ExchangeProblem",
     "Move",
     "PlacedContact",

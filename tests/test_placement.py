@@ -12,10 +12,17 @@ import pytest
 from closure_nlp import cli
 from closure_nlp.certify import certified_bounds
 from closure_nlp.contacts import ContactSet, contact_specs, load_contact_set
-from closure_nlp.elements import Element, Model, save_model
+from closure_nlp.elements import Element, Model, load_model, save_model
 from closure_nlp.eligibility import Eligibility
-from closure_nlp.placement import PlacementOptions, Placer, nearest_weights
+from closure_nlp.placement import (
+    ElementFrame,
+    ExchangeProblem,
+    PlacementOptions,
+    Placer,
+    nearest_weights,
+)
 from closure_nlp.quality import rho, search_rho
+from closure_nlp.wrenches import WrenchSlots
 from tests import reference
 from tests.shapes import box_model
 
@@ -141,6 +148,58 @@ def test_frictionless_exchange_matches_the_general_form(monkeypatch):
     slow = general(elements)
     assert all(key[-1] == (False,) * 7 for key in general._problems)
     assert fast.rho == pytest.approx(slow.rho, abs=1e-6 * max(1.0, abs(slow.rho)))
+
+
+def test_element_frame_is_exact_on_every_kind_of_element():
+    """The exchange NLP's affine ``d(xi)`` equals the weights' ``sum_j c_j G_j^T u`` at random
+    convex combinations: on a 24-vertex pistol facet, a triangle, a segment and a point."""
+    rng = np.random.default_rng(5)
+    pistol = Eligibility(load_model(MODELS / "pistol.model.json"), contact_specs(7, type="pcwf"))
+    facets = [pistol.model.elements[e] for e in (6, 1)]
+    line = Element("segment", np.array([[0.0, 0, 0], [3, 1, 0]]), np.array([0.0, 0, 1]))
+    point = Element("point", np.array([[1.0, 2, 3]]), np.array([0.0, 1, 0]))
+    assert len(facets[0].vertices) == 24
+    for element in (*facets, line, point):
+        G = element.grasp_matrices(0.05)
+        frame = ElementFrame(element.vertices, G)
+        U = rng.standard_normal((6, 6))
+        U /= np.linalg.norm(U, axis=1, keepdims=True)
+        A, B = frame.affine(U)
+        for c in rng.dirichlet(np.ones(len(G)), size=4):
+            xi = frame.offsets.T @ c
+            affine = A + sum(xi[j] * B[4 * j : 4 * j + 4] for j in range(3))
+            exact = np.einsum("j,jrc,kr->ck", c, G, U)
+            np.testing.assert_allclose(affine, exact, atol=1e-12 * np.abs(G).max())
+
+
+def test_affine_position_form_matches_the_weights_form(monkeypatch):
+    """Contacts on elements with many vertices enter the exchange NLP through their position
+    (``AFFINE_ROWS``): the same NLP, so a solve gives the same optimum as the weights form. (Not
+    the same weights: on a 24-vertex facet many weights give one position, so whole placements
+    part ways after a few rounds, as any change of IPOPT's path makes them.)"""
+    from closure_nlp import placement
+
+    eligibility = Eligibility(
+        load_model(MODELS / "pistol.model.json"), contact_specs(7, type="pcwf", mu=0.3)
+    )
+    elements = [6, 5, 1, 3, 0, 5, 2]  # facets of 24, 18 and 4 vertices
+    model, rng = eligibility.model, np.random.default_rng(2)
+    frames = [ElementFrame.padded(model.elements[e], eligibility.torque_scale) for e in elements]
+    rows = tuple(len(frame.G) for frame in frames)
+    f_max, default = np.ones(len(elements)), placement.AFFINE_ROWS
+    for trial in range(3):
+        weights = [rng.dirichlet(np.ones(len(model.elements[e].vertices))) for e in elements]
+        slots = WrenchSlots.from_contacts(Placer(eligibility).contact_set(elements, weights))
+        U = rng.standard_normal((40, 6))
+        U /= np.linalg.norm(U, axis=1, keepdims=True)
+        start = [np.pad(w, (0, k - len(w))) for w, k in zip(weights, rows)]
+        found = {}
+        for limit in (default, 10**6):
+            monkeypatch.setattr(placement, "AFFINE_ROWS", limit)
+            problem = ExchangeProblem(rows, 64, 1e-10, 0.01, (False,) * len(rows))
+            found[limit] = problem.solve(frames, slots, f_max, U, start, 0.3)[1]
+            assert any(problem.affine) == (limit < 10**6)
+        assert found[default] == pytest.approx(found[10**6], rel=1e-8), trial
 
 
 def test_screened_rounds_are_not_certified(monkeypatch):
