@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 from scipy.optimize import linprog
 
-from closure_nlp.branch_bound import _game_weights
+from closure_nlp import branch_bound
+from closure_nlp.branch_bound import _cells, _exact_bound, _game_weights, _initial_cells
 
 
 def _game_upper_bound(M: np.ndarray) -> float:
@@ -46,3 +47,17 @@ def test_game_weights_reach_the_lp_value(shape, scale):
         low, spread = M[n].min(), M[n].max() - M[n].min()
         upper = low + spread * _game_upper_bound((M[n] - low) / spread)
         assert upper - 1e-6 * spread <= values[n] <= upper + 1e-12 * abs(upper)
+
+
+def test_exact_bounds_do_not_depend_on_the_chunking(monkeypatch):
+    """Exact bounds run in chunks of cells (memory): every cell's game is its own, so the bounds
+    of 1100 cells are those of the same cells one small batch at a time."""
+    axis, sign, lo, hi = _initial_cells(2)
+    pick = np.random.default_rng(4).choice(len(lo), 1100, replace=False)
+    _, _, corners, unit, nearest = _cells(axis[pick], sign[pick], lo[pick], hi[pick], np.ones(6))
+    points = np.random.default_rng(5).normal(size=(len(pick), 20, 6))
+    whole = _exact_bound(points, corners, unit, nearest)
+    monkeypatch.setattr(branch_bound, "EXACT_CHUNK", 7)
+    small = _exact_bound(points, corners, unit, nearest)
+    np.testing.assert_array_equal(whole, small)
+    assert np.isfinite(whole).all()
