@@ -136,7 +136,7 @@ def bench_certify(cases: int = 20, seed: int = 0, models_dir=None) -> dict:
             t1 = time.perf_counter()
             found = seed(slots)  # the certified path: the light seed, then the certificate
             t2 = time.perf_counter()
-            bounds = certified_rho(slots, found, minimizer)
+            certified = certified_rho(slots, found, minimizer)
             t3 = time.perf_counter()
             paper_baseline(slots)
             t4 = time.perf_counter()
@@ -144,10 +144,10 @@ def bench_certify(cases: int = 20, seed: int = 0, models_dir=None) -> dict:
             seed_ms.append(1e3 * (t2 - t1))
             cert_ms.append(1e3 * (t3 - t2))
             base_ms.append(1e3 * (t4 - t3))
-            lo, hi = bounds.bounds
+            lo, hi = certified.bounds
             widths.append((hi - lo) / max(abs(lo), tolerance_unit(slots)))
-            converged.append(bounds.converged)
-            closure.append(bounds.force_closure)
+            converged.append(certified.converged)
+            closure.append(certified.force_closure)
         total = np.add(seed_ms, cert_ms)
         closed = np.array(closure)
         report["families"][name] = {

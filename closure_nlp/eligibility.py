@@ -40,6 +40,13 @@ def padded_rows(count: int) -> int:
     return count
 
 
+def pad_rows(rows: np.ndarray) -> np.ndarray:
+    """``rows`` with its last one repeated up to :func:`padded_rows` (a repeated vertex adds
+    nothing to the hull, and shapes in one bucket share their NLP)."""
+    pad = padded_rows(len(rows)) - len(rows)
+    return np.concatenate([rows, np.repeat(rows[-1:], pad, axis=0)]) if pad else rows
+
+
 @dataclass(frozen=True)
 class EligibilityResult:
     """rho_hat of one element set.
@@ -138,10 +145,7 @@ class Eligibility:
         """The slots of What_c^M: contact ``i`` on element ``elements[i]``, one row per vertex."""
         rows = []
         for spec, e in zip(self.specs, elements):
-            G = self._vertex_G[e]
-            pad = padded_rows(len(G)) - len(G)
-            if pad:
-                G = np.concatenate([G, np.repeat(G[-1:], pad, axis=0)])
+            G = pad_rows(self._vertex_G[e])
             rows.append((G, spec.type, spec.mu, spec.mu_s, spec.f_max))
         # rho_hat does not depend on the slots' order: sorted by size and type, the sets that
         # differ only by order share one NLP shape (the solver cache holds each shape once; a

@@ -26,7 +26,7 @@ from scipy.optimize import nnls
 from .contact_count import require_closure_count
 from .contacts import ContactSet, friction_pieces
 from .elements import simplex_weights
-from .eligibility import Eligibility, padded_rows
+from .eligibility import Eligibility, pad_rows
 from .interrupts import interruptible
 from .progress import Progress
 from .quality import SearchOptions, certificate_keys, certified_rho, rho, search_rho
@@ -424,12 +424,7 @@ class ElementFrame:
     def padded(cls, element, torque_scale: float) -> ElementFrame:
         """The frame of ``element`` with its last vertex repeated up to
         :func:`~closure_nlp.eligibility.padded_rows` rows (NLP shapes are shared by buckets)."""
-        G, V = element.grasp_matrices(torque_scale), element.vertices
-        pad = padded_rows(len(V)) - len(V)
-        return cls(
-            np.concatenate([V, np.repeat(V[-1:], pad, axis=0)]),
-            np.concatenate([G, np.repeat(G[-1:], pad, axis=0)]),
-        )
+        return cls(pad_rows(element.vertices), pad_rows(element.grasp_matrices(torque_scale)))
 
     def __init__(self, vertices: np.ndarray, G: np.ndarray):
         centre = vertices.mean(axis=0)
