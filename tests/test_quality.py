@@ -253,3 +253,26 @@ def test_several_warm_starts_and_errors_that_name_the_row():
     ):
         with pytest.raises(ValueError, match=field):
             search_rho(cs, warm_start=bad)
+
+
+def test_a_search_asked_for_a_threshold_stops_once_it_is_shown():
+    """``stop_below``: the caller asks only whether min p <= bar. Above the minimum the search
+    returns before IPOPT with a true support value at or below the bar (in any units); below the
+    minimum it is the full search, unchanged."""
+    from closure_nlp.quality import SupportMinimizer
+    from closure_nlp.wrenches import WrenchSlots
+
+    minimizer = SupportMinimizer()
+    for seed, kinds in ((3, ["pcwf"] * 4), (4, ["sfce", "sfcl", "pcwf"])):
+        cs = random_contact_set(np.random.default_rng(seed), kinds, mu=0.5, mu_s=0.3)
+        for scale in (1.0, 1e3):  # the bar is in the set's units, like the values
+            slots = WrenchSlots.from_contacts(cs).scaled(scale)
+            full = minimizer(slots)
+            assert full.stats.ipopt_runs >= 1
+            bar = full.value + 0.2 * scale
+            early = minimizer(slots, stop_below=bar)
+            assert early.value <= bar and early.stats.ipopt_runs == 0
+            assert early.value == pytest.approx(slots.support(early.direction)[0], rel=1e-12)
+            below = minimizer(slots, stop_below=full.value - 0.2 * scale)
+            assert below.value == full.value
+            np.testing.assert_array_equal(below.direction, full.direction)

@@ -180,3 +180,26 @@ def test_cli_select_failure_is_exit_1(capsys, tmp_path):
     save_model(corner_model(), path)
     code, out, err = _run(capsys, "select", str(path), "--contacts", "7", "--type", "fpc")
     assert code == 1 and "no eligible element set" in err
+
+
+def test_screens_that_stop_early_change_no_decision(ring, monkeypatch):
+    """The iterative run's screens stop once a set is shown unable to win: the run takes the
+    same steps to the same set as with screens that search to the end."""
+    from closure_nlp.quality import SupportMinimizer, SupportMinProblem
+
+    runs = []
+    solve = SupportMinProblem.solve
+    monkeypatch.setattr(SupportMinProblem, "solve", lambda *a: runs.append(1) or solve(*a))
+    start = [0, 1, 12]
+    early = iterative(ring, start)
+    early_runs, runs[:] = len(runs), []
+    search = SupportMinimizer.__call__
+    monkeypatch.setattr(
+        SupportMinimizer,
+        "__call__",
+        lambda self, slots, warm=None, stop_below=None: search(self, slots, warm),
+    )
+    full = iterative(ring, start)
+    assert early.elements == full.elements and early.history == full.history
+    assert early.rho_hat == full.rho_hat and early.screened == full.screened
+    assert early_runs < len(runs)  # and the early stops did spare IPOPT runs
