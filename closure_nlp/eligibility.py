@@ -27,24 +27,7 @@ from .quality import (
     signed_distance,
 )
 from .validation import as_torque_scale
-from .wrenches import WrenchSlots
-
-ROW_BUCKETS = (1, 2, 4, 8, 16, 32, 64)
-
-
-def padded_rows(count: int) -> int:
-    """The smallest bucket size holding ``count`` vertex rows."""
-    for size in ROW_BUCKETS:
-        if count <= size:
-            return size
-    return count
-
-
-def pad_rows(rows: np.ndarray) -> np.ndarray:
-    """``rows`` with its last one repeated up to :func:`padded_rows` (a repeated vertex adds
-    nothing to the hull, and shapes in one bucket share their NLP)."""
-    pad = padded_rows(len(rows)) - len(rows)
-    return np.concatenate([rows, np.repeat(rows[-1:], pad, axis=0)]) if pad else rows
+from .wrenches import WrenchSlots, padded_rows
 
 
 @dataclass(frozen=True)
@@ -143,14 +126,14 @@ class Eligibility:
 
     def slots(self, elements) -> WrenchSlots:
         """The slots of What_c^M: contact ``i`` on element ``elements[i]``, one row per vertex."""
-        rows = []
-        for spec, e in zip(self.specs, elements):
-            G = pad_rows(self._vertex_G[e])
-            rows.append((G, spec.type, spec.mu, spec.mu_s, spec.f_max))
-        # rho_hat does not depend on the slots' order: sorted by size and type, the sets that
-        # differ only by order share one NLP shape (the solver cache holds each shape once; a
-        # study worker kept 78 shapes, about 10 MB each, after four pistol tasks).
-        rows.sort(key=lambda row: (len(row[0]), row[1].value, row[2], row[3], row[4]))
+        rows = [
+            (self._vertex_G[e], spec.type, spec.mu, spec.mu_s, spec.f_max)
+            for spec, e in zip(self.specs, elements)
+        ]
+        # rho_hat does not depend on the slots' order: sorted by NLP size and type, the sets
+        # that differ only by order share one NLP shape (the solver cache holds each shape once;
+        # a study worker kept 78 shapes, about 10 MB each, after four pistol tasks).
+        rows.sort(key=lambda row: (padded_rows(len(row[0])), row[1].value, *row[2:]))
         return WrenchSlots.build(rows)
 
     def __call__(

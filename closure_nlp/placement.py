@@ -26,13 +26,13 @@ from scipy.optimize import nnls
 from .contact_count import require_closure_count
 from .contacts import ContactSet, friction_pieces
 from .elements import simplex_weights
-from .eligibility import Eligibility, pad_rows
+from .eligibility import Eligibility
 from .interrupts import interruptible
 from .progress import Progress
 from .quality import SearchOptions, certificate_keys, certified_rho, rho, search_rho
 from .selection import SCREEN_SEARCH
 from .sphere_search import sphere_samples
-from .wrenches import WrenchSlots
+from .wrenches import WrenchSlots, pad_rows
 
 DIRECTION_BUCKETS = (16, 32, 64, 128, 256)
 # Weak directions of earlier exchange runs on the same elements that start a later run's working
@@ -423,7 +423,7 @@ class ElementFrame:
     @classmethod
     def padded(cls, element, torque_scale: float) -> ElementFrame:
         """The frame of ``element`` with its last vertex repeated up to
-        :func:`~closure_nlp.eligibility.padded_rows` rows (NLP shapes are shared by buckets)."""
+        :func:`~closure_nlp.wrenches.padded_rows` rows (NLP shapes are shared by buckets)."""
         return cls(pad_rows(element.vertices), pad_rows(element.grasp_matrices(torque_scale)))
 
     def __init__(self, vertices: np.ndarray, G: np.ndarray):

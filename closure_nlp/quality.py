@@ -31,7 +31,7 @@ from .interrupts import interruptible
 from .sphere_search import descend, smoothed_descent, sphere_samples
 from .tolerances import DEFAULT_TOLERANCES, Tolerances
 from .validation import as_unit_vector
-from .wrenches import WrenchSlots, piece_square
+from .wrenches import WrenchSlots, padded_rows, piece_square
 
 
 @dataclass(frozen=True)
@@ -187,7 +187,8 @@ class SupportMinProblem:
     n_pieces : tuple of int
         Friction pieces of each slot's contact type (0 FPC, 1 PCwF/SFCe, 2 SFCl).
     rows_per_slot : tuple of int
-        Grasp matrices in each slot (1 for contacts, the vertex count for elements).
+        Grasp matrices in each slot (1 for contacts, for elements the vertex count padded by
+        :func:`~closure_nlp.wrenches.padded_rows`: a slot's last row is repeated up to it).
     """
 
     def __init__(
@@ -269,21 +270,30 @@ class SupportMinProblem:
 
     @staticmethod
     def key(slots: WrenchSlots) -> tuple:
-        return (slots.n_pieces, slots.rows_per_slot)
+        return (slots.n_pieces, tuple(padded_rows(k) for k in slots.rows_per_slot))
+
+    def _rows(self, slots: WrenchSlots) -> np.ndarray:
+        """The slots' row of each NLP row: a slot's last one repeated up to its padded size."""
+        return np.concatenate(
+            [
+                start + np.minimum(np.arange(size), count - 1)
+                for start, count, size in zip(slots.starts, slots.rows_per_slot, self.rows_per_slot)
+            ]
+        )
 
     def parameters(self, slots: WrenchSlots) -> np.ndarray:
         """Pack grasp matrices, force bounds and friction weights in the NLP's order."""
         parts = []
-        for i, start in enumerate(slots.starts):
-            for r in range(start, start + self.rows_per_slot[i]):
-                parts += [slots.G[r].T.ravel(), [slots.f_max[r]]]
-                parts += list(slots.pieces[r, : self.n_pieces[i]])
+        slot_of_row = np.repeat(np.arange(len(self.n_pieces)), self.rows_per_slot)
+        for i, r in zip(slot_of_row, self._rows(slots)):
+            parts += [slots.G[r].T.ravel(), [slots.f_max[r]]]
+            parts += list(slots.pieces[r, : self.n_pieces[i]])
         return np.concatenate(parts)
 
     def initial_guess(self, slots: WrenchSlots, u: np.ndarray) -> np.ndarray:
         """A feasible point of the epigraph at direction ``u``."""
-        d = slots.local(u)[0]
-        q = piece_square(slots.pieces, d[:, None, :]).max(axis=1)
+        d = slots.local(u)[0][self._rows(slots)]
+        q = piece_square(slots.pieces[self._rows(slots)], d[:, None, :]).max(axis=1)
         has_s = np.repeat(np.array(self.n_pieces) > 0, self.rows_per_slot)
         s = np.sqrt(np.maximum(q, 0.0))[has_s] + 1e-8
         P = slots.slot_values(u)[0] + 1e-8

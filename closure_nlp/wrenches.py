@@ -21,6 +21,26 @@ import numpy as np
 from .contacts import ContactSet, ContactType, friction_pieces
 
 MAX_PIECES = 2  # SFCl has two friction pieces, the others fewer
+# The NLPs (support minimum, exchange) take an element's vertex rows padded up to one of these
+# sizes, so that elements of similar size share one NLP; evaluation in numpy takes them as they
+# are (three of the pistol's facets have 18-24 vertices: padded, a certificate evaluated 1.5x
+# the rows).
+ROW_BUCKETS = (1, 2, 4, 8, 16, 32, 64)
+
+
+def padded_rows(count: int) -> int:
+    """The smallest bucket size holding ``count`` vertex rows."""
+    for size in ROW_BUCKETS:
+        if count <= size:
+            return size
+    return count
+
+
+def pad_rows(rows: np.ndarray) -> np.ndarray:
+    """``rows`` with its last one repeated up to :func:`padded_rows` (a repeated vertex adds
+    nothing to the hull, and shapes in one bucket share their NLP)."""
+    pad = padded_rows(len(rows)) - len(rows)
+    return np.concatenate([rows, np.repeat(rows[-1:], pad, axis=0)]) if pad else rows
 
 
 def piece_square(weights, d):

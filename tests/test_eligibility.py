@@ -12,7 +12,7 @@ from closure_nlp.contacts import ContactSet, contact_specs
 from closure_nlp.crosscheck import force_closure_cvxpy
 from closure_nlp.elements import load_model
 from closure_nlp.eligibility import Eligibility, padded_rows, rho_hat
-from closure_nlp.quality import rho
+from closure_nlp.quality import SupportMinProblem, rho
 from tests import reference
 from tests.shapes import box_model, random_model
 
@@ -153,16 +153,21 @@ def test_padding_keeps_support_values():
     eligibility = Eligibility(model, contact_specs(3, type="sfcl"))
     elements = [0, 2, 5]
     padded = eligibility.slots(elements)
-    # slots sorted by size (one NLP shape for every order of the same elements)
-    assert padded.rows_per_slot == tuple(
-        sorted(padded_rows(len(model.elements[e].vertices)) for e in elements)
-    )
-    assert eligibility.slots(elements[::-1]).rows_per_slot == padded.rows_per_slot
+    # the slots hold the vertex rows as they are; the NLP pads them to bucket sizes, sorted by
+    # size (one NLP shape for every order of the same elements)
+    assert sorted(padded.rows_per_slot) == sorted(len(model.elements[e].vertices) for e in elements)
+    key = SupportMinProblem.key(padded)
+    assert key[1] == tuple(sorted(padded_rows(len(model.elements[e].vertices)) for e in elements))
+    assert SupportMinProblem.key(eligibility.slots(elements[::-1])) == key
     U = rng.standard_normal((50, 6))
     U /= np.linalg.norm(U, axis=1, keepdims=True)
     slots = _independent(model, eligibility, elements)
     expected = [reference.support(u, slots) for u in U]
     np.testing.assert_allclose(padded.support(U), expected, rtol=1e-12, atol=1e-12)
+    # the padded NLP's start is the epigraph at u: its slot values are p's
+    problem = eligibility.minimizer.problem(padded)
+    x0 = problem.initial_guess(padded, U[0])
+    np.testing.assert_allclose(x0[-2], padded.support(U[:1])[0], rtol=1e-6, atol=1e-6)
 
 
 def test_bad_element_lists():
