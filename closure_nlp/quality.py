@@ -406,10 +406,10 @@ class SupportMinimizer:
         same for any f_max, units or torque_scale), its value and support point scaled back.
 
         ``stop_below``: the caller only asks whether ``min p <= stop_below`` (is this trial no
-        better than the best so far?); the search returns as soon as a direction shows it, after
-        the descents or between IPOPT runs. Whatever the answer, it is as valid as the full
+        better than the best so far?); the search returns as soon as a direction shows it, in
+        the descent or between IPOPT runs. Whatever the answer, it is as valid as the full
         search's: a support value at a unit direction. The iterative selection's screens of
-        neighbours that cannot win then skip their IPOPT runs (1.5x faster selection).
+        neighbours that cannot win then skip most of their work (1.5x faster selection).
         """
         from .certify import tolerance_unit
 
@@ -428,7 +428,7 @@ class SupportMinimizer:
         U0 = sphere_samples(search.samples)
         if warm_start is not None:
             U0 = np.vstack([_warm_starts(warm_start), U0])
-        U, values = descend(slots, U0, search.descent_iterations)
+        U, values = descend(slots, U0, search.descent_iterations, stop=stop)
         if search.smoothing and values.min() > stop:
             U_s, values_s = smoothed_descent(
                 slots, U0, search.smoothing, search.smoothing_iterations

@@ -60,12 +60,19 @@ def _sigmoid(x: np.ndarray) -> np.ndarray:
     return 0.5 * (1.0 + np.tanh(0.5 * x))  # no overflow for large |x|
 
 
-def descend(slots: WrenchSlots, U: np.ndarray, iterations: int = 30, tau: float | None = None):
+def descend(
+    slots: WrenchSlots,
+    U: np.ndarray,
+    iterations: int = 30,
+    tau: float | None = None,
+    stop: float = -np.inf,
+):
     """Riemannian (sub)gradient descent on the sphere, batched, with a step per direction.
 
     Each direction steps along the negative tangential (sub)gradient by an angle that grows
     on success and halves on failure, so every direction's value only ever decreases. With
-    ``tau`` the descent runs on :func:`smoothed_support` instead of ``p``.
+    ``tau`` the descent runs on :func:`smoothed_support` instead of ``p``. It ends early once
+    some direction's ``p`` is at or below ``stop`` (a caller that only asks whether it is).
 
     Returns
     -------
@@ -82,6 +89,8 @@ def descend(slots: WrenchSlots, U: np.ndarray, iterations: int = 30, tau: float 
     values, grad = evaluate(U)
     angle = np.full(len(U), 0.3)
     for _ in range(iterations):
+        if tau is None and values.min() <= stop:
+            break
         tangent = grad - np.einsum("nr,nr->n", grad, U)[:, None] * U
         norm = np.linalg.norm(tangent, axis=1)
         moving = norm > 1e-12
