@@ -156,9 +156,16 @@ class WrenchSlots:
 
     def row_terms(self, d: np.ndarray):
         """Row values ``p_{W_ij}`` (N, K) and each row's largest friction piece (index, square)."""
-        q = np.einsum("nkc,kpc->nkp", d * d, self.pieces)
-        k = np.argmax(q, axis=2)
-        qk = np.take_along_axis(q, k[..., None], axis=2)[..., 0]
+        if "_pieces_used" not in self.__dict__:  # the second piece is SFCl's alone
+            object.__setattr__(self, "_pieces_used", 1 + bool(self.pieces[:, 1:].any()))
+        dd = d * d
+        # one product per piece: 2-8x faster than one einsum over the piece axis as well
+        qk = np.einsum("nkc,kc->nk", dd, self.pieces[:, 0])
+        k = np.zeros(qk.shape, dtype=np.intp)
+        if self._pieces_used == 2:
+            q1 = np.einsum("nkc,kc->nk", dd, self.pieces[:, 1])
+            k = (q1 > qk).astype(np.intp)  # argmax's choice: the first of equal pieces
+            qk = np.maximum(qk, q1)
         return self.f_max * (d[..., 0] + np.sqrt(np.maximum(qk, 0.0))), k, qk
 
     def _normal_wrenches(self) -> np.ndarray | None:
