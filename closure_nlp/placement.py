@@ -552,29 +552,29 @@ class Placer:
         # without it the solves jump between far corners (cutting planes oscillate).
         c_best, radius, predicted = [_padded(w, k) for w, k in zip(best_w, rows)], 0.5, np.inf
         rounds = 0
+        at_best = WrenchSlots.from_contacts(self.contact_set(elements, best_w))
         while rounds < (max_rounds or self.options.max_rounds):
             rounds += 1
-            at_best = WrenchSlots.from_contacts(self.contact_set(elements, best_w))
             problem = self._problem(rows, len(U))
             c, predicted = problem.solve(frames, at_best, f_max, np.array(U), c_best, radius)
             if predicted + best.rho <= self.options.gap * max(1.0, abs(best.rho)):
                 break  # the model sees no better weights within the trust region
             w = [_unpadded(ci, k) for ci, k in zip(c, counts)]
-            trial = self.contact_set(elements, w)
+            trial_slots = WrenchSlots.from_contacts(self.contact_set(elements, w))
             warm = best.direction
             if self.options.round_search:
-                values = WrenchSlots.from_contacts(trial).support(np.array(U))
+                values = trial_slots.support(np.array(U))
                 warm = np.vstack([warm, np.array(U)[np.argsort(values)[:WARM_DIRECTIONS]]])
             if self.options.screen:
                 # the light search alone: a certificate per screened round cost more than
                 # the full search it was meant to spare (bench plan: fast mode 5-20x slower)
-                found = search_rho(trial, minimizer=light, warm_start=warm)
+                found = search_rho(trial_slots, minimizer=light, warm_start=warm)
                 warm = found.direction
             if not self.options.screen or found.rho < best.rho:
-                found = search_rho(trial, minimizer=judge, warm_start=warm)
+                found = search_rho(trial_slots, minimizer=judge, warm_start=warm)
             U.append(found.direction)
             if found.rho < best.rho:
-                best, best_w, c_best = found, w, c
+                best, best_w, c_best, at_best = found, w, c, trial_slots
                 radius = min(1.0, 2.0 * radius)
             else:
                 radius *= 0.25

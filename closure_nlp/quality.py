@@ -31,7 +31,7 @@ from .interrupts import interruptible
 from .sphere_search import descend, smoothed_descent, sphere_samples
 from .tolerances import DEFAULT_TOLERANCES, Tolerances
 from .validation import as_unit_vector
-from .wrenches import WrenchSlots, padded_rows, piece_square
+from .wrenches import WrenchSlots, as_slots, padded_rows, piece_square
 
 
 @dataclass(frozen=True)
@@ -513,11 +513,11 @@ def search_rho(
 ) -> RhoResult:
     """rho of the search alone, without bounds (``bounds`` None): for the comparisons inside
     search loops (placement), where a looser answer is fine; every reported value goes through
-    :func:`rho`."""
-    if not isinstance(contact_set, ContactSet):
+    :func:`rho`. ``contact_set`` may also be its :class:`WrenchSlots`, when the caller has them."""
+    if not isinstance(contact_set, (ContactSet, WrenchSlots)):
         raise TypeError(f"contact_set: expected a ContactSet, got {type(contact_set).__name__}")
     minimizer = minimizer or _DEFAULT_MINIMIZER
-    slots = WrenchSlots.from_contacts(contact_set)
+    slots = as_slots(contact_set)
     found = minimizer(slots, warm_start)
     value = signed_distance(found, slots, minimizer.tolerances)
     return RhoResult(value, value < 0.0, found.direction, found.support_point, found.stats)
