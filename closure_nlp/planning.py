@@ -28,7 +28,9 @@ from .eligibility import Eligibility
 from .files import load_json, write_atomic, write_json
 from .placement import PlacementOptions, PlacementResult, Placer
 from .progress import Progress
+from .quality import signed_distance
 from .selection import (
+    SCREEN_SEARCH,
     SelectionOptions,
     SelectionResult,
     _multiset,
@@ -163,7 +165,7 @@ def _alternatives(eligibility, seed, selection, second, progress):
     are evaluated first and skipped unless eligible), then the result of a new heuristic +
     iterative run (seed derived from ``seed``), and so on alternately."""
     tried = {_multiset(eligibility, second.elements)}
-    pool = _pool([], second)
+    pool = _pool([], second, eligibility)
     runs = 0
     while pool or runs < FRESH_RUNS:
         while pool:
@@ -187,18 +189,25 @@ def _alternatives(eligibility, seed, selection, second, progress):
         )
         found = heuristic(eligibility, seed=derived, options=selection, progress=progress)
         fresh = iterative(eligibility, found.elements, options=selection, progress=progress)
-        pool = _pool(pool, fresh)
+        pool = _pool(pool, fresh, eligibility)
         key = _multiset(eligibility, fresh.elements)
         if fresh.eligible and key not in tried:
             tried.add(key)
             yield fresh.elements, f"new selection {runs} (heuristic + iterative)", fresh.rho_hat
 
 
-def _pool(pool, run: SelectionResult) -> list:
+def _pool(pool, run: SelectionResult, eligibility: Eligibility) -> list:
     """``pool`` with ``run``'s evaluated and screened sets, (elements, value, proven), lowest
-    value first."""
+    value first; its unranked sets (screens stopped once they could not win) get their light
+    value now, as the screens would have given it, so that they rank as before."""
     pool = pool + [(e, v, True) for e, v in run.eligible_sets]
     pool += [(e, v, False) for e, v in run.candidate_sets]
+    light = eligibility.minimizer.with_search(SCREEN_SEARCH)
+    for elements in run.unranked_sets:
+        slots = eligibility.slots(elements)
+        value = signed_distance(light(slots, run.direction), slots, light.tolerances)
+        if value < 0:
+            pool.append((elements, value, False))
     return sorted(pool, key=lambda item: item[1])
 
 

@@ -91,8 +91,11 @@ class SelectionResult:
     candidate_sets : tuple of (tuple of int, float)
         Iterative algorithm: neighbour sets the light search ranked but the run never fully
         evaluated, with light values below zero, lowest first. A light value is never above the
-        full rho_hat (a screen stops as soon as it shows that a set cannot win, lower still), so
-        these are candidates, not proven eligible: evaluate before use.
+        full rho_hat, so these are candidates, not proven eligible: evaluate before use.
+    unranked_sets : tuple of tuple of int
+        Iterative algorithm: neighbour sets whose screen stopped as soon as it showed that they
+        could not win (so they have no light value), and that may be eligible. A plan that
+        needs more element sets ranks them by the light search then.
     bounds : (float, float)
         Certified ``lo <= rho_hat <= hi`` of the final set (the search steered by the search's
         values; the reported one is certified).
@@ -111,6 +114,7 @@ class SelectionResult:
     eligible_sets: tuple[tuple[tuple[int, ...], float], ...] = ()
     candidate_sets: tuple[tuple[tuple[int, ...], float], ...] = ()
     screened: int = 0
+    unranked_sets: tuple[tuple[int, ...], ...] = ()
     bounds: tuple[float, float] | None = None
     marginal: bool = False
     converged: bool = True
@@ -227,7 +231,8 @@ def iterative(
     current = list(eligibility.check_elements(start, "start"))
     m = eligibility.m
     seen: dict[tuple, EligibilityResult] = {}
-    screened: dict[tuple, tuple[float, np.ndarray, tuple[int, ...]]] = {}
+    # value, direction, elements, and whether the screen may have stopped at the bar
+    screened: dict[tuple, tuple[float, np.ndarray, tuple[int, ...], bool]] = {}
     light = eligibility.minimizer.with_search(SCREEN_SEARCH)
 
     def evaluate(elements, warm):
@@ -247,7 +252,7 @@ def iterative(
             slots = eligibility.slots(elements)
             found = light(slots, warm, -bar)
             value = signed_distance(found, slots, light.tolerances)
-            screened[key] = (value, found.direction, tuple(elements))
+            screened[key] = (value, found.direction, tuple(elements), value >= bar)
         return screened[key][:2]
 
     best = evaluate(current, None)
@@ -298,8 +303,15 @@ def iterative(
     others = sorted((r.rho_hat, r.elements) for r in seen.values() if r.eligible and r is not best)
     unproven = sorted(
         (value, elements)
-        for key, (value, _, elements) in screened.items()
-        if key not in seen and value < 0
+        for key, (value, _, elements, stopped) in screened.items()
+        if key not in seen and value < 0 and not stopped
+    )
+    # a stopped screen's value is below the light one (never above the full rho_hat): >= 0
+    # proves the set is not eligible; below, it could be, and cannot be ranked by that value
+    unranked = tuple(
+        elements
+        for key, (value, _, elements, stopped) in screened.items()
+        if key not in seen and value < 0 and stopped
     )
     best = eligibility.certify(best)
     history[-1] = (history[-1][0], best.rho_hat)
@@ -314,6 +326,7 @@ def iterative(
         eligible_sets=tuple((elements, value) for value, elements in others),
         candidate_sets=tuple((elements, value) for value, elements in unproven),
         screened=len(screened),
+        unranked_sets=unranked,
         bounds=best.bounds,
         marginal=best.marginal,
         converged=best.converged,

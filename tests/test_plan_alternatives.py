@@ -79,3 +79,23 @@ def test_no_eligible_set_is_the_reason():
     result = plan(hand, seed=0, selection=SelectionOptions(restarts=3), placement=QUICK)
     assert not result.force_closure and len(result.attempts) == 1
     assert result.failure().startswith("no eligible element set found")
+
+
+def test_the_pool_ranks_unranked_sets_by_their_light_value(hand):
+    """Screens that stopped once a set could not win leave it without a light value; the plan's
+    pool of further sets gives it one (the light search the screen would have run), keeps the
+    eligible ones and ranks them with the rest, lowest first."""
+    from closure_nlp.planning import _pool
+    from closure_nlp.quality import signed_distance
+    from closure_nlp.selection import SCREEN_SEARCH, heuristic, iterative
+
+    run = iterative(hand, heuristic(hand, seed=1).elements)
+    assert run.unranked_sets
+    pool = _pool([], run, hand)
+    assert [v for _, v, _ in pool] == sorted(v for _, v, _ in pool)
+    light = hand.minimizer.with_search(SCREEN_SEARCH)
+    ranked = {tuple(e): v for e, v, proven in pool if not proven}
+    for elements in run.unranked_sets:
+        slots = hand.slots(elements)
+        value = signed_distance(light(slots, run.direction), slots, light.tolerances)
+        assert ranked.get(tuple(elements)) == (value if value < 0 else None)

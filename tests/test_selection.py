@@ -79,12 +79,19 @@ def test_iterative_improves_a_bad_start_and_counts_its_work(ring):
     # Sets only screened are offered as candidates: never a fully evaluated one, lowest light
     # value first, and each light value no higher than the set's full rho_hat.
     evaluated = {tuple(sorted(e)) for e, _ in result.eligible_sets}
-    assert result.candidate_sets, "the ring's neighbours include screened eligible sets"
     values = [v for _, v in result.candidate_sets]
     assert values == sorted(values) and all(v < 0 for v in values)
     for elements, value in result.candidate_sets:
         assert tuple(sorted(elements)) not in evaluated
         assert value <= ring(elements, certify=False).rho_hat + 1e-9 * max(1.0, abs(value))
+    # Sets whose screen stopped once it showed they could not win: neither evaluated nor ranked,
+    # and indeed no better than the result (up to the search's own accuracy)
+    candidates = {tuple(sorted(e)) for e, _ in result.candidate_sets}
+    assert result.unranked_sets, "the ring's screens stop early"
+    for elements in result.unranked_sets:
+        key = tuple(sorted(elements))
+        assert key not in evaluated and key not in candidates
+        assert ring(elements, certify=False).rho_hat >= result.history[-2][1] - 1e-6
 
 
 def test_run_selection_chains_heuristic_then_iterative(ring):
