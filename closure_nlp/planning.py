@@ -199,15 +199,17 @@ def _alternatives(eligibility, seed, selection, second, progress):
 def _pool(pool, run: SelectionResult, eligibility: Eligibility) -> list:
     """``pool`` with ``run``'s evaluated and screened sets, (elements, value, proven), lowest
     value first; its unranked sets (screens stopped once they could not win) get their light
-    value now, as the screens would have given it, so that they rank as before."""
+    value now, from the screen's start: the value it would have given, so they rank as before."""
     pool = pool + [(e, v, True) for e, v in run.eligible_sets]
-    pool += [(e, v, False) for e, v in run.candidate_sets]
+    unproven = [(v, tuple(e)) for e, v in run.candidate_sets]
     light = eligibility.minimizer.with_search(SCREEN_SEARCH)
-    for elements in run.unranked_sets:
+    for elements, warm in run.unranked_sets:
         slots = eligibility.slots(elements)
-        value = signed_distance(light(slots, run.direction), slots, light.tolerances)
+        value = signed_distance(light(slots, warm), slots, light.tolerances)
         if value < 0:
-            pool.append((elements, value, False))
+            unproven.append((value, tuple(elements)))
+    # equal values (symmetric parts have many) in the order of the elements
+    pool += [(e, v, False) for v, e in sorted(unproven)]
     return sorted(pool, key=lambda item: item[1])
 
 

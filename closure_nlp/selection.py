@@ -92,10 +92,11 @@ class SelectionResult:
         Iterative algorithm: neighbour sets the light search ranked but the run never fully
         evaluated, with light values below zero, lowest first. A light value is never above the
         full rho_hat, so these are candidates, not proven eligible: evaluate before use.
-    unranked_sets : tuple of tuple of int
+    unranked_sets : tuple of (tuple of int, (6,) float)
         Iterative algorithm: neighbour sets whose screen stopped as soon as it showed that they
-        could not win (so they have no light value), and that may be eligible. A plan that
-        needs more element sets ranks them by the light search then.
+        could not win (so they have no light value), and that may be eligible, each with the
+        direction its screen started from. A plan that needs more element sets runs their
+        light search then, from that direction: the value the screen would have given.
     bounds : (float, float)
         Certified ``lo <= rho_hat <= hi`` of the final set (the search steered by the search's
         values; the reported one is certified).
@@ -114,7 +115,7 @@ class SelectionResult:
     eligible_sets: tuple[tuple[tuple[int, ...], float], ...] = ()
     candidate_sets: tuple[tuple[tuple[int, ...], float], ...] = ()
     screened: int = 0
-    unranked_sets: tuple[tuple[int, ...], ...] = ()
+    unranked_sets: tuple[tuple[tuple[int, ...], np.ndarray], ...] = ()
     bounds: tuple[float, float] | None = None
     marginal: bool = False
     converged: bool = True
@@ -231,8 +232,9 @@ def iterative(
     current = list(eligibility.check_elements(start, "start"))
     m = eligibility.m
     seen: dict[tuple, EligibilityResult] = {}
-    # value, direction, elements, and whether the screen may have stopped at the bar
-    screened: dict[tuple, tuple[float, np.ndarray, tuple[int, ...], bool]] = {}
+    # value, direction, elements, and the start direction if the screen may have stopped at
+    # the bar (else None)
+    screened: dict[tuple, tuple[float, np.ndarray, tuple[int, ...], np.ndarray | None]] = {}
     light = eligibility.minimizer.with_search(SCREEN_SEARCH)
 
     def evaluate(elements, warm):
@@ -252,7 +254,8 @@ def iterative(
             slots = eligibility.slots(elements)
             found = light(slots, warm, -bar)
             value = signed_distance(found, slots, light.tolerances)
-            screened[key] = (value, found.direction, tuple(elements), value >= bar)
+            stopped = warm if value >= bar else None
+            screened[key] = (value, found.direction, tuple(elements), stopped)
         return screened[key][:2]
 
     best = evaluate(current, None)
@@ -304,14 +307,14 @@ def iterative(
     unproven = sorted(
         (value, elements)
         for key, (value, _, elements, stopped) in screened.items()
-        if key not in seen and value < 0 and not stopped
+        if key not in seen and value < 0 and stopped is None
     )
     # a stopped screen's value is below the light one (never above the full rho_hat): >= 0
     # proves the set is not eligible; below, it could be, and cannot be ranked by that value
     unranked = tuple(
-        elements
+        (elements, stopped)
         for key, (value, _, elements, stopped) in screened.items()
-        if key not in seen and value < 0 and stopped
+        if key not in seen and value < 0 and stopped is not None
     )
     best = eligibility.certify(best)
     history[-1] = (history[-1][0], best.rho_hat)

@@ -93,9 +93,11 @@ def test_the_pool_ranks_unranked_sets_by_their_light_value(hand):
     assert run.unranked_sets
     pool = _pool([], run, hand)
     assert [v for _, v, _ in pool] == sorted(v for _, v, _ in pool)
+    unproven = [(v, tuple(e)) for e, v, proven in pool if not proven]
+    assert unproven == sorted(unproven)  # equal values in the order of the elements
     light = hand.minimizer.with_search(SCREEN_SEARCH)
     ranked = {tuple(e): v for e, v, proven in pool if not proven}
-    for elements in run.unranked_sets:
+    for elements, warm in run.unranked_sets:
         slots = hand.slots(elements)
-        value = signed_distance(light(slots, run.direction), slots, light.tolerances)
+        value = signed_distance(light(slots, warm), slots, light.tolerances)
         assert ranked.get(tuple(elements)) == (value if value < 0 else None)

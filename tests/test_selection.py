@@ -88,7 +88,7 @@ def test_iterative_improves_a_bad_start_and_counts_its_work(ring):
     # and indeed no better than the result (up to the search's own accuracy)
     candidates = {tuple(sorted(e)) for e, _ in result.candidate_sets}
     assert result.unranked_sets, "the ring's screens stop early"
-    for elements in result.unranked_sets:
+    for elements, _ in result.unranked_sets:
         key = tuple(sorted(elements))
         assert key not in evaluated and key not in candidates
         assert ring(elements, certify=False).rho_hat >= result.history[-2][1] - 1e-6
