@@ -515,7 +515,9 @@ def search_rho(
     search loops (placement), where a looser answer is fine; every reported value goes through
     :func:`rho`. ``contact_set`` may also be its :class:`WrenchSlots`, when the caller has them."""
     if not isinstance(contact_set, (ContactSet, WrenchSlots)):
-        raise TypeError(f"contact_set: expected a ContactSet, got {type(contact_set).__name__}")
+        raise TypeError(
+            f"contact_set: expected a ContactSet or WrenchSlots, got {type(contact_set).__name__}"
+        )
     minimizer = minimizer or _DEFAULT_MINIMIZER
     slots = as_slots(contact_set)
     found = minimizer(slots, warm_start)
