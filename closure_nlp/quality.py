@@ -292,8 +292,9 @@ class SupportMinProblem:
 
     def initial_guess(self, slots: WrenchSlots, u: np.ndarray) -> np.ndarray:
         """A feasible point of the epigraph at direction ``u``."""
-        d = slots.local(u)[0][self._rows(slots)]
-        q = piece_square(slots.pieces[self._rows(slots)], d[:, None, :]).max(axis=1)
+        rows = self._rows(slots)
+        d = slots.local(u)[0][rows]
+        q = piece_square(slots.pieces[rows], d[:, None, :]).max(axis=1)
         has_s = np.repeat(np.array(self.n_pieces) > 0, self.rows_per_slot)
         s = np.sqrt(np.maximum(q, 0.0))[has_s] + 1e-8
         P = slots.slot_values(u)[0] + 1e-8
