@@ -77,13 +77,19 @@ def test_iterative_improves_a_bad_start_and_counts_its_work(ring):
     assert result.to_dict()["screened"] == result.screened
     assert result.seconds > 0
     # Sets only screened are offered as candidates: never a fully evaluated one, lowest light
-    # value first, and each light value no higher than the set's full rho_hat.
+    # value first, and each light value no higher than the set's full rho_hat. From this start
+    # every screen that could not win stopped early (no candidate), so a second start, whose
+    # run leaves one, checks them too.
     evaluated = {tuple(sorted(e)) for e, _ in result.eligible_sets}
-    values = [v for _, v in result.candidate_sets]
-    assert values == sorted(values) and all(v < 0 for v in values)
-    for elements, value in result.candidate_sets:
-        assert tuple(sorted(elements)) not in evaluated
-        assert value <= ring(elements, certify=False).rho_hat + 1e-9 * max(1.0, abs(value))
+    other = iterative(ring, [0, 4, 13])
+    assert other.candidate_sets, "the ring's neighbours include screened eligible sets"
+    for run in (result, other):
+        done = {tuple(sorted(e)) for e, _ in run.eligible_sets}
+        values = [v for _, v in run.candidate_sets]
+        assert values == sorted(values) and all(v < 0 for v in values)
+        for elements, value in run.candidate_sets:
+            assert tuple(sorted(elements)) not in done
+            assert value <= ring(elements, certify=False).rho_hat + 1e-9 * max(1.0, abs(value))
     # Sets whose screen stopped once it showed they could not win: neither evaluated nor ranked,
     # and indeed no better than the result (up to the search's own accuracy)
     candidates = {tuple(sorted(e)) for e, _ in result.candidate_sets}
