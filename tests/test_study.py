@@ -281,6 +281,15 @@ def test_serial_run_matches_plan(tiny, serial_rows):
     assert abs(row.rho - result.placement.rho) <= 1e-9
     assert abs(row.iterative_rho_hat - result.iterative.rho_hat) <= 1e-9
     assert row.rho < 0 and row.force_closure
+    # The certified brackets travel with the values (issue 12: bounds on every study row).
+    assert (row.rho_lo, row.rho_hi) == pytest.approx(result.placement.bounds, abs=1e-9)
+    assert row.rho_lo <= row.rho <= row.rho_hi < 0
+    assert row.converged and not row.marginal
+    for prefix in ("heuristic", "iterative"):
+        found = getattr(result, prefix)
+        lo, hi = row[f"{prefix}_rho_hat_lo"], row[f"{prefix}_rho_hat_hi"]
+        assert (lo, hi) == pytest.approx(found.bounds, abs=1e-9)
+        assert lo <= row[f"{prefix}_rho_hat"] <= hi
     if Path("/proc/self/status").exists():  # the worker's memory, read from /proc on Linux
         assert (serial_rows.peak_rss_mib >= serial_rows.rss_mib).all()
         assert (serial_rows.rss_mib > 10).all()  # a Python process with numpy holds more
@@ -324,6 +333,8 @@ def test_a_worker_over_the_memory_limit_drops_its_solvers(tiny, monkeypatch):
     monkeypatch.setattr(tasks, "worker_memory", lambda: {"rss_mib": 1e6, "peak_rss_mib": 1e6})
     row = tasks.run_task(task)
     assert row["status"] == "ok" and not hasattr(tasks._local, "cache")
+    assert row["rho_lo"] <= row["rho"] <= row["rho_hi"] and row["converged"]
+    assert row["iterative_rho_hat_lo"] <= row["iterative_rho_hat"] <= row["iterative_rho_hat_hi"]
     clear_cache()
 
 

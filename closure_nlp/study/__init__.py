@@ -36,9 +36,11 @@ every seed (:func:`run_task` keeps a small per-thread cache); the rho and rho_ha
 by shape, serve every task of the worker.
 
 A result row (:data:`ROW_COLUMNS`) holds the task's inputs, ``status`` (``ok`` or ``error``) and
-``error``; per selection step its ``elements``, ``rho_hat``, ``eligible``, ``evaluations`` and
-``seconds``; the placement's ``elements``, ``rho``, ``force_closure``, ``start_rho``, rounds,
-moves, seconds and the placed contacts (JSON); the task's ``seconds`` (the three steps),
+``error``; per selection step its ``elements``, ``rho_hat`` with its certified bounds
+``rho_hat_lo`` and ``rho_hat_hi``, ``eligible``, ``evaluations`` and ``seconds``; the
+placement's ``elements``, ``rho`` with its bounds ``rho_lo`` and ``rho_hi``, ``force_closure``,
+``marginal``, ``converged`` (the bracket reached 1e-6), ``start_rho``, rounds, moves, seconds
+and the placed contacts (JSON); the task's ``seconds`` (the three steps),
 ``setup_seconds`` (model and problem objects; CasADi builds its solvers lazily, inside the first
 step), ``wall_seconds``, ``solvers_built`` (this task met an empty cache), ``rss_mib`` and
 ``peak_rss_mib`` (the worker's resident set at the task's end and its peak so far, Linux),

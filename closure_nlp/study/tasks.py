@@ -221,6 +221,7 @@ def run_task(task: Task, model_text: str | None = None) -> dict:
     for prefix, result in (("heuristic", first), ("iterative", second)):
         row[f"{prefix}_elements"] = [int(e) for e in result.elements]
         row[f"{prefix}_rho_hat"] = float(result.rho_hat)
+        row[f"{prefix}_rho_hat_lo"], row[f"{prefix}_rho_hat_hi"] = _bounds(result.bounds)
         row[f"{prefix}_eligible"] = bool(result.eligible)
         row[f"{prefix}_evaluations"] = int(result.evaluations)
         row[f"{prefix}_seconds"] = float(result.seconds)
@@ -229,7 +230,11 @@ def run_task(task: Task, model_text: str | None = None) -> dict:
         heuristic_rounds=int(first.rounds),
         elements=[int(e) for e in placed.elements],
         rho=float(placed.rho),
+        rho_lo=_bounds(placed.bounds)[0],
+        rho_hi=_bounds(placed.bounds)[1],
         force_closure=bool(placed.force_closure),
+        marginal=bool(placed.marginal),
+        converged=bool(placed.converged),
         start_rho=float(placed.start_rho),
         placement_rounds=int(placed.rounds),
         placement_moves=len(placed.moves),
@@ -243,6 +248,11 @@ def run_task(task: Task, model_text: str | None = None) -> dict:
         **worker_memory(),
     )
     return row
+
+
+def _bounds(bounds) -> tuple[float | None, float | None]:
+    """A result's certified ``(lo, hi)`` as row values (empty when it has none)."""
+    return (None, None) if bounds is None else (float(bounds[0]), float(bounds[1]))
 
 
 def worker_memory() -> dict:
