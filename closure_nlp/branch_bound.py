@@ -65,7 +65,15 @@ class BranchBoundOptions:
         Halvings of every free coordinate of each cube face before the first bound (1: 32 cells
         per face, 384 in all).
     max_cells : int
-        Cells bounded in all, beyond which the search stops with ``converged=False``.
+        Cells bounded in all, beyond which the search stops with ``converged=False``, unless
+        it may go on to ``extended_cells``.
+    extended_cells : int
+        Past ``max_cells``, the search goes on, up to this many cells in all, while no more than
+        twice as many cells are alive as when it reached ``max_cells``. An isolated but flat
+        minimum keeps that number steady level after level (a box's one-plane bound loses
+        ``1 - cos(delta)`` of ``p``, so the cells alive are those within ``delta sqrt(p /
+        curvature)`` of it) and converges (suite sets at 100k-150k cells); a continuum of
+        minima doubles it at every level and never would. ``max_cells`` or less: no extension.
     max_rounds : int
         Rounds of splitting (each halves every live cell once).
     fw_steps : int
@@ -81,13 +89,14 @@ class BranchBoundOptions:
 
     initial_splits: int = 1
     max_cells: int = 40_000
+    extended_cells: int = 400_000
     max_rounds: int = 200
     fw_steps: int = 12
     refine_below: float = 0.4  # 0.05 -> 0.4: eligible lamp sets 2.3x faster (CPU), others 0.9-1.15x
     stop_below_zero: bool = True
 
     def __post_init__(self) -> None:
-        for name in ("initial_splits", "max_cells", "max_rounds", "fw_steps"):
+        for name in ("initial_splits", "max_cells", "extended_cells", "max_rounds", "fw_steps"):
             value = getattr(self, name)
             least = 0 if name == "initial_splits" else 1
             if isinstance(value, bool) or not isinstance(value, int) or value < least:
@@ -377,6 +386,7 @@ def sphere_minimum(
     cells = rounds = polished = 0
     polished_at = state.value
     converged = False
+    alive_at_budget = None  # cells alive when the search reached max_cells
     while True:
         c, delta, corners, corners_unit, nearest = _cells(axis, sign, lo, hi, metric)
         mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
@@ -430,7 +440,15 @@ def sphere_minimum(
             converged = True
             lower = lower_dropped
             break
-        if cells >= options.max_cells or rounds >= options.max_rounds:
+        alive = int(live.sum())
+        if cells >= options.max_cells and alive_at_budget is None:
+            alive_at_budget = alive
+        extending = alive_at_budget is not None and alive <= 2 * alive_at_budget
+        if (
+            rounds >= options.max_rounds
+            or cells >= max(options.max_cells, options.extended_cells)
+            or (cells >= options.max_cells and not extending)
+        ):
             lower = min(lower_dropped, float(bound[live].min()))
             break
         axis, sign, lo, hi = _halve(axis[live], sign[live], lo[live], hi[live])

@@ -166,7 +166,8 @@ def certified_bounds(
     if verdict is not None:
         # The set's own bracket would need cells finer than its anisotropy: a small budget
         # (valid, usually unconverged bounds); the verdict is the whitened set's.
-        budget = replace(budget, max_cells=min(budget.max_cells, ANISOTROPIC_CELLS))
+        cells = min(budget.max_cells, ANISOTROPIC_CELLS)
+        budget = replace(budget, max_cells=cells, extended_cells=cells)
     unit = tolerance_unit(slots)
     # Every step below is scale-free; run it on the set scaled to unit size and scale back.
     slots = slots.scaled(1.0 / unit)

@@ -1,4 +1,5 @@
-"""The branch and bound's batched matrix-game solver against an independent LP solver (HiGHS)."""
+"""The branch and bound: its batched matrix-game solver against an independent LP solver
+(HiGHS), and its budget."""
 
 from __future__ import annotations
 
@@ -7,7 +8,20 @@ import pytest
 from scipy.optimize import linprog
 
 from closure_nlp import branch_bound
-from closure_nlp.branch_bound import _cells, _exact_bound, _game_weights, _initial_cells
+from closure_nlp.branch_bound import (
+    BranchBoundOptions,
+    _cells,
+    _exact_bound,
+    _game_weights,
+    _initial_cells,
+    sphere_minimum,
+)
+from closure_nlp.contacts import Contact, ContactSet, ContactType
+from closure_nlp.quality import SupportMinimizer
+from closure_nlp.wrenches import WrenchSlots
+
+from . import reference
+from .test_certify import symmetric_sets
 
 
 def _game_upper_bound(M: np.ndarray) -> float:
@@ -61,3 +75,41 @@ def test_exact_bounds_do_not_depend_on_the_chunking(monkeypatch):
     small = _exact_bound(points, corners, unit, nearest)
     np.testing.assert_array_equal(whole, small)
     assert np.isfinite(whole).all()
+
+
+def _min_over_sphere(contact_set, max_cells):
+    """The branch and bound of a contact set from its search's direction, at a small budget
+    (``max_cells``) that it may or may not extend."""
+    slots = WrenchSlots.from_contacts(contact_set)
+    u = SupportMinimizer()(slots).direction
+    gap = 1e-6 * max(1.0, abs(float(slots.support(u[None])[0])))
+    options = BranchBoundOptions(max_cells=max_cells)
+    return slots, sphere_minimum(slots, u, gap=gap, options=options)
+
+
+def test_a_flat_minimum_converges_past_the_budget():
+    # Four soft fingers on a box's faces: about 5,700 cells in all, with few alive per level.
+    cs = dict(symmetric_sets())["box sfce faces (0, 1, 2, 3)"]
+    slots, extended = _min_over_sphere(cs, 1000)
+    assert extended.converged and extended.cells > 2000
+    gap = extended.upper - extended.lower
+    options = BranchBoundOptions(max_cells=1000, extended_cells=1000)
+    stopped = sphere_minimum(slots, extended.direction, gap=gap, options=options)
+    assert not stopped.converged and stopped.cells < 2000
+    # Both brackets hold the minimum: an independent dense sample with local polish.
+    p_ref, _ = reference.reference_min(reference.from_contact_set(cs), samples=300, starts=3)
+    assert extended.lower <= p_ref + 1e-9 and stopped.lower <= p_ref + 1e-9
+
+
+def test_a_continuum_of_minima_stops_soon_after_the_budget():
+    # Two opposite soft fingers: their weakest directions form a circle, whose cells double
+    # level after level. The search stops there, far below extended_cells.
+    pair = ContactSet(
+        (
+            Contact([0, 0, 1], [0, 0, -1], ContactType.SFCE, mu=0.5, mu_s=0.5),
+            Contact([0, 0, -1], [0, 0, 1], ContactType.SFCE, mu=0.5, mu_s=0.5),
+        )
+    )
+    _, found = _min_over_sphere(pair, 1000)
+    assert not found.converged
+    assert 1000 < found.cells < BranchBoundOptions().extended_cells // 10
