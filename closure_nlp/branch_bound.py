@@ -36,8 +36,11 @@ incumbent]``.
 
 from __future__ import annotations
 
+import functools
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -53,6 +56,7 @@ _CORNERS = np.array(np.meshgrid(*[[-1.0, 1.0]] * 5, indexing="ij")).reshape(5, -
 # a stepped-shaft placement certificate (152k cells) peaked 60 MB higher and ran 1.3x slower.
 EVALUATION_CHUNK = 2**17
 EXACT_CHUNK = 512  # cells per batch of exact bounds: a few tens of MB of tableaux
+CELL_CHUNK = 2048  # cells bounded at once: ~40 MB of corners, bounds and their temporaries
 CELLS_PER_ROUND = 128  # 1.1-1.7x faster than one halving per round (bench certify, process time)
 _AXES = np.vstack([np.zeros(5), np.eye(5), -np.eye(5)])  # (11, 5): centre and the axes' ends
 
@@ -390,11 +394,10 @@ def sphere_minimum(
     converged = False
     alive_at_budget = None  # cells alive when the search reached max_cells
     while True:
-        c, delta, corners, corners_unit, nearest = _cells(axis, sign, lo, hi, metric)
         mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
         U = _directions(axis, sign, mid[:, None, :] + half[:, None, :] * _AXES[None], metric)
         values, points = state.consider(U.reshape(-1, 6), with_values=True)
-        points = points.reshape(len(lo), -1, 6)
+        values, points = values.reshape(len(lo), -1), points.reshape(len(lo), -1, 6)
         cells += len(lo)
         rounds += 1
         if polish is not None and polished < MAX_POLISH and state.value < polished_at - gap:
@@ -403,38 +406,18 @@ def sphere_minimum(
         if options.stop_below_zero and state.value < -margin:
             lower = -np.inf
             break
-        # Three bounds, each for the cells the cheaper one left: single support points (exact
-        # on a linear piece of p), Frank-Wolfe combinations with the anchors (second order
-        # at a kink, approximately), the exact best combination of more points (small cells).
         target = state.value - gap
-        bound = _box_bound(points, corners, corners_unit, nearest).max(axis=1) - margin
-        k = np.flatnonzero(bound < target)
-        if len(k):
-            anchors = state.anchors()
-            pool = np.concatenate(
-                [points[k], np.broadcast_to(anchors, (len(k), *anchors.shape))], axis=1
-            )
-            lam, cap = _frank_wolfe(pool, c[k], delta[k], options.fw_steps)
-            wbar = lam[:, None, :] @ pool
-            box = _box_bound(wbar, corners[k], corners_unit[k], nearest[k])[:, 0]
-            bound[k] = np.maximum(bound[k], np.maximum(cap, box) - margin)
-            still = bound[k] < target
-            k, pool = k[still], pool[still]
-        if len(k):
-            k_small = delta[k] < options.refine_below
-            k, pool = k[k_small], pool[k_small]
-        if len(k):
-            # More support points of each small surviving cell: at its corners (both sides of
-            # any kink crossing it) and a small cloud around its lowest sample (the pieces of p
-            # meeting there), and their best combination, exactly.
-            lowest = U[k, np.argmin(values.reshape(len(lo), -1)[k], axis=1)]
-            clouds = _anchor_clouds(lowest, np.outer(delta[k], [0.25, 0.01]))
-            more = np.concatenate([corners_unit[k], clouds], axis=1)
-            local = state.consider(more.reshape(-1, 6)).reshape(len(k), -1, 6)
-            exact = _exact_bound(
-                np.concatenate([pool, local], axis=1), corners[k], corners_unit[k], nearest[k]
-            )
-            bound[k] = np.maximum(bound[k], exact - margin)
+        anchors = functools.cache(state.anchors)  # taken once per round, when first needed
+        # In chunks of cells: a round's corners and bounds hold ~20 KB per cell, and rounds of
+        # 20k cells took a study worker's peak up by hundreds of MB. Every cell is bounded on
+        # its own against the round's target, so the bounds do not depend on the chunking.
+        here = _Round(state, anchors, target, margin, metric, options)
+        bound = np.concatenate(
+            [
+                here.bounds(*(a[s] for a in (axis, sign, lo, hi, U, values, points)))
+                for s in _chunks(len(lo), CELL_CHUNK)
+            ]
+        )
         live = bound < target
         if (~live).any():
             lower_dropped = min(lower_dropped, float(bound[~live].min()))
@@ -464,6 +447,62 @@ def sphere_minimum(
         rounds,
         time.perf_counter() - start,
     )
+
+
+def _chunks(n: int, size: int):
+    """Slices of ``range(n)`` of at most ``size`` items."""
+    return [slice(at, at + size) for at in range(0, n, size)]
+
+
+class _Round(NamedTuple):
+    """What bounds the cells of one round: the incumbent, its anchors (taken when first
+    needed), the target a cell must beat to be dropped, the roundoff margin, the metric and
+    the options."""
+
+    state: _Incumbent
+    anchors: Callable[[], np.ndarray]
+    target: float
+    margin: float
+    metric: np.ndarray
+    options: BranchBoundOptions
+
+    def bounds(self, axis, sign, lo, hi, U, values, points) -> np.ndarray:
+        """Lower bounds of ``p`` over cells, from their samples ``U`` (N, 11, 6), ``values``
+        and support ``points``: three bounds, each for the cells the cheaper one left below
+        the target. Single support points (exact on a linear piece of p), Frank-Wolfe
+        combinations with the anchors (second order at a kink, approximately), the exact best
+        combination of more points (small cells)."""
+        state, target, margin, options = self.state, self.target, self.margin, self.options
+        c, delta, corners, corners_unit, nearest = _cells(axis, sign, lo, hi, self.metric)
+        bound = _box_bound(points, corners, corners_unit, nearest).max(axis=1) - margin
+        k = np.flatnonzero(bound < target)
+        if len(k):
+            anchor_points = self.anchors()
+            pool = np.concatenate(
+                [points[k], np.broadcast_to(anchor_points, (len(k), *anchor_points.shape))], axis=1
+            )
+            lam, cap = _frank_wolfe(pool, c[k], delta[k], options.fw_steps)
+            wbar = lam[:, None, :] @ pool
+            box = _box_bound(wbar, corners[k], corners_unit[k], nearest[k])[:, 0]
+            bound[k] = np.maximum(bound[k], np.maximum(cap, box) - margin)
+            still = bound[k] < target
+            k, pool = k[still], pool[still]
+        if len(k):
+            k_small = delta[k] < options.refine_below
+            k, pool = k[k_small], pool[k_small]
+        if len(k):
+            # More support points of each small surviving cell: at its corners (both sides of
+            # any kink crossing it) and a small cloud around its lowest sample (the pieces of p
+            # meeting there), and their best combination, exactly.
+            lowest = U[k, np.argmin(values[k], axis=1)]
+            clouds = _anchor_clouds(lowest, np.outer(delta[k], [0.25, 0.01]))
+            more = np.concatenate([corners_unit[k], clouds], axis=1)
+            local = state.consider(more.reshape(-1, 6)).reshape(len(k), -1, 6)
+            exact = _exact_bound(
+                np.concatenate([pool, local], axis=1), corners[k], corners_unit[k], nearest[k]
+            )
+            bound[k] = np.maximum(bound[k], exact - margin)
+        return bound
 
 
 class _Incumbent:

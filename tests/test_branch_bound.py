@@ -113,3 +113,20 @@ def test_a_continuum_of_minima_stops_soon_after_the_budget():
     _, found = _min_over_sphere(pair, 1000)
     assert not found.converged
     assert 1000 < found.cells < BranchBoundOptions().extended_cells // 10
+
+
+def test_the_bounds_do_not_depend_on_the_cell_chunking(monkeypatch):
+    """Rounds are bounded in chunks of cells (memory) against one target and one set of
+    anchors per round: the search is the same, bit for bit, one small chunk at a time. No
+    start direction, so the incumbent moves within rounds, as cells find lower samples."""
+    slots = WrenchSlots.from_contacts(dict(symmetric_sets())["box sfce faces (0, 1, 2, 3)"])
+
+    def search():
+        return sphere_minimum(slots, gap=1e-6, options=BranchBoundOptions(max_cells=3000))
+
+    whole = search()
+    monkeypatch.setattr(branch_bound, "CELL_CHUNK", 7)
+    small = search()
+    assert whole.cells > 5 * 7
+    assert (small.lower, small.upper, small.cells) == (whole.lower, whole.upper, whole.cells)
+    np.testing.assert_array_equal(small.direction, whole.direction)
