@@ -73,13 +73,16 @@ class BranchBoundOptions:
     max_cells : int
         Cells bounded in all, beyond which the search stops with ``converged=False``, unless
         it may go on to ``extended_cells``.
-    extended_cells : int
-        Past ``max_cells``, the search goes on, up to this many cells in all, while no more than
-        twice as many cells are alive as when it reached ``max_cells``. An isolated but flat
-        minimum keeps that number steady level after level (a box's one-plane bound loses
-        ``1 - cos(delta)`` of ``p``, so the cells alive are those within ``delta sqrt(p /
-        curvature)`` of it) and converges (suite sets at 100k-150k cells); a continuum of
-        minima doubles it at every level and never would. ``max_cells`` or less: no extension.
+    extended_cells, extension_alive : int
+        Past ``max_cells``, the search goes on, up to ``extended_cells`` cells in all, while
+        the cells alive after a round are at most ``extension_alive`` or twice as many as when
+        it reached ``max_cells``. Measured: isolated but flat minima converge there (the round
+        placements of the test suite, a pistol and a stepped-shaft placement: 100k-150k cells;
+        a box's one-plane bound loses ``1 - cos(delta)`` of ``p``, so the cells alive are those
+        within ``delta sqrt(p / curvature)`` of the minimum). Some keep 1,500-4,000 alive
+        throughout; the shaft's were 9,000 at 40k cells, then fell. A continuum of minima (two
+        opposite soft fingers) grows past both limits at 70k-90k cells and would never
+        converge. ``max_cells`` or less: no extension.
     max_rounds : int
         Rounds of splitting (each halves every live cell once).
     fw_steps : int
@@ -96,13 +99,15 @@ class BranchBoundOptions:
     initial_splits: int = 1
     max_cells: int = 40_000
     extended_cells: int = 400_000
+    extension_alive: int = 5_000
     max_rounds: int = 200
     fw_steps: int = 12
     refine_below: float = 0.4  # 0.05 -> 0.4: eligible lamp sets 2.3x faster (CPU), others 0.9-1.15x
     stop_below_zero: bool = True
 
     def __post_init__(self) -> None:
-        for name in ("initial_splits", "max_cells", "extended_cells", "max_rounds", "fw_steps"):
+        names = ("initial_splits", "max_cells", "extended_cells", "extension_alive", "max_rounds")
+        for name in (*names, "fw_steps"):
             value = getattr(self, name)
             least = 0 if name == "initial_splits" else 1
             if isinstance(value, bool) or not isinstance(value, int) or value < least:
@@ -392,7 +397,7 @@ def sphere_minimum(
     cells = rounds = polished = 0
     polished_at = state.value
     converged = False
-    alive_at_budget = None  # cells alive when the search reached max_cells
+    alive_at_budget = None  # cells alive after the round that reached max_cells
     while True:
         mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
         U = _directions(axis, sign, mid[:, None, :] + half[:, None, :] * _AXES[None], metric)
@@ -428,7 +433,9 @@ def sphere_minimum(
         alive = int(live.sum())
         if cells >= options.max_cells and alive_at_budget is None:
             alive_at_budget = alive
-        extending = alive_at_budget is not None and alive <= 2 * alive_at_budget
+        extending = alive_at_budget is not None and alive <= max(
+            options.extension_alive, 2 * alive_at_budget
+        )
         if (
             rounds >= options.max_rounds
             or cells >= max(options.max_cells, options.extended_cells)

@@ -77,13 +77,13 @@ def test_exact_bounds_do_not_depend_on_the_chunking(monkeypatch):
     assert np.isfinite(whole).all()
 
 
-def _min_over_sphere(contact_set, max_cells):
+def _min_over_sphere(contact_set, max_cells, **budget):
     """The branch and bound of a contact set from its search's direction, at a small budget
     (``max_cells``) that it may or may not extend."""
     slots = WrenchSlots.from_contacts(contact_set)
     u = SupportMinimizer()(slots).direction
     gap = 1e-6 * max(1.0, abs(float(slots.support(u[None])[0])))
-    options = BranchBoundOptions(max_cells=max_cells)
+    options = BranchBoundOptions(max_cells=max_cells, **budget)
     return slots, sphere_minimum(slots, u, gap=gap, options=options)
 
 
@@ -102,15 +102,16 @@ def test_a_flat_minimum_converges_past_the_budget():
 
 
 def test_a_continuum_of_minima_stops_soon_after_the_budget():
-    # Two opposite soft fingers: their weakest directions form a circle, whose cells double
-    # level after level. The search stops there, far below extended_cells.
+    # Two opposite soft fingers: their weakest directions form a circle, whose cells alive
+    # grow level after level. The search stops once they pass twice their number at max_cells
+    # (and extension_alive, here as small as that), far below extended_cells.
     pair = ContactSet(
         (
             Contact([0, 0, 1], [0, 0, -1], ContactType.SFCE, mu=0.5, mu_s=0.5),
             Contact([0, 0, -1], [0, 0, 1], ContactType.SFCE, mu=0.5, mu_s=0.5),
         )
     )
-    _, found = _min_over_sphere(pair, 1000)
+    _, found = _min_over_sphere(pair, 1000, extension_alive=1000)
     assert not found.converged
     assert 1000 < found.cells < BranchBoundOptions().extended_cells // 10
 
