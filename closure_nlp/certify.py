@@ -184,6 +184,11 @@ def certified_bounds(
     if verdict is not None and verdict[2] is not None:
         u0 = verdict[2] / np.linalg.norm(verdict[2])
         value0 = float(slots.support(u0[None])[0])
+    if abs(value0) <= gap(value0):
+        # On the boundary, within the gap: a point of W at the origin closes the bracket.
+        near = _point_at_origin(slots)
+        if near is not None and near <= gap(value0):
+            return _result(-value0, near, True, 0, 1, start_time, u0, tol, unit, verdict)
     if value0 >= 0:
         found = sphere_minimum(
             slots, u0, gap=gap(value0), metric=_metric(slots), options=budget, polish=polish
@@ -209,6 +214,44 @@ def certified_bounds(
     # The origin is outside W: rho = dist(0, W) > 0.
     lo, hi, u, converged, more = nearest_point_bounds(slots, u0, gap(value0), options.max_iter)
     return _result(lo, hi, converged, rounds, evaluations + more, start_time, u, tol, unit, verdict)
+
+
+def _point_at_origin(slots: WrenchSlots) -> float | None:
+    """``|x|`` of a point ``x`` of ``W`` at the origin, for a set without friction (a
+    polytope), found by a linear program; None when there is none or the set has friction.
+
+    Any point of ``W`` bounds ``rho = -min p <= |x|`` (``p(u) >= x . u``), so with a direction
+    where ``p`` is zero within the gap, the bracket closes at 0: a set without interior (7
+    frictionless locators whose wrenches span 5 dimensions) whose branch and bound would
+    crawl towards ``p``'s kinks around the direction normal to the span. ``W`` is ``{sum_ij
+    lam_ij c_ij : lam >= 0, sum_j lam_ij <= 1 per slot i, sum_ij lam_ij >= 1}`` (``c_ij`` the
+    rows' wrenches at ``f_max``). The LP's weights are repaired into that set, and the bound
+    pays for what is left of their infeasibility, so it does not rest on the LP's tolerances.
+    """
+    from scipy.optimize import linprog
+
+    if slots.pieces.any():
+        return None
+    c = slots.f_max[:, None] * slots.G[:, :, 0]  # (K, 6)
+    K, m = len(c), len(slots.starts)
+    slot = np.repeat(np.arange(m), np.diff(np.append(slots.starts, K)))
+    per_slot = np.zeros((m, K))
+    per_slot[slot, np.arange(K)] = 1.0
+    found = linprog(
+        np.zeros(K),
+        A_ub=np.vstack([per_slot, -np.ones((1, K))]),
+        b_ub=np.append(np.ones(m), -1.0),
+        A_eq=c.T,
+        b_eq=np.zeros(6),
+        bounds=(0, None),
+        method="highs",
+    )
+    if found.status != 0:
+        return None
+    lam = np.maximum(found.x, 0.0)
+    lam /= np.maximum(1.0, per_slot @ lam)[slot]  # each slot's weights at most 1
+    short = max(0.0, 1.0 - lam.sum())  # what the weights miss of the sum of at least 1
+    return float(np.linalg.norm(lam @ c)) + short * float(np.linalg.norm(c, axis=1).max())
 
 
 def _metric(slots: WrenchSlots) -> np.ndarray:

@@ -292,3 +292,66 @@ def test_a_certificate_started_off_the_global_basin_is_polished_to_converge():
     ref = reference.from_contact_set(contact_set_from_dict(data))
     p_ref, _ = reference.reference_min(ref, samples=2000, starts=8)
     assert -p_ref <= far.hi + tol  # no direction of the independent reference is weaker
+
+
+@pytest.mark.parametrize("shift", [0.0, 1e-8])
+@pytest.mark.parametrize("rows_per_slot", [1, 3])
+def test_a_frictionless_set_without_interior_is_closed_at_zero(rows_per_slot, shift):
+    """Frictionless wrenches spanning 5 dimensions, the origin inside their span's set: rho =
+    0 exactly. The branch and bound crawled towards the kinks around the span's normal (a
+    stepped-shaft fixture: 108k cells, 12 s, 5.8e-3 wide); a point of W at the origin closes
+    the bracket instead. Shifted by 1e-8 along the normal, the origin is outside at distance
+    1e-8, within the gap: no point of W at the origin, and the bracket still holds it."""
+    rng = np.random.default_rng(7)
+    basis = np.linalg.qr(rng.normal(size=(6, 6)))[0]
+    normal, span = basis[:, 0], basis[:, 1:]
+    # 5 unit vectors and minus their sum positively span the 5-D space, one more at random.
+    v = np.vstack([np.eye(5), -np.ones(5) / np.sqrt(5), rng.normal(size=5)])
+    slots_rows = []
+    for vk in v:
+        G = np.zeros((rows_per_slot, 6, 4))
+        # An element's vertex rows: the same wrench and others of the span.
+        for j in range(rows_per_slot):
+            G[j, :, 0] = span @ (vk + (0.3 * rng.normal(size=5) if j else 0.0)) + shift * normal
+        slots_rows.append((G, ContactType.FPC, 0.0, 0.0, 1.0))
+    slots = WrenchSlots.build(slots_rows)
+    bounds = certified_bounds(slots, normal)
+    assert bounds.converged and bounds.marginal and not bounds.force_closure
+    assert bounds.lo - 1e-15 <= shift <= bounds.hi + 1e-15 and bounds.hi - bounds.lo <= 1e-6
+    # Independent: p along -normal is -shift (rho >= shift), and a point of W lies at distance
+    # shift (rho <= shift): weights 1 on the first five slots' first rows and sqrt(5) on the
+    # sixth's, scaled to sum to 1 (each slot at most 1, in all at least 1).
+    wrenches = np.array([G[0, :, 0] for G, *_ in slots_rows[:6]])
+    lam = np.append(np.ones(5), np.sqrt(5)) / (5 + np.sqrt(5))
+    assert np.linalg.norm(lam @ wrenches) == pytest.approx(shift, abs=1e-15)
+    assert float(slots.support(-normal[None])[0]) == pytest.approx(-shift, abs=1e-15)
+
+
+# Seven frictionless locators on the stepped shaft (fixture study, seed 12), as wrenches at
+# f_max = 1 (mm): none resists the spin about the axis (torque z), so the set has no interior.
+SHAFT_SPIN = [
+    [-0.9396926207859084, -0.3420201433256689, -0.0, 7.182423009839047, -19.733545036504076,
+     -1.7763568394002505e-15],
+    [0.8660254037844388, 0.4999999999999997, -0.0, -27.499999999999986, 47.631397208144136, 0.0],
+    [-0.5000000000000002, -0.8660254037844386, -0.0, 77.94228634059948, -45.00000000000002,
+     8.881784197001252e-16],
+    [-0.0, -0.0, 1.0, 6.112785939705665e-16, 2.2071519153289227e-16, 0.0],
+    [-0.0, -0.0, -1.0, 6.7688884181243925, 11.72405865095597, -0.0],
+    [-0.49999999999999967, 0.8660254037844389, -0.0, -18.18653347947322, -10.499999999999993,
+     -5.329070518200751e-15],
+    [0.7660444431189779, -0.6427876096865395, -0.0, 13.498539803417328, 16.086933305498537, 0.0],
+]  # fmt: skip
+
+
+def test_a_fixture_that_lets_the_part_spin_is_closed_at_zero():
+    """The branch and bound stopped after 108k cells and 12 s at [-8.9e-16, 5.8e-3]; the
+    point of W at the origin closes the bracket at once."""
+    G = np.zeros((len(SHAFT_SPIN), 1, 6, 4))
+    G[:, 0, :, 0] = SHAFT_SPIN
+    slots = WrenchSlots.build([(g, ContactType.FPC, 0.0, 0.0, 1.0) for g in G])
+    spin = np.array([0, 0, 0, 0, 0, 1.0])
+    bounds = certified_bounds(slots, spin)
+    assert bounds.converged and bounds.marginal and not bounds.force_closure
+    assert bounds.lo <= 0 <= bounds.hi <= 1e-12
+    # Independent: p(spin) is roundoff (rho >= -1e-14), and the bracket's top is a norm.
+    assert abs(float(slots.support(spin[None])[0])) <= 1e-14
