@@ -9,6 +9,11 @@
   over the sphere below (:mod:`closure_nlp.branch_bound`); when the branch and bound meets a
   direction with ``p < 0`` it hands over to the first regime.
 
+On the boundary (``p`` within the gap of zero at the start direction) a frictionless set first
+looks for a point of ``W`` at the origin by a linear program: ``rho <= |x|`` for every point
+``x`` of ``W``, so one such point closes the bracket at 0 where both regimes would crawl (a set
+without interior, e.g. locators that let the part spin).
+
 Tolerances are relative to the set's scale (:func:`tolerance_unit`), never absolute: the same
 part in metres and in millimetres, or with ``f_max`` scaled by any factor, gets the same verdict
 and the same relative bracket.
