@@ -154,7 +154,7 @@ def fake_runner(task, model_text, fail_seed: int = -1):
     assert model_text is not None
     row = task_row(task)
     row.update(status="ok", elements=[0, 1], rho=-float(task.seed), force_closure=task.seed > 0)
-    row.update(seconds=0.01, iterative_rho_hat=-1.0)
+    row.update(seconds=0.01, iterative_rho_hat=-1.0, converged=task.seed != 1)
     return row
 
 
@@ -174,6 +174,7 @@ def test_failing_task_is_recorded_and_the_study_goes_on(tiny, tmp_path):
     summary = {(r["mu"]): r for r in result.summary}
     assert summary[0.2]["errors"] == 1 and summary[0.2]["force_closure"] == 1
     assert summary[0.2]["rho_best"] == -1.0 and summary[0.2]["success_rate"] == 1 / 2
+    assert summary[0.2]["certified"] == 0  # seed 1's bracket did not converge, seed 0 failed
     text = (tmp_path / "summary.md").read_text()
     assert "## Errors" in text and "seed 0 fails" in text
     for name in ("summary.csv", "results.csv", "rho.png", "seconds.png", "study.json"):

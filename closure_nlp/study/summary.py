@@ -16,9 +16,10 @@ def summarize(study: Study, frame):
     """The summary table: one row per group of :func:`group_keys`.
 
     Columns: the group keys, ``tasks`` (of the study), ``done``, ``errors``, ``force_closure``
-    (count), ``success_rate`` (force closure among the tasks done), ``rho_median``, ``rho_best``
-    (most negative rho), ``rho_hat_median`` (iterative selection), ``seconds_median`` (the three
-    steps of one task).
+    (count), ``certified`` (rows whose rho bracket converged to the tolerance; rows of older
+    versions have none), ``success_rate`` (force closure among the tasks done), ``rho_median``,
+    ``rho_best`` (most negative rho), ``rho_hat_median`` (iterative selection),
+    ``seconds_median`` (the three steps of one task).
     """
     import pandas as pd
 
@@ -33,6 +34,7 @@ def summarize(study: Study, frame):
                 "done": len(mine),
                 "errors": int((mine.status != "ok").sum()),
                 "force_closure": fc,
+                "certified": int(ok.converged.fillna(False).astype(bool).sum()),
                 "success_rate": fc / len(mine) if len(mine) else float("nan"),
                 "rho_median": _stat(ok.rho, "median"),
                 "rho_best": _stat(ok.rho, "min"),
@@ -48,6 +50,7 @@ SUMMARY_COLUMNS = [
     "done",
     "errors",
     "force_closure",
+    "certified",
     "success_rate",
     "rho_median",
     "rho_best",
