@@ -330,8 +330,7 @@ def _exact_bound(points, corners, corners_unit, nearest):
     temporaries) stay small; all cells at once took a fixture-study task from 142 to 450 MiB.
     """
     out = np.empty(len(points))
-    for at in range(0, len(points), EXACT_CHUNK):
-        part = slice(at, at + EXACT_CHUNK)
+    for part in _chunks(len(points), EXACT_CHUNK):
         lam = _game_weights(corners_unit[part] @ points[part].transpose(0, 2, 1))
         wbar = lam[:, None, :] @ points[part]  # (n, 1, 6)
         out[part] = _box_bound(wbar, corners[part], corners_unit[part], nearest[part])[:, 0]
@@ -527,7 +526,7 @@ class _Incumbent:
         # In chunks: support evaluation holds (directions x rows x 6) temporaries, which for all
         # live cells of an element set at once took a study worker's RSS past 1.5 GB.
         chunk = max(1, EVALUATION_CHUNK // max(1, len(self.slots.G)))
-        parts = [self.slots.evaluate(U[i : i + chunk]) for i in range(0, len(U), chunk)]
+        parts = [self.slots.evaluate(U[part]) for part in _chunks(len(U), chunk)]
         values = np.concatenate([v for v, _ in parts])
         points = np.concatenate([p for _, p in parts])
         self.evaluations += len(U)

@@ -235,11 +235,11 @@ def _point_at_origin(slots: WrenchSlots) -> float | None:
     """
     from scipy.optimize import linprog
 
-    if slots.pieces.any():
+    c = slots._normal_wrenches()  # (K, 6): the rows' wrenches, None with friction
+    if c is None:
         return None
-    c = slots.f_max[:, None] * slots.G[:, :, 0]  # (K, 6)
-    K, m = len(c), len(slots.starts)
-    slot = np.repeat(np.arange(m), np.diff(np.append(slots.starts, K)))
+    K, m = len(c), slots.m
+    slot = np.repeat(np.arange(m), slots.rows_per_slot)
     per_slot = np.zeros((m, K))
     per_slot[slot, np.arange(K)] = 1.0
     found = linprog(

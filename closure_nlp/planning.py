@@ -28,14 +28,13 @@ from .eligibility import Eligibility
 from .files import load_json, write_atomic, write_json
 from .placement import PlacementOptions, PlacementResult, Placer
 from .progress import Progress
-from .quality import signed_distance
 from .selection import (
-    SCREEN_SEARCH,
     SelectionOptions,
     SelectionResult,
     _multiset,
     heuristic,
     iterative,
+    light_rho_hat,
 )
 
 
@@ -202,10 +201,8 @@ def _pool(pool, run: SelectionResult, eligibility: Eligibility) -> list:
     value now, from the screen's start: the value it would have given, so they rank as before."""
     pool = pool + [(e, v, True) for e, v in run.eligible_sets]
     unproven = [(v, tuple(e)) for e, v in run.candidate_sets]
-    light = eligibility.minimizer.with_search(SCREEN_SEARCH)
     for elements, warm in run.unranked_sets:
-        slots = eligibility.slots(elements)
-        value = signed_distance(light(slots, warm), slots, light.tolerances)
+        value, _ = light_rho_hat(eligibility, elements, warm)
         if value < 0:
             unproven.append((value, tuple(elements)))
     # equal values (symmetric parts have many) in the order of the elements

@@ -212,6 +212,16 @@ def heuristic(
     )
 
 
+def light_rho_hat(eligibility: Eligibility, elements, warm, stop_below=None):
+    """The light search's (:data:`SCREEN_SEARCH`) value of an element set, never above its full
+    rho_hat, and its direction; with ``stop_below``, it stops once a direction shows ``p <=
+    stop_below`` (see :meth:`~closure_nlp.quality.SupportMinimizer.__call__`)."""
+    light = eligibility.minimizer.with_search(SCREEN_SEARCH)
+    slots = eligibility.slots(elements)
+    found = light(slots, warm, stop_below)
+    return signed_distance(found, slots, light.tolerances), found.direction
+
+
 def iterative(
     eligibility: Eligibility,
     start,
@@ -235,8 +245,6 @@ def iterative(
     # value, direction, elements, and the start direction if the screen may have stopped at
     # the bar (else None)
     screened: dict[tuple, tuple[float, np.ndarray, tuple[int, ...], np.ndarray | None]] = {}
-    light = eligibility.minimizer.with_search(SCREEN_SEARCH)
-
     def evaluate(elements, warm):
         key = _multiset(eligibility, elements)
         if key not in seen:
@@ -251,11 +259,9 @@ def iterative(
         if key in seen:
             return seen[key].rho_hat, seen[key].direction
         if key not in screened:
-            slots = eligibility.slots(elements)
-            found = light(slots, warm, -bar)
-            value = signed_distance(found, slots, light.tolerances)
+            value, direction = light_rho_hat(eligibility, elements, warm, stop_below=-bar)
             stopped = warm if value >= bar else None
-            screened[key] = (value, found.direction, tuple(elements), stopped)
+            screened[key] = (value, direction, tuple(elements), stopped)
         return screened[key][:2]
 
     best = evaluate(current, None)

@@ -225,13 +225,14 @@ def run_task(task: Task, model_text: str | None = None) -> dict:
         row[f"{prefix}_eligible"] = bool(result.eligible)
         row[f"{prefix}_evaluations"] = int(result.evaluations)
         row[f"{prefix}_seconds"] = float(result.seconds)
+    rho_lo, rho_hi = _bounds(placed.bounds)
     row.update(
         status="ok",
         heuristic_rounds=int(first.rounds),
         elements=[int(e) for e in placed.elements],
         rho=float(placed.rho),
-        rho_lo=_bounds(placed.bounds)[0],
-        rho_hi=_bounds(placed.bounds)[1],
+        rho_lo=rho_lo,
+        rho_hi=rho_hi,
         force_closure=bool(placed.force_closure),
         marginal=bool(placed.marginal),
         converged=bool(placed.converged),
