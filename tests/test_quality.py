@@ -276,3 +276,26 @@ def test_a_search_asked_for_a_threshold_stops_once_it_is_shown():
             below = minimizer(slots, stop_below=full.value - 0.2 * scale)
             assert below.value == full.value
             np.testing.assert_array_equal(below.direction, full.direction)
+
+
+def test_a_run_into_a_minimum_already_found_does_not_use_up_the_budget(monkeypatch):
+    """Seven PCwF on the L-bracket where a placement's round search (two IPOPT runs) reported
+    rho -1.4014: both runs started in the warm directions' basins and ended in one local
+    minimum, and the global basin's start, whose descent ended higher, got no run. A run that
+    finds no new minimum no longer counts against the budget: the search reaches the certified
+    rho. With each run counted (RUNS_PER_BASIN = 1, the former rule) it misses."""
+    import json
+    from pathlib import Path
+
+    from closure_nlp import quality
+    from closure_nlp.placement import ROUND_SEARCH
+
+    data = json.loads((Path(__file__).parent / "data" / "l_bracket_round_miss.json").read_text())
+    contact_set = contact_set_from_dict(data["contact_set"])
+    judge = quality.SupportMinimizer(search=ROUND_SEARCH)
+    lo, hi = rho(contact_set).bounds
+    found = quality.search_rho(contact_set, minimizer=judge, warm_start=data["warm_start"])
+    assert lo - 1e-6 * abs(lo) <= found.rho <= hi  # the global minimum, to the bracket
+    monkeypatch.setattr(quality, "RUNS_PER_BASIN", 1)
+    missed = quality.search_rho(contact_set, minimizer=judge, warm_start=data["warm_start"])
+    assert missed.rho < lo - 0.05  # the former rule's answer: 8% over-stated
