@@ -337,3 +337,31 @@ def test_cli_place_bad_input(capsys, tmp_path):
     code = cli.main(["place", str(path), "--elements", "0,1,2,3", "--starts", "0"])
     err = capsys.readouterr().err
     assert code == 2 and "--starts: the number of start weights must be in [1, 100]" in err
+
+
+@pytest.mark.parametrize("validate", [True, False])
+def test_an_exchange_run_ends_on_a_value_the_default_search_confirms(monkeypatch, validate):
+    """The exchange keeps whatever weights its round search values lowest, so it seeks out that
+    search's misses. With a round search crippled to one IPOPT run from the warm directions, the
+    run's final value must still be one the eligibility's own search cannot lower on the final
+    weights (``validate``, the default); without the check it is not (the control: the crippled
+    search does miss here)."""
+    from closure_nlp import placement
+
+    crippled = placement.SearchOptions(
+        samples=0, descent_iterations=0, smoothing=(), ipopt_starts=1
+    )
+    monkeypatch.setattr(placement, "ROUND_SEARCH", crippled)
+    eligibility = Eligibility(load_model(MODELS / "lamp.model.json"), contact_specs(4, mu=0.2))
+    placer = Placer(eligibility, PlacementOptions(validate=validate))
+    elements = [14, 10, 55, 47]
+    counts = [len(eligibility.model.elements[e].vertices) for e in elements]
+    over_stated = []
+    for seed in range(3):
+        rng = np.random.default_rng(seed)
+        weights = [rng.dirichlet(np.ones(k)) for k in counts]
+        w, best, _, rounds = placer.optimise(elements, weights)
+        again = search_rho(placer.contact_set(elements, w), minimizer=eligibility.minimizer)
+        assert rounds > 1
+        over_stated.append(again.rho - best.rho > 1e-9 * max(1.0, abs(best.rho)))
+    assert not any(over_stated) if validate else any(over_stated)
