@@ -275,11 +275,12 @@ def bench_characterize(subdivisions=(5, 7)) -> dict:
 
 
 # The former behaviour (full search for every neighbour, every neighbour-move trial to the full
-# budget, the default search in every exchange round, no check at a run's end): the baseline that ``bench plan`` runs in
-# the same process, on the same solvers, for its ratios; and the faster placement options. Not in
-# the baseline (no option restores them): the start's certificate deferred to when it is needed,
-# the linear exchange NLP of frictionless contacts, the faster support evaluation of FPC and
-# element slots, and the neighbour-move trials skipped because they provably cannot win.
+# budget, the default search in every exchange round, no check at a run's end): the baseline
+# that ``bench plan`` runs in the same process, on the same solvers, for its ratios; and the
+# faster placement options. Not in the baseline (no option restores them): the start's
+# certificate deferred to when it is needed, the linear exchange NLP of frictionless contacts,
+# the faster support evaluation of FPC and element slots, the neighbour-move trials skipped
+# because they provably cannot win, and the search's budget counted in basins.
 BASELINE_SELECTION = SelectionOptions(screen=False)
 BASELINE_PLACEMENT = PlacementOptions(move_rounds=0, round_search=False, validate=False)
 FAST_PLACEMENT = PlacementOptions(screen=True, probe_rounds=6)
