@@ -55,7 +55,7 @@ class SearchOptions:
         Basins that IPOPT explores for contact sets (one row per slot): runs from the lowest end
         points of both descents, skipping an end point within ``tolerances.distinct_start`` of a
         start already tried or a minimum already found. A run that ends in a minimum already
-        found does not count, up to :data:`RUNS_PER_BASIN` runs per basin in all.
+        found does not count, up to ``runs_per_basin`` runs per basin in all.
     element_ipopt_starts : int
         The same for element sets (a slot with several vertex rows, What_c^M): they have many
         more basins, which the descents' end values rank only roughly. On 205 seeded element
@@ -64,6 +64,12 @@ class SearchOptions:
         never missed with 3. The search is a heuristic: ``rho(..., certify=True)`` is the proof.
     max_iter : int
         IPOPT iteration cap per run.
+    runs_per_basin : int
+        IPOPT runs per basin of the budget, at most. A run that ends in a minimum already found
+        explored no new basin: on a placement's round set two runs from warm starts ended in
+        one local minimum and the global basin's start, ranked third, got none (rho 8%
+        over-stated; tests/data/l_bracket_round_miss.json). 1: every run counts (the former
+        rule; enough where a certificate follows).
     """
 
     samples: int = 128
@@ -73,10 +79,12 @@ class SearchOptions:
     ipopt_starts: int = 3
     element_ipopt_starts: int = 6
     max_iter: int = 300
+    runs_per_basin: int = 2
 
     def __post_init__(self) -> None:
         may_be_zero = ("samples", "descent_iterations", "smoothing_iterations")
-        for name in (*may_be_zero, "ipopt_starts", "element_ipopt_starts", "max_iter"):
+        counts = ("ipopt_starts", "element_ipopt_starts", "max_iter", "runs_per_basin")
+        for name in (*may_be_zero, *counts):
             value = getattr(self, name)
             least = 0 if name in may_be_zero else 1
             if isinstance(value, bool) or not isinstance(value, int) or value < least:
@@ -328,11 +336,6 @@ class SupportMinProblem:
         )
 
 
-# IPOPT runs per basin of a search's budget, at most. A run that ends in a minimum already found
-# explored no new basin and does not count: on a placement's round set two runs from warm starts
-# ended in one local minimum and the global basin's start, ranked third, got none (rho 8% over-
-# stated; tests/data/l_bracket_round_miss.json).
-RUNS_PER_BASIN = 2
 MAX_PROBLEMS = 32  # cached NLP shapes per minimizer: ~7 MB each (a study worker held 42)
 # One IPOPT run from a given direction, nothing else: the certificate's local solver.
 POLISH_SEARCH = SearchOptions(
@@ -344,7 +347,11 @@ POLISH_SEARCH = SearchOptions(
 # 20 sets per family, against the default search: every bracket converged either way, the values
 # agree within 8.2e-7 relative (inside the 1e-6 brackets), and the certified medians went
 # 4 PCwF 90 -> 63 ms, 4 SFCe 271 -> 267, 7 FPC 15 -> 5.8, 4 mixed 98 -> 75, lamp rho_hat 73 -> 37.
-SEED_SEARCH = SearchOptions(samples=32, smoothing=(0.03,), ipopt_starts=1, element_ipopt_starts=2)
+# Every run counts against its budget (runs_per_basin 1): the certificate lowers the value where
+# the seed stopped short, and extra runs cost the certified rho_hat of 4 lamp facets 32 -> 45 ms.
+SEED_SEARCH = SearchOptions(
+    samples=32, smoothing=(0.03,), ipopt_starts=1, element_ipopt_starts=2, runs_per_basin=1
+)
 
 
 class SupportMinimizer:
@@ -450,7 +457,7 @@ class SupportMinimizer:
         minima: list[np.ndarray] = []
         near = self.tolerances.distinct_start
         for i in np.argsort(values, kind="stable"):
-            if basins == budget or runs == RUNS_PER_BASIN * budget or best[0] <= stop:
+            if basins == budget or runs == search.runs_per_basin * budget or best[0] <= stop:
                 break
             if any(np.linalg.norm(U[i] - v) <= near for v in tried):
                 continue  # a basin already explored

@@ -278,12 +278,13 @@ def test_a_search_asked_for_a_threshold_stops_once_it_is_shown():
             np.testing.assert_array_equal(below.direction, full.direction)
 
 
-def test_a_run_into_a_minimum_already_found_does_not_use_up_the_budget(monkeypatch):
+def test_a_run_into_a_minimum_already_found_does_not_use_up_the_budget():
     """Seven PCwF on the L-bracket where a placement's round search (two IPOPT runs) reported
     rho -1.4014: both runs started in the warm directions' basins and ended in one local
     minimum, and the global basin's start, whose descent ended higher, got no run. A run that
     finds no new minimum no longer counts against the budget: the search reaches the certified
-    rho. With each run counted (RUNS_PER_BASIN = 1, the former rule) it misses."""
+    rho. With each run counted (runs_per_basin = 1, the former rule) it misses."""
+    import dataclasses
     import json
     from pathlib import Path
 
@@ -296,6 +297,6 @@ def test_a_run_into_a_minimum_already_found_does_not_use_up_the_budget(monkeypat
     lo, hi = rho(contact_set).bounds
     found = quality.search_rho(contact_set, minimizer=judge, warm_start=data["warm_start"])
     assert lo - 1e-6 * abs(lo) <= found.rho <= hi  # the global minimum, to the bracket
-    monkeypatch.setattr(quality, "RUNS_PER_BASIN", 1)
-    missed = quality.search_rho(contact_set, minimizer=judge, warm_start=data["warm_start"])
+    former = judge.with_search(dataclasses.replace(ROUND_SEARCH, runs_per_basin=1))
+    missed = quality.search_rho(contact_set, minimizer=former, warm_start=data["warm_start"])
     assert missed.rho < lo - 0.05  # the former rule's answer: 8% over-stated
