@@ -443,7 +443,8 @@ class SupportMinimizer:
         if warm_start is not None:
             U0 = np.vstack([_warm_starts(warm_start), U0])
         U, values = descend(slots, U0, search.descent_iterations, stop=stop)
-        if search.smoothing and values.min() > stop:
+        # Below zero, one local minimum is the global one (see the loop): no smoothing needed.
+        if search.smoothing and values.min() > max(stop, 0.0):
             U_s, values_s = smoothed_descent(
                 slots, U0, search.smoothing, search.smoothing_iterations
             )
@@ -473,6 +474,11 @@ class SupportMinimizer:
             value = float(slots.support(u)[0])
             if value < best[0]:
                 best = (value, u, status, success)
+            if success and value < 0:
+                # The origin is outside W, and a KKT point with p(u) < 0 is the global minimum:
+                # -p is concave and positive there, so (homogeneity) the sphere's multiplier has
+                # the sign of the ball's, and the point maximises -p over the whole unit ball.
+                break
         value, u, status, success = best
         stats = SolverStats(runs, iterations, status, success, time.perf_counter() - start_time)
         return SupportMinimum(float(value), u, slots.support_point(u), stats)

@@ -181,12 +181,14 @@ def heuristic(
         else:
             chosen = rng.integers(0, n, options.initial).tolist()
         history = []
-        found = eligibility(chosen, partial=True, certify=False)
+        # A complete set is certified at once: the certificate's light seed search replaces the
+        # full one, and the verdict that ends the rounds is the certified one.
+        found = eligibility(chosen, partial=True, certify=len(chosen) == m)
         history.append((0, found.rho_hat))
         while len(chosen) < m:
             values = eligibility.element_values(len(chosen), found.direction)
             chosen.append(int(np.argmax(values)))
-            found = eligibility(chosen, found.direction, partial=True, certify=False)
+            found = eligibility(chosen, found.direction, partial=True, certify=len(chosen) == m)
             history.append((len(history), found.rho_hat))
             if progress:
                 progress("heuristic", len(history) - 1, found.rho_hat)

@@ -300,3 +300,31 @@ def test_a_run_into_a_minimum_already_found_does_not_use_up_the_budget():
     former = judge.with_search(dataclasses.replace(ROUND_SEARCH, runs_per_basin=1))
     missed = quality.search_rho(contact_set, minimizer=former, warm_start=data["warm_start"])
     assert missed.rho < lo - 0.05  # the former rule's answer: 8% over-stated
+
+
+@pytest.mark.parametrize("kinds", [["pcwf"] * 3, ["fpc"] * 5, ["sfce", "sfcl"], ["sfcl", "pcwf"]])
+def test_outside_the_set_one_ipopt_run_finds_the_distance(kinds):
+    """With the origin outside W, a local minimum with p < 0 is the global one (-p is concave
+    and positive there): the search stops after its first such run, and its value is the
+    distance that cvxpy computes on its own, in any units, to the search's accuracy: about 1e-6
+    of the wrench scale (s**2 >= q within IPOPT's 1e-12 leaves s short by up to 1e-6 at a cone's
+    apex; all six runs of the former rule agreed with the first to that accuracy)."""
+    from closure_nlp.certify import tolerance_unit
+    from closure_nlp.crosscheck import distance_cvxpy
+    from closure_nlp.quality import SupportMinimizer
+    from closure_nlp.wrenches import WrenchSlots
+
+    minimizer = SupportMinimizer()
+    checked = 0
+    for seed in range(6):
+        cs = random_contact_set(np.random.default_rng(seed), kinds, mu=0.4, mu_s=0.2)
+        for scale in (1.0, 1e3):
+            slots = WrenchSlots.from_contacts(cs).scaled(scale)
+            found = minimizer(slots)
+            if found.value >= 0:
+                continue  # force closure: not this test's regime
+            distance = distance_cvxpy(slots)
+            assert -found.value == pytest.approx(distance, abs=2e-6 * tolerance_unit(slots))
+            assert found.stats.ipopt_runs == 1
+            checked += 1
+    assert checked >= 4

@@ -47,6 +47,29 @@ def test_heuristic_finds_eligible_sets(ring, seed):
     assert [k for k, _ in result.history] == list(range(len(result.history)))
 
 
+def test_heuristic_certifies_each_complete_set_once_and_steers_partial_ones(monkeypatch):
+    """A complete set goes straight to the certified path (light seed search, then the
+    certificate) instead of a full search followed by a certificate: each such set is
+    evaluated once, certified, and the verdict that ends the rounds is the certified one.
+    Partial sets (not yet m elements) are searched alone, without a certificate."""
+    eligibility = Eligibility(_ring_model(), contact_specs(3, type="pcwf", mu=0.3))
+    calls, original = [], Eligibility.__call__
+
+    def spy(self, elements, *args, **kwargs):
+        result = original(self, elements, *args, **kwargs)
+        calls.append((len(elements), result.bounds is not None))
+        return result
+
+    monkeypatch.setattr(Eligibility, "__call__", spy)
+    for seed in range(3):
+        calls.clear()
+        result = heuristic(eligibility, seed=seed, options=SelectionOptions(initial=1))
+        assert result.eligible and result.bounds[1] < 0
+        complete = [certified for size, certified in calls if size == 3]
+        assert complete and all(complete)  # certified when evaluated, not searched first
+        assert not any(certified for size, certified in calls if size < 3)
+
+
 @pytest.mark.slow  # 162 s: the fast suite stays near 10 minutes
 def test_iterative_ends_in_a_local_minimum(ring):
     """No single swap of a contact's element for a neighbour lowers rho_hat (brute force)."""
