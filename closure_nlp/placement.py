@@ -35,6 +35,9 @@ from .sphere_search import sphere_samples
 from .wrenches import WrenchSlots, pad_rows
 
 DIRECTION_BUCKETS = (16, 32, 64, 128, 256)
+# Exchange NLPs kept per cache: 15-30 MB each (64-128 directions, 7 contacts). Unbounded, a
+# fixture-study worker held 11 after 7 pistol tasks, 275 MB of its 440.
+MAX_EXCHANGE_PROBLEMS = 4
 # Weak directions of earlier exchange runs on the same elements that start a later run's working
 # set: with the random ones and one run's rounds (max_rounds 40) it stays within 128.
 SHARED_DIRECTIONS = 64
@@ -502,11 +505,16 @@ class Placer:
             not friction_pieces(s.type, s.mu, s.mu_s).any() for s in self.eligibility.specs
         )
         key = (rows, capacity, self.options.ipopt_tol, self.options.subset_margin, frictionless)
-        if key not in self._problems:
-            self._problems[key] = ExchangeProblem(
+        problems = self._problems
+        problem = problems.pop(key, None)  # re-inserted last: the dict's order is its recency
+        if problem is None:
+            problem = ExchangeProblem(
                 rows, capacity, self.options.ipopt_tol, self.options.subset_margin, frictionless
             )
-        return self._problems[key]
+            while len(problems) >= MAX_EXCHANGE_PROBLEMS:
+                del problems[next(iter(problems))]  # the least recently used
+        problems[key] = problem
+        return problem
 
     def contact_set(self, elements, weights) -> ContactSet:
         model, specs = self.eligibility.model, self.eligibility.specs

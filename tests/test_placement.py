@@ -365,3 +365,27 @@ def test_an_exchange_run_ends_on_a_value_the_default_search_confirms(monkeypatch
         assert rounds > 1
         over_stated.append(again.rho - best.rho > 1e-9 * max(1.0, abs(best.rho)))
     assert not any(over_stated) if validate else any(over_stated)
+
+
+def test_exchange_nlp_cache_keeps_the_most_recent_shapes(monkeypatch):
+    """Shapes beyond MAX_EXCHANGE_PROBLEMS evict the least recently used one (a study worker's
+    memory); a placement gives the same answer with a cache of one."""
+    from closure_nlp import placement
+
+    model = _strip_model()
+    eligibility = Eligibility(model, contact_specs(4, type="pcwf", mu=0.5), torque_scale=0.5)
+    reference_run = Placer(eligibility, PlacementOptions(starts=2))([0, 2, 3, 4])
+    monkeypatch.setattr(placement, "MAX_EXCHANGE_PROBLEMS", 2)
+    shared = {}
+    placer = Placer(eligibility, PlacementOptions(starts=2), shared)
+    a = placer._problem((1, 1, 1, 1), 10)
+    b = placer._problem((1, 1, 1, 1), 20)
+    assert placer._problem((1, 1, 1, 1), 12) is a  # same bucket: reused, now the most recent
+    c = placer._problem((2, 1, 1, 1), 10)  # evicts b
+    assert list(shared.values()) == [a, c]
+    assert placer._problem((1, 1, 1, 1), 20) is not b  # rebuilt
+    assert len(shared) == 2
+    monkeypatch.setattr(placement, "MAX_EXCHANGE_PROBLEMS", 1)
+    again = Placer(eligibility, PlacementOptions(starts=2), {})([0, 2, 3, 4])
+    assert again.rho == reference_run.rho
+    assert [c.element for c in again.contacts] == [c.element for c in reference_run.contacts]

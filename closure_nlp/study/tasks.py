@@ -107,9 +107,10 @@ class Task:
 
 _CACHE_SIZE = 8
 # A worker whose resident set is above this after a task drops its solver caches (their NLPs,
-# about 7 MB per element-set shape, are most of it on the fixture study's pistol). Measured
-# serially on 4 pistol 7-PCwF tasks: after the 4th, 502 MiB instead of 784 (the peak inside a
-# task, 1.6 GB on one seed, is the engine's and unchanged).
+# 2-5 MB per element-set shape and 15-30 MB per exchange shape, are most of it on the fixture
+# study's pistol). Measured serially on 4 pistol 7-PCwF tasks: after the 4th, 502 MiB instead of
+# 784. Since the exchange cache is bounded (placement.MAX_EXCHANGE_PROBLEMS), 16 pistol tasks
+# stayed under 330 MiB after each, and it rarely triggers.
 MEMORY_LIMIT_MIB = 450.0
 # Per thread: CasADi solvers must not be called from two threads at once, and a joined cluster's
 # workers may run several tasks at a time (the local cluster's have one thread each).
