@@ -55,7 +55,8 @@ class SearchOptions:
         Basins that IPOPT explores for contact sets (one row per slot): runs from the lowest end
         points of both descents, skipping an end point within ``tolerances.distinct_start`` of a
         start already tried or a minimum already found. A run that ends in a minimum already
-        found does not count, up to ``runs_per_basin`` runs per basin in all.
+        found does not count, up to ``runs_per_basin`` runs per basin in all. The first run that
+        ends below zero ends the search: outside W a local minimum is the global one.
     element_ipopt_starts : int
         The same for element sets (a slot with several vertex rows, What_c^M): they have many
         more basins, which the descents' end values rank only roughly. On 205 seeded element
