@@ -35,8 +35,9 @@ from .sphere_search import sphere_samples
 from .wrenches import WrenchSlots, pad_rows
 
 DIRECTION_BUCKETS = (16, 32, 64, 128, 256)
-# Exchange NLPs kept per cache: 15-30 MB each (64-128 directions, 7 contacts). Unbounded, a
-# fixture-study worker held 11 after 7 pistol tasks, 275 MB of its 440.
+# Exchange NLPs kept per cache: 15-30 MB each (64-128 directions, 7 contacts). Unbounded, the
+# fixture study's pistol 7-PCwF tasks run serially left 11 after the 7th, 275 MB of 440 MiB;
+# one plan of the examples uses at most 2 shapes.
 MAX_EXCHANGE_PROBLEMS = 4
 # Weak directions of earlier exchange runs on the same elements that start a later run's working
 # set: with the random ones and one run's rounds (max_rounds 40) it stays within 128.

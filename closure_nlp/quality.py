@@ -445,7 +445,7 @@ class SupportMinimizer:
             U0 = np.vstack([_warm_starts(warm_start), U0])
         U, values = descend(slots, U0, search.descent_iterations, stop=stop)
         # Below zero, one local minimum is the global one (see the loop): no smoothing needed.
-        if search.smoothing and values.min() > max(stop, 0.0):
+        if search.smoothing and values.min() > stop and not values.min() < 0:
             U_s, values_s = smoothed_descent(
                 slots, U0, search.smoothing, search.smoothing_iterations
             )
