@@ -31,6 +31,7 @@ from .interrupts import interruptible
 from .progress import Progress
 from .quality import SearchOptions, certificate_keys, certified_rho, rho, search_rho
 from .selection import SCREEN_SEARCH
+from .solver_cache import cached
 from .sphere_search import sphere_samples
 from .wrenches import WrenchSlots, pad_rows
 
@@ -506,16 +507,14 @@ class Placer:
             not friction_pieces(s.type, s.mu, s.mu_s).any() for s in self.eligibility.specs
         )
         key = (rows, capacity, self.options.ipopt_tol, self.options.subset_margin, frictionless)
-        problems = self._problems
-        problem = problems.pop(key, None)  # re-inserted last: the dict's order is its recency
-        if problem is None:
-            problem = ExchangeProblem(
+        return cached(
+            self._problems,
+            key,
+            lambda: ExchangeProblem(
                 rows, capacity, self.options.ipopt_tol, self.options.subset_margin, frictionless
-            )
-            while len(problems) >= MAX_EXCHANGE_PROBLEMS:
-                del problems[next(iter(problems))]  # the least recently used
-        problems[key] = problem
-        return problem
+            ),
+            MAX_EXCHANGE_PROBLEMS,
+        )
 
     def contact_set(self, elements, weights) -> ContactSet:
         model, specs = self.eligibility.model, self.eligibility.specs

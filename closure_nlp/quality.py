@@ -20,7 +20,6 @@ the support function at the returned unit direction, never the epigraph variable
 from __future__ import annotations
 
 import time
-from collections import OrderedDict
 from dataclasses import dataclass, field, replace
 
 import casadi as ca
@@ -28,6 +27,7 @@ import numpy as np
 
 from .contacts import ContactSet
 from .interrupts import interruptible
+from .solver_cache import cached
 from .sphere_search import descend, smoothed_descent, sphere_samples
 from .tolerances import DEFAULT_TOLERANCES, Tolerances
 from .validation import as_unit_vector
@@ -383,7 +383,7 @@ class SupportMinimizer:
         self.search = search
         self.seed_search = seed_search
         self.ipopt_options = dict(ipopt_options or {})
-        self._problems: OrderedDict[tuple, SupportMinProblem] = OrderedDict()
+        self._problems: dict[tuple, SupportMinProblem] = {}  # most recently used last
 
     def with_search(self, search: SearchOptions) -> SupportMinimizer:
         """The same NLPs (the cache is shared) with another start strategy."""
@@ -404,15 +404,14 @@ class SupportMinimizer:
         """The NLP of this shape, built once; the least recently used of more than
         :data:`MAX_PROBLEMS` shapes is dropped (each holds several MB of CasADi functions)."""
         key = SupportMinProblem.key(slots)
-        if key in self._problems:
-            self._problems.move_to_end(key)
-        else:
-            self._problems[key] = SupportMinProblem(
+        return cached(
+            self._problems,
+            key,
+            lambda: SupportMinProblem(
                 *key, self.tolerances, self.search.max_iter, self.ipopt_options
-            )
-            while len(self._problems) > MAX_PROBLEMS:
-                self._problems.popitem(last=False)
-        return self._problems[key]
+            ),
+            MAX_PROBLEMS,
+        )
 
     def __call__(
         self, slots: WrenchSlots, warm_start=None, stop_below: float | None = None
