@@ -29,7 +29,7 @@ from .elements import simplex_weights
 from .eligibility import Eligibility
 from .interrupts import interruptible
 from .progress import Progress
-from .quality import SearchOptions, certificate_keys, certified_rho, rho, search_rho
+from .quality import SearchOptions, certificate_keys, rho, search_rho
 from .selection import SCREEN_SEARCH
 from .solver_cache import cached
 from .sphere_search import sphere_samples
@@ -48,8 +48,6 @@ SHARED_DIRECTIONS = 64
 AFFINE_ROWS = 4
 # The trust region's smallest radius (barycentric weights): below it the weights cannot move.
 MIN_RADIUS = 1e-9
-# The start strategy of the final, reported rho: four times the samples and runs of the default.
-FINAL_SEARCH = SearchOptions(samples=512, ipopt_starts=12, element_ipopt_starts=12)
 # The search that judges each exchange round's weights: they lie within the trust region of the
 # best ones, whose weak directions the working set holds, so the WARM_DIRECTIONS of them weakest at
 # the new weights start it, besides a quarter of the default's samples. Against the default
@@ -109,7 +107,7 @@ class PlacementOptions:
         one process on 24 placements (lamp, cup, pistol; torque scale 1 and automatic):
         placement 1.2-2.1x faster (median of the six groups 1.37x); the final rho is better on
         9, worse on 12 (the path of a local method changes), by -0.097 to +0.052. Every value
-        reported at the end is recomputed with :data:`FINAL_SEARCH` and certified.
+        reported at the end is certified (:func:`closure_nlp.quality.rho`).
     move_rounds : int
         Rounds a neighbour-move trial gets; it runs on to ``max_rounds`` only if it already
         beats the current placement (0: every trial runs to ``max_rounds``, or
@@ -683,13 +681,12 @@ class Placer:
             elements[i] = target
             best_w, best, predicted = w_new, found, up
         # The exchange kept the weights where the rho solver reported the lowest rho, so any
-        # miss of its global search was selected for: recompute with a wider search (and certify).
+        # miss of its global search was selected for: the reported rho is certified (the branch
+        # and bound is global, whatever its seed).
         contact_set = self.contact_set(elements, best_w)
         if progress:
             progress("certification", 0, best.rho)
-        wide = self.eligibility.minimizer.with_search(FINAL_SEARCH)
-        slots = WrenchSlots.from_contacts(contact_set)
-        final = certified_rho(slots, wide(slots, best.direction), wide)
+        final = rho(contact_set, minimizer=self.eligibility.minimizer, warm_start=best.direction)
         if final.rho > start.rho:
             start = rho(start_set, minimizer=self.eligibility.minimizer)
         if final.rho > start.rho:
