@@ -36,6 +36,7 @@ from .selection import (
     iterative,
     light_rho_hat,
 )
+from .solver_cache import cached
 
 
 @dataclass(frozen=True)
@@ -74,6 +75,7 @@ class PlanResult:
     placement: PlacementResult
     seconds: float
     attempts: tuple[Attempt, ...] = ()
+    reused: tuple[str, ...] = ()
 
     @property
     def force_closure(self) -> bool:
@@ -102,6 +104,7 @@ class PlanResult:
             "placement": self.placement.to_dict(),
             "attempts": [a.to_dict() for a in self.attempts],
             "seconds": self.seconds,
+            "reused": list(self.reused),
         }
 
 
@@ -115,6 +118,7 @@ def plan(
     progress: Progress | None = None,
     placer: Placer | None = None,
     alternatives: int = 4,
+    memo: dict | None = None,
 ) -> PlanResult:
     """Heuristic from ``seed`` (or ``start``), iterative from its result, then placement.
 
@@ -123,22 +127,32 @@ def plan(
     rho_hat first), alternating with the results of new heuristic and iterative runs (seeds
     derived from ``seed``). ``placer`` (built on the same ``eligibility``) replaces
     ``placement``: loops over many runs pass one, so that its NLPs are built once.
+
+    ``memo`` (optional, a dict a loop passes to every plan on the same ``eligibility``): the
+    iterative run from a start set and the placement on an element set are deterministic, so a
+    plan whose heuristic meets a set that an earlier one met takes their results from it instead
+    of computing them again (a study's seeds often do: 64 of the fixture study's 240 tasks).
+    :attr:`PlanResult.reused` names the steps taken from it, whose results keep the seconds
+    their computation took; :attr:`PlanResult.seconds` is this plan's own time.
     """
     if isinstance(alternatives, bool) or not isinstance(alternatives, int) or alternatives < 0:
         raise ValueError(f"alternatives: expected an integer >= 0, got {alternatives!r}")
+    if not (memo is None or isinstance(memo, dict)):
+        raise TypeError(f"memo: expected a dict or None, got {type(memo).__name__}")
     t0 = time.perf_counter()
     if placer is None:
         placer = Placer(eligibility, placement)
     elif placer.eligibility is not eligibility:
         raise ValueError("placer: must be built on the same Eligibility as the plan")
+    recall = _Recall(memo, eligibility, selection, placer, progress)
     first = heuristic(eligibility, start=start, seed=seed, options=selection, progress=progress)
-    second = iterative(eligibility, first.elements, options=selection, progress=progress)
-    best = placer(second.elements, progress=progress)
+    second = recall.iterative(first.elements, "iterative")
+    best = recall.placement(second.elements, "placement")
     attempts = [_attempt(second.elements, "iterative", second.rho_hat, best)]
     if not best.force_closure and alternatives and second.eligible:  # else 50 rounds failed
-        candidates = _alternatives(eligibility, seed, selection, second, progress)
+        candidates = _alternatives(eligibility, seed, selection, second, recall)
         for elements, source, value in itertools.islice(candidates, alternatives):
-            found = placer(elements, progress=progress)
+            found = recall.placement(elements, f"placement {len(attempts)}")
             attempts.append(_attempt(elements, source, value, found))
             if progress:
                 progress("alternative", len(attempts) - 1, found.rho)
@@ -146,7 +160,47 @@ def plan(
                 best = found
             if found.force_closure:
                 break
-    return PlanResult(first, second, best, time.perf_counter() - t0, tuple(attempts))
+    return PlanResult(
+        first, second, best, time.perf_counter() - t0, tuple(attempts), tuple(recall.reused)
+    )
+
+
+# Results one memo keeps (least recently used dropped first): a few KB each (pickled, 3.6 KB
+# for the iterative run and the placement of a pistol 7-PCwF plan).
+MEMO_SIZE = 256
+
+
+class _Recall:
+    """The plan's iterative runs and placements, through its ``memo`` when it has one; the
+    names of the steps it took from the memo are in ``reused``."""
+
+    def __init__(self, memo, eligibility, selection, placer, progress):
+        self.memo, self.eligibility, self.selection = memo, eligibility, selection
+        self.placer, self.progress = placer, progress
+        self.reused: list[str] = []
+
+    def iterative(self, start, name: str) -> SelectionResult:
+        return self._recall(
+            ("iterative", tuple(start), self.selection),
+            lambda: iterative(
+                self.eligibility, start, options=self.selection, progress=self.progress
+            ),
+            name,
+        )
+
+    def placement(self, elements, name: str) -> PlacementResult:
+        return self._recall(
+            ("placement", tuple(elements), self.placer.options),
+            lambda: self.placer(elements, progress=self.progress),
+            name,
+        )
+
+    def _recall(self, key, compute, name: str):
+        if self.memo is None:
+            return compute()
+        if key in self.memo:
+            self.reused.append(name)
+        return cached(self.memo, key, compute, MEMO_SIZE)
 
 
 def _attempt(elements, source: str, rho_hat: float, placed: PlacementResult) -> Attempt:
@@ -158,7 +212,7 @@ def _attempt(elements, source: str, rho_hat: float, placed: PlacementResult) -> 
 FRESH_RUNS = 8  # new heuristic + iterative runs at most, when placements keep failing
 
 
-def _alternatives(eligibility, seed, selection, second, progress):
+def _alternatives(eligibility, seed, selection, second, recall: _Recall):
     """Further eligible element sets to place, each multiset once: the next set of the pool
     (sets the iterative runs met, lowest rho_hat first; those only screened by a light search
     are evaluated first and skipped unless eligible), then the result of a new heuristic +
@@ -186,8 +240,8 @@ def _alternatives(eligibility, seed, selection, second, progress):
         derived = (
             None if seed is None else int(np.random.SeedSequence([seed, runs]).generate_state(1)[0])
         )
-        found = heuristic(eligibility, seed=derived, options=selection, progress=progress)
-        fresh = iterative(eligibility, found.elements, options=selection, progress=progress)
+        found = heuristic(eligibility, seed=derived, options=selection, progress=recall.progress)
+        fresh = recall.iterative(found.elements, f"iterative {runs}")
         pool = _pool(pool, fresh, eligibility)
         key = _multiset(eligibility, fresh.elements)
         if fresh.eligible and key not in tried:

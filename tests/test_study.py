@@ -359,6 +359,32 @@ def test_solvers_are_built_once_per_process(tiny, monkeypatch):
 
 
 @pytest.mark.slow
+def test_seeds_that_meet_a_known_set_reuse_its_steps(tmp_path):
+    """On the box, seeds 0 and 2 (mu 0.4) reach the same set: the later task takes the
+    iterative run and the placement from the earlier one, says so, and its row holds the same
+    results (that computing them again gives the same is tests/test_plan_memo.py's)."""
+    body = TINY.replace("mu = [0.2, 0.4]", "mu = [0.4]").replace("seeds = 2", "seeds = 4")
+    clear_cache()
+    study = load_study(write_study(tmp_path, body + PLACEMENT))
+    run_study(study, tmp_path / "out", serial=True)
+    rows = read_results(tmp_path / "out" / "results")
+    assert (rows.status == "ok").all()
+    reused = rows[rows.reused != ""]
+    assert len(reused) >= 1 and set(reused.reused) == {"iterative,placement"}
+    computed = rows[rows.reused == ""]
+    for _, row in reused.iterrows():
+        key = list(row.iterative_elements)
+        same = computed[[list(e) == key for e in computed.iterative_elements]]
+        assert len(same) == 1
+        for column in ("elements", "rho", "rho_lo", "rho_hi", "placed_contacts", "start_rho"):
+            assert same.iloc[0][column] == pytest.approx(row[column]), column
+        # a step's seconds are what computing it took; the task's own are less
+        assert row.placement_seconds == same.iloc[0].placement_seconds
+        assert row.seconds < row.heuristic_seconds + row.iterative_seconds + row.placement_seconds
+    clear_cache()
+
+
+@pytest.mark.slow
 def test_cluster_matches_serial_one_row_per_task(tiny, serial_rows, client, tmp_path):
     result = run_study(load_study(tiny), tmp_path, client=client)
     assert (result.run, result.failed, result.workers) == (4, 0, 2)

@@ -33,14 +33,18 @@ a summary table (``summary.md``, ``summary.csv``), all rows (``results.csv``) an
 
 Each worker builds the solvers of a (model, contact specs, torque scale) once and reuses them for
 every seed (:func:`run_task` keeps a small per-thread cache); the rho and rho_hat NLPs, cached
-by shape, serve every task of the worker.
+by shape, serve every task of the worker. A seed whose heuristic meets a set that an earlier
+task of the worker met takes the iterative run and the placement from it (both are
+deterministic; ``plan``'s ``memo``).
 
 A result row (:data:`ROW_COLUMNS`) holds the task's inputs, ``status`` (``ok`` or ``error``) and
 ``error``; per selection step its ``elements``, ``rho_hat`` with its certified bounds
 ``rho_hat_lo`` and ``rho_hat_hi``, ``eligible``, ``evaluations`` and ``seconds``; the
 placement's ``elements``, ``rho`` with its bounds ``rho_lo`` and ``rho_hi``, ``force_closure``,
 ``marginal``, ``converged`` (the bracket reached 1e-6), ``start_rho``, rounds, moves, seconds
-and the placed contacts (JSON); the task's ``seconds`` (the three steps),
+and the placed contacts (JSON); the task's ``seconds`` (the three steps, as this task spent
+them), ``reused`` (the steps taken from an earlier task of the worker, comma-separated, e.g.
+``iterative,placement``: their rows' step seconds are what computing them took),
 ``setup_seconds`` (model and problem objects; CasADi builds its solvers lazily, inside the first
 step), ``wall_seconds``, ``solvers_built`` (this task met an empty cache), ``rss_mib`` and
 ``peak_rss_mib`` (the worker's resident set at the task's end and its peak so far, Linux),

@@ -48,6 +48,7 @@ def _columns() -> list[tuple[str, str]]:
         ("placement_seconds", "real"),
         ("placed_contacts", "text"),
         ("seconds", "real"),
+        ("reused", "text"),
         ("setup_seconds", "real"),
         ("solvers_built", "flag"),
         ("wall_seconds", "real"),

@@ -19,7 +19,8 @@ def summarize(study: Study, frame):
     (count), ``certified`` (rows whose rho bracket converged to the tolerance; rows of older
     versions have none), ``success_rate`` (force closure among the tasks done), ``rho_median``,
     ``rho_best`` (most negative rho), ``rho_hat_median`` (iterative selection),
-    ``seconds_median`` (the three steps of one task).
+    ``seconds_median`` (the three steps of one task, as it ran), ``reused`` (tasks that took
+    the iterative run and the placement of a set from an earlier task of their worker).
     """
     import pandas as pd
 
@@ -40,6 +41,7 @@ def summarize(study: Study, frame):
                 "rho_best": _stat(ok.rho, "min"),
                 "rho_hat_median": _stat(ok.iterative_rho_hat, "median"),
                 "seconds_median": _stat(ok.seconds, "median"),
+                "reused": int(ok.reused.fillna("").astype(bool).sum()),
             }
         )
     return pd.DataFrame(out, columns=group_keys(study) + SUMMARY_COLUMNS)
@@ -56,6 +58,7 @@ SUMMARY_COLUMNS = [
     "rho_best",
     "rho_hat_median",
     "seconds_median",
+    "reused",
 ]
 
 
@@ -75,7 +78,8 @@ def summary_markdown(study: Study, summary, frame) -> str:
         f"{len(study.tasks)} tasks ({len(study.models)} models, seeds "
         f"{_range_text(study.seeds)}); {len(rows)} done, {len(errors)} with errors. "
         "rho < 0 is force closure (best = most negative); success = force closure; seconds = "
-        "heuristic + iterative + placement of one task (median).",
+        "heuristic + iterative + placement of one task as it ran (median); reused = tasks that "
+        "took the iterative run and the placement of a set from an earlier task of their worker.",
         "",
         "| " + " | ".join(summary.columns) + " |",
         "|" + "---|" * len(summary.columns),

@@ -117,8 +117,10 @@ MEMORY_LIMIT_MIB = 450.0
 _local = threading.local()
 
 
-def _solvers(task: Task, model_text: str | None) -> tuple[Eligibility, Placer, bool]:
-    """The :class:`Eligibility` and :class:`Placer` of ``task``, from this thread's cache.
+def _solvers(task: Task, model_text: str | None) -> tuple[Eligibility, Placer, dict, bool]:
+    """The :class:`Eligibility` and :class:`Placer` of ``task``, from this thread's cache, and
+    the memo of the plans on that eligibility (:func:`~closure_nlp.planning.plan`: seeds whose
+    heuristic meets the same set reuse the iterative run and the placement).
 
     Returns them and whether a solver object was made now. One :class:`SupportMinimizer` serves
     every task of a model (its CasADi NLPs are cached by shape, the numbers are parameters); the
@@ -146,15 +148,16 @@ def _solvers(task: Task, model_text: str | None) -> tuple[Eligibility, Placer, b
                 raise ValueError(f"{task.model_file}: model file changed since the study was read")
             model_text = raw.decode("utf-8")
         model = model_from_dict(json.loads(model_text), Path(task.model_file).parent)
-        cache[key] = (Eligibility(model, task.specs(), task.torque_scale, _local.minimizer), {})
+        eligibility = Eligibility(model, task.specs(), task.torque_scale, _local.minimizer)
+        cache[key] = (eligibility, {}, {})
         while len(cache) > _CACHE_SIZE:
             cache.popitem(last=False)
     cache.move_to_end(key)
-    eligibility, placers = cache[key]
+    eligibility, placers, memo = cache[key]
     if task.placement not in placers:
         placers[task.placement] = Placer(eligibility, task.placement_options(), _local.problems)
         built = True
-    return eligibility, placers[task.placement], built
+    return eligibility, placers[task.placement], memo, built
 
 
 def clear_cache() -> None:
@@ -199,17 +202,22 @@ def run_task(task: Task, model_text: str | None = None) -> dict:
     t0 = time.perf_counter()
     row = task_row(task)
     try:
-        eligibility, placer, built = _solvers(task, model_text)
+        eligibility, placer, memo, built = _solvers(task, model_text)
         setup = time.perf_counter() - t0
         result = plan(
-            eligibility, seed=task.seed, selection=task.selection_options(), placer=placer
+            eligibility,
+            seed=task.seed,
+            selection=task.selection_options(),
+            placer=placer,
+            memo=memo,
         )
-        first, second, placed, seconds, attempts = (
+        first, second, placed, seconds, attempts, reused = (
             result.heuristic,
             result.iterative,
             result.placement,
             result.seconds,
             len(result.attempts),
+            ",".join(result.reused),
         )
     except Exception as exc:  # noqa: BLE001 - a failing task is recorded, the study goes on
         row.update(status="error", error=f"{type(exc).__name__}: {exc}")
@@ -244,6 +252,7 @@ def run_task(task: Task, model_text: str | None = None) -> dict:
         placement_seconds=float(placed.seconds),
         placed_contacts=json.dumps([c.to_dict() for c in placed.contacts]),
         seconds=seconds,
+        reused=reused,
         setup_seconds=setup,
         solvers_built=built,
         wall_seconds=time.perf_counter() - t0,
