@@ -128,10 +128,10 @@ def plan(
     derived from ``seed``). ``placer`` (built on the same ``eligibility``) replaces
     ``placement``: loops over many runs pass one, so that its NLPs are built once.
 
-    ``memo`` (optional, a dict a loop passes to every plan on the same ``eligibility``): the
-    iterative run from a start set and the placement on an element set are deterministic, so a
-    plan whose heuristic meets a set that an earlier one met takes their results from it instead
-    of computing them again (a study's seeds often do: 64 of the fixture study's 240 tasks).
+    ``memo`` (optional, a dict a loop passes to every plan): the iterative run from a start set
+    and the placement on an element set are deterministic, so a plan whose heuristic meets a set
+    that an earlier plan on the same ``eligibility`` met takes their results from it instead of
+    computing them again (a study's seeds often do: 64 of the fixture study's 240 tasks).
     :attr:`PlanResult.reused` names the steps taken from it, whose results keep the seconds
     their computation took; :attr:`PlanResult.seconds` is this plan's own time.
     """
@@ -181,7 +181,7 @@ class _Recall:
 
     def iterative(self, start, name: str) -> SelectionResult:
         return self._recall(
-            ("iterative", tuple(start), self.selection),
+            ("iterative", self.eligibility, tuple(start), self.selection),
             lambda: iterative(
                 self.eligibility, start, options=self.selection, progress=self.progress
             ),
@@ -190,12 +190,14 @@ class _Recall:
 
     def placement(self, elements, name: str) -> PlacementResult:
         return self._recall(
-            ("placement", tuple(elements), self.placer.options),
+            ("placement", self.eligibility, tuple(elements), self.placer.options),
             lambda: self.placer(elements, progress=self.progress),
             name,
         )
 
     def _recall(self, key, compute, name: str):
+        # The key holds the eligibility itself (its identity): another model, specs or torque
+        # scale is other work, and a held object's identity cannot be reused.
         if self.memo is None:
             return compute()
         if key in self.memo:

@@ -55,8 +55,9 @@ def test_a_plan_that_meets_a_known_set_reuses_its_steps(monkeypatch):
     plan(eligibility, start=[0, 1], placer=placer, memo=memo, selection=other)
     assert len(iterative_runs) == 2
 
-    # The premise: computed again from nothing (new solvers, no memo), the same results.
-    fresh = plan(hand(), start=[0, 1], placement=QUICK)
+    # The premise: computed again from nothing (new solvers), the same results; the memo holds
+    # the first eligibility's results only, so a new one (even of the same part) reuses nothing.
+    fresh = plan(hand(), start=[0, 1], placement=QUICK, memo=memo)
     assert fresh.reused == ()
     assert fresh.iterative.elements == again.iterative.elements
     assert fresh.placement.elements == again.placement.elements
