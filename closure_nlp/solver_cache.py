@@ -1,5 +1,6 @@
-"""Caches of built NLP solvers, bounded by recency: building a CasADi solver costs tens to
-hundreds of ms and it holds MBs, so each cache keeps the most recently used shapes only."""
+"""Caches bounded by recency. Built NLP solvers: building a CasADi solver costs tens to hundreds
+of ms and it holds MBs, so each cache keeps the most recently used shapes only; and plan's memo
+of iterative runs and placements (:func:`closure_nlp.planning.plan`), a few KB each."""
 
 from __future__ import annotations
 
