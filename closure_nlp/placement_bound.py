@@ -1,0 +1,629 @@
+"""A certified ceiling on the best placement: no contacts on the given elements hold more.
+
+For contacts ``c`` (contact ``i`` at a point ``c_i`` of its element) the load capacity is
+``-rho(c) = min_{|u|=1} p(u; c)``. This module bounds ``max_c -rho(c)`` from above over every
+placement in a *domain*: for each contact, a list of convex pieces (facets, sub-triangles,
+segments, sub-segments, points), each with one inward normal.
+
+The bound (proof)
+-----------------
+Let ``P_i(u; c_i)`` be contact ``i``'s support value and ``p = sum_i max(P_i, 0) +
+min(max_i P_i, 0)`` (eq 26: the sum of the positive ``P_i`` if any is positive, otherwise the
+largest). Since ``min(max_i P_i, 0) <= 0``, in every case
+
+    (1)  p(u; c) <= s(u; c) := sum_i max(0, P_i(u; c_i)).
+
+On a piece the normal is fixed and the grasp matrix ``G(c_i)`` is affine in the position
+(force rows constant, torque rows ``torque_scale * r x frame`` linear in ``r``, spin column
+constant), so ``d = G(c_i)^T u`` is affine in ``c_i`` and ``P_i = f_max (d_n + phi(d))`` with
+``phi`` a norm or a max of norms (PCwF, SFCl, SFCe; ``phi = 0`` for FPC) is convex in ``c_i``;
+so is ``max(0, P_i)``. For ``c_i = sum_r lam_ir v_r`` (barycentric weights over the vertices
+``v_r`` of the piece holding ``c_i``) Jensen's inequality gives
+
+    (2)  max(0, P_i(u; c_i)) <= sum_r lam_ir a_ir(u),   a_ir(u) := max(0, P_i(u; v_r)).
+
+A point is a piece of one vertex (``lam = 1``, (2) an equality). Let ``lam_i`` range over the
+simplex of *all* vertex rows of contact ``i``'s pieces (a placement puts its weight on one piece;
+the others' weights zero): a relaxation, so still an upper bound. For any finite set ``U`` of
+unit directions, with ``g(u; lam) = sum_ir lam_ir a_ir(u)``,
+
+    -rho(c) = min_{|u|=1} p(u; c) <= min_{u in U} p(u; c) <= min_{u in U} g(u; lam(c))
+            <= T(U) := max_lam min_{u in U} g(u; lam),
+
+a linear programme (``max t`` s.t. ``t <= sum_ir lam_ir a_ir(u_k)``, ``lam_i`` in simplices).
+The value reported is not HiGHS's but its weak dual, recomputed here: for any ``y >= 0`` on
+``U`` with ``sum_k y_k = 1`` and any feasible ``lam``,
+``min_k g(u_k; lam) <= sum_k y_k g(u_k; lam) = sum_ir lam_ir (y^T A)_ir
+<= sum_i max_r (y^T A)_ir =: D(y)``. So ``D(y)`` of the solver's (clipped, normalised) dual bounds
+every placement whatever the solver's accuracy; a relative margin covers the round-off of the
+``a_ir`` (a few ulps). ``T(U) >= 0`` always: ``0`` proves that no placement in the domain is
+force closure.
+
+Tightening
+----------
+*Cuts*: at the LP's ``lam*`` the directions that minimise ``g(u; lam*)`` over the sphere (a
+convex, positively homogeneous function: the support function of ``sum_ir lam_ir conv(W_ir, 0)``,
+found by the batched descent of :mod:`closure_nlp.sphere_search` on slots with ``f_max`` scaled by
+``lam_ir``) are added to ``U`` while they lie below the LP value. *Branching*: a contact with
+several pieces is split into its heaviest piece and the rest; a contact on one piece has it
+halved (longest edge of a triangle, longest diagonal of a polygon, midpoint of a segment); the
+interpolation error of (2) shrinks with the square of the piece's size. The contact split is the
+one whose Jensen gap in (2), weighted by the dual ``y``, is largest. Cells whose bound is at most
+the certified capacity of the best placement known are closed; the ceiling is the largest bound
+of all leaves (open or closed).
+
+Incumbents come from the exchange method (:class:`~closure_nlp.placement.Placer`) started at the
+LP's placement in the best cell, every value certified by :func:`closure_nlp.quality.rho`.
+"""
+
+from __future__ import annotations
+
+import heapq
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import linprog
+
+from .certify import tolerance_unit
+from .contacts import ContactSet, grasp_matrices
+from .eligibility import Eligibility
+from .sphere_search import descend, sphere_samples
+from .wrenches import WrenchSlots
+
+# Relative margin added to every dual bound: the round-off of the support values a_ir (a few
+# ulps each, summed over at most a few hundred rows) is far below it.
+ROUND_OFF = 1e-9
+# Directions kept in the shared working set of the cutting planes (the most recent ones).
+MAX_DIRECTIONS = 600
+
+
+@dataclass(frozen=True)
+class BoundOptions:
+    """Options of :func:`capacity_bound`.
+
+    Attributes
+    ----------
+    gap : float
+        Stop when ``(ceiling - capacity) / ceiling <= gap`` (relative, >= 0).
+    time_budget : float
+        Seconds the branch and bound may run (the root bound is always computed); when it ends
+        first, the gap reached is reported as such.
+    root_cuts : int
+        Cutting-plane rounds at the root cell.
+    cell_cuts : int
+        Cutting-plane rounds at every other cell.
+    cut_tolerance : float
+        A round adds directions only while the descent finds ``g(u; lam*)`` below the LP value by
+        more than this fraction of it.
+    max_nodes : int
+        Cells bounded at most.
+    polish_every : int
+        Every that many cells, the exchange method is started at the best open cell's LP
+        placement (0: never).
+    """
+
+    gap: float = 0.02
+    time_budget: float = 30.0
+    root_cuts: int = 30
+    cell_cuts: int = 4
+    cut_tolerance: float = 1e-3
+    max_nodes: int = 100_000
+    polish_every: int = 20
+
+    def __post_init__(self) -> None:
+        for name in ("gap", "time_budget", "cut_tolerance"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not value >= 0:
+                raise ValueError(f"{name}: expected a number >= 0, got {value!r}")
+            if not np.isfinite(value):
+                raise ValueError(f"{name}: expected a finite number, got {value!r}")
+        for name in ("root_cuts", "cell_cuts", "max_nodes", "polish_every"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+                raise ValueError(f"{name}: expected an integer >= 0, got {value!r}")
+
+
+@dataclass(frozen=True, eq=False)
+class Piece:
+    """A convex part of one element: ``vertices`` (k, 3) (k = 1 point, 2 segment, >= 3 polygon,
+    in order around it), the element's ``inward_normal`` (3,) and its id ``element``."""
+
+    element: int
+    vertices: np.ndarray
+    inward_normal: np.ndarray
+
+    @property
+    def size(self) -> float:
+        v = self.vertices
+        return float(np.max(np.linalg.norm(v[:, None] - v[None], axis=2))) if len(v) > 1 else 0.0
+
+    def halves(self) -> tuple[Piece, Piece] | None:
+        """Two pieces covering this one (None for a point)."""
+        v, k = self.vertices, len(self.vertices)
+        if k == 1:
+            return None
+        if k == 2:
+            mid = v.mean(axis=0)
+            return self._with(np.array([v[0], mid])), self._with(np.array([mid, v[1]]))
+        if k == 3:  # bisect the longest edge
+            edges = [np.linalg.norm(v[(j + 1) % 3] - v[j]) for j in range(3)]
+            j = int(np.argmax(edges))
+            a, b, c = v[j], v[(j + 1) % 3], v[(j + 2) % 3]
+            mid = 0.5 * (a + b)
+            return self._with(np.array([a, mid, c])), self._with(np.array([mid, b, c]))
+        # a polygon: cut along its longest diagonal
+        best, cut = -1.0, (0, 2)
+        for a in range(k):
+            for b in range(a + 2, k if a else k - 1):
+                length = float(np.linalg.norm(v[a] - v[b]))
+                if length > best:
+                    best, cut = length, (a, b)
+        a, b = cut
+        return self._with(v[a : b + 1]), self._with(np.vstack([v[b:], v[: a + 1]]))
+
+    def _with(self, vertices: np.ndarray) -> Piece:
+        return Piece(self.element, vertices, self.inward_normal)
+
+
+@dataclass(frozen=True, eq=False)
+class CellBound:
+    """The LP bound of one cell (one list of pieces per contact).
+
+    Attributes
+    ----------
+    value : float
+        Certified: no placement in the cell has ``-rho`` above it.
+    lam : (R,) float
+        The LP's weights over the cell's vertex rows (contact by contact).
+    y : (N,) float
+        The dual weights over ``directions``.
+    directions : (N, 6) float
+    lp_value : float
+        HiGHS's optimum (for information; ``value`` is its recomputed dual).
+    """
+
+    value: float
+    lam: np.ndarray
+    y: np.ndarray
+    directions: np.ndarray
+    lp_value: float
+
+
+@dataclass(frozen=True, eq=False)
+class CapacityBound:
+    """Outcome of :func:`capacity_bound`.
+
+    Attributes
+    ----------
+    value : float
+        Certified ceiling: every placement in the domain has ``-rho <= value`` (``>= 0``; within
+        the certificate's accuracy of 0 (``1e-6`` of the set's wrench scale) it shows that none
+        is force closure, and the search ends there).
+    capacity : float
+        Certified capacity of the best placement known: ``-hi`` of its rho bracket (``-rho``
+        when it has no bracket), ``<= -rho`` of that placement.
+    gap : float or None
+        ``(value - capacity) / value`` when ``capacity > 0`` (the best placement is force
+        closure), else None: a relative gap to a ceiling means nothing below zero capacity.
+    placement : object or None
+        The best placement found (a :class:`~closure_nlp.placement.PlacementResult`), or None
+        when none beat the one given.
+    nodes : int
+        Cells bounded (the root included).
+    open_cells : int
+        Cells left open when the search ended.
+    reached : bool
+        The gap target was reached (else the time budget or node limit ended the search).
+    domain : tuple of tuple of int
+        The element ids each contact may sit on.
+    seconds : float
+    """
+
+    value: float
+    capacity: float
+    gap: float | None
+    placement: object
+    nodes: int
+    open_cells: int
+    reached: bool
+    domain: tuple[tuple[int, ...], ...]
+    seconds: float
+    root_value: float = np.nan
+    cuts: int = 0
+    polishes: int = 0
+    history: tuple = field(default=(), repr=False)
+
+    def to_dict(self) -> dict:
+        return {
+            "capacity_bound": self.value,
+            "gap": self.gap,
+            "gap_reached": self.reached,
+            "nodes": self.nodes,
+            "open_cells": self.open_cells,
+            "root_bound": self.root_value,
+            "bound_elements": [list(d) for d in self.domain],
+            "bound_seconds": self.seconds,
+        }
+
+
+def relative_gap(ceiling: float, capacity: float) -> float | None:
+    """``(ceiling - capacity) / ceiling`` for a force-closure placement (``capacity > 0``), else
+    None."""
+    if not capacity > 0.0:
+        return None
+    return max(0.0, (ceiling - capacity) / ceiling)
+
+
+class CellLP:
+    """The LP bound and its cutting planes for cells of one eligibility (model and specs)."""
+
+    def __init__(self, eligibility: Eligibility):
+        self.eligibility = eligibility
+        model = eligibility.model
+        self.reference = model.reference_point
+        self.directions = np.asarray(sphere_samples(40, seed=3), float).copy()
+        self.cuts = 0
+
+    def rows(self, cell) -> tuple[WrenchSlots, list[np.ndarray], list[int]]:
+        """The cell's vertex rows: slots (one per contact, one row per piece vertex), each
+        contact's vertex positions (R_i, 3) and its rows' count."""
+        ts = self.eligibility.torque_scale
+        slots, positions, counts = [], [], []
+        for spec, pieces in zip(self.eligibility.specs, cell):
+            G = np.concatenate(
+                [grasp_matrices(p.vertices - self.reference, p.inward_normal, ts) for p in pieces]
+            )
+            slots.append((G, spec.type, spec.mu, spec.mu_s, spec.f_max))
+            positions.append(np.concatenate([p.vertices for p in pieces]))
+            counts.append(len(G))
+        return WrenchSlots.build(slots), positions, counts
+
+    def bound(self, cell, rounds: int, tolerance: float) -> CellBound:
+        """The cell's certified LP bound after at most ``rounds`` cutting-plane rounds."""
+        slots, _, counts = self.rows(cell)
+        owner = np.repeat(np.arange(len(counts)), counts)
+        U = self.directions
+        A = np.maximum(slots.row_values(U), 0.0)
+        for k in range(rounds + 1):
+            result = _solve_lp(A, owner, U)
+            if k == rounds:
+                break
+            new = self._cuts(slots, result, owner)
+            lowest = g_values(slots, result.lam, new)
+            keep = new[lowest < result.lp_value * (1.0 - tolerance)]
+            if not len(keep):
+                break
+            self.cuts += len(keep)
+            U = np.vstack([U, keep])
+            A = np.vstack([A, np.maximum(slots.row_values(keep), 0.0)])
+        self.directions = np.vstack([self.directions, U[len(self.directions) :]])[-MAX_DIRECTIONS:]
+        return result
+
+    @staticmethod
+    def _cuts(slots: WrenchSlots, result: CellBound, owner: np.ndarray) -> np.ndarray:
+        """Directions of low ``g(u; lam*)``: a descent from the working set's lowest ones."""
+        lam = result.lam
+        used = lam > 1e-12
+        g = WrenchSlots(
+            slots.G[used][:, None].reshape(-1, 6, 4),
+            np.arange(int(used.sum())),
+            slots.f_max[used] * lam[used],
+            slots.pieces[used],
+            tuple(slots.types[i] for i in owner[used]),
+            tuple(slots.n_pieces[i] for i in owner[used]),
+        )
+        U = result.directions
+        values = g.support(U)
+        starts = np.vstack([U[np.argsort(values)[:12]], sphere_samples(24, seed=len(U))])
+        ends, found = descend(g, starts, iterations=60)
+        order = np.argsort(found)
+        chosen: list[np.ndarray] = []
+        for j in order:
+            if all(np.linalg.norm(ends[j] - c) > 1e-3 for c in chosen):
+                chosen.append(ends[j])
+            if len(chosen) == 6:
+                break
+        out = np.array(chosen)
+        return out / np.linalg.norm(out, axis=1, keepdims=True)
+
+
+def g_values(slots: WrenchSlots, lam: np.ndarray, U: np.ndarray) -> np.ndarray:
+    """``g(u; lam) = sum_r lam_r max(0, P_r(u))`` over the rows of ``slots``: (N, 6) -> (N,)."""
+    return np.maximum(slots.row_values(U), 0.0) @ lam
+
+
+def _solve_lp(A: np.ndarray, owner: np.ndarray, U: np.ndarray) -> CellBound:
+    """``max_lam min_k (A lam)_k`` over one simplex per contact, and its certified dual bound."""
+    N, R = A.shape
+    m = int(owner.max()) + 1
+    cost = np.zeros(R + 1)
+    cost[-1] = -1.0
+    A_ub = np.hstack([-A, np.ones((N, 1))])
+    A_eq = np.zeros((m, R + 1))
+    A_eq[owner, np.arange(R)] = 1.0
+    res = linprog(
+        cost,
+        A_ub=A_ub,
+        b_ub=np.zeros(N),
+        A_eq=A_eq,
+        b_eq=np.ones(m),
+        bounds=[(0.0, None)] * R + [(None, None)],
+        method="highs",
+    )
+    if res.status != 0:  # the LP is always feasible and bounded: a solver failure
+        raise RuntimeError(f"capacity bound: the LP solver failed ({res.message})")
+    lam = np.maximum(res.x[:R], 0.0)
+    totals = np.bincount(owner, lam, minlength=m)
+    lam /= totals[owner]
+    y = np.maximum(-np.asarray(res.ineqlin.marginals, float), 0.0)
+    y = y / y.sum() if y.sum() > 0 else np.full(N, 1.0 / N)
+    return CellBound(dual_bound(A, owner, y), lam, y, U, float(-res.fun))
+
+
+def dual_bound(A: np.ndarray, owner: np.ndarray, y: np.ndarray) -> float:
+    """``D(y) = sum_i max_{r of i} (y^T A)_r`` plus the round-off margin: for ``y >= 0`` summing
+    to one, no ``lam`` does better than this on the directions of ``A`` (weak duality)."""
+    scores = y @ A
+    m = int(owner.max()) + 1
+    best = np.full(m, -np.inf)
+    np.maximum.at(best, owner, scores)
+    value = float(best.sum())
+    return value + ROUND_OFF * max(value, float(A.max(initial=0.0)))
+
+
+def element_pieces(eligibility: Eligibility, element: int) -> list[Piece]:
+    """An element as one piece (a facet as its polygon)."""
+    e = eligibility.model.elements[element]
+    return [Piece(element, np.array(e.vertices, float), np.array(e.inward_normal, float))]
+
+
+def domain_of(eligibility: Eligibility, elements, neighbours: bool, extra=()) -> tuple:
+    """Each contact's element ids: its own, its neighbours (``neighbours``) and ``extra[i]``."""
+    model = eligibility.model
+    out = []
+    for i, e in enumerate(elements):
+        ids = [e]
+        if neighbours:
+            ids += [n for n in model.neighbours(e) if n not in ids]
+        if i < len(extra) and extra[i] not in ids:
+            ids.append(extra[i])
+        out.append(tuple(ids))
+    return tuple(out)
+
+
+class _Cell:
+    __slots__ = ("pieces", "bound", "depth")
+
+    def __init__(self, pieces, bound: CellBound, depth: int):
+        self.pieces, self.bound, self.depth = pieces, bound, depth
+
+    def __lt__(self, other: _Cell) -> bool:  # a max-heap on the bound
+        return self.bound.value > other.bound.value
+
+
+def capacity_bound(
+    placer,
+    elements,
+    incumbent=None,
+    options: BoundOptions = BoundOptions(),
+    domain=None,
+    progress=None,
+) -> CapacityBound:
+    """Certified ceiling on ``-rho`` of every placement on ``elements`` (one per contact).
+
+    Parameters
+    ----------
+    placer : closure_nlp.placement.Placer
+        Its eligibility gives the model, specs and torque scale; its exchange method polishes the
+        LP's placements into incumbents.
+    elements : sequence of int
+        The chosen elements, one per contact.
+    incumbent : PlacementResult, optional
+        A placement already found (certified): the search starts from its value.
+    options : BoundOptions
+    domain : sequence of sequence of int, optional
+        Each contact's element ids (default: its element, plus its neighbours when the placer
+        moves contacts to neighbours, plus the incumbent's element).
+    progress : callable, optional
+        Called as ``progress("capacity bound", nodes, ceiling)``.
+
+    Returns
+    -------
+    CapacityBound
+    """
+    from .placement import PlacementOptions, Placer, nearest_weights
+
+    if not isinstance(options, BoundOptions):
+        raise TypeError(f"options: expected BoundOptions, got {type(options).__name__}")
+    t0 = time.perf_counter()
+    eligibility = placer.eligibility
+    model = eligibility.model
+    elements = eligibility.check_elements(elements)
+    if domain is None:
+        extra = incumbent.elements if incumbent is not None else ()
+        domain = domain_of(eligibility, elements, placer.options.neighbour_moves > 0, extra)
+    domain = tuple(
+        tuple(model.check_id(e, f"domain[{i}]") for e in ids) for i, ids in enumerate(domain)
+    )
+    if len(domain) != eligibility.m or not all(domain):
+        raise ValueError(f"domain: expected {eligibility.m} non-empty lists of element ids")
+    lp = CellLP(eligibility)
+    # A ceiling this close to zero (the certificate's relative accuracy) shows that no
+    # placement in the domain is force closure beyond numerical accuracy.
+    zero = eligibility.minimizer.tolerances.certify * tolerance_unit(
+        eligibility.slots(elements)
+    )
+    if incumbent is not None and getattr(incumbent, "direction", None) is not None:
+        lp.directions = np.vstack([lp.directions, incumbent.direction[None]])
+
+    best = incumbent
+    best_value = _capacity(incumbent)
+    root_cell = tuple(sum((element_pieces(eligibility, e) for e in ids), []) for ids in domain)
+    root = lp.bound(root_cell, options.root_cuts, options.cut_tolerance)
+    heap = [_Cell(root_cell, root, 0)]
+    closed = -np.inf  # the largest bound of a closed cell
+    nodes, polishes, history = 1, 0, [(0.0, root.value, best_value)]
+    polisher = Placer(
+        eligibility,
+        PlacementOptions(
+            starts=1, extra_starts=0, neighbour_moves=0, max_rounds=placer.options.max_rounds
+        ),
+        placer._problems,
+    )
+
+    def ceiling() -> float:
+        top = heap[0].bound.value if heap else -np.inf
+        return max(top, closed, 0.0)
+
+    def done() -> bool:
+        gap = relative_gap(ceiling(), best_value)
+        return ceiling() <= zero or (gap is not None and gap <= options.gap)
+
+    def try_placement(cell: _Cell):
+        nonlocal best, best_value, polishes
+        start = _lp_placement(lp, cell)
+        if start is None:
+            return
+        ids, positions = start
+        weights = [nearest_weights(model.elements[e].vertices, x) for e, x in zip(ids, positions)]
+        polishes += 1
+        found = polisher(list(ids), weights)
+        if _capacity(found) > best_value:
+            best, best_value = found, _capacity(found)
+
+    while heap and not done():
+        if time.perf_counter() - t0 > options.time_budget or nodes >= options.max_nodes:
+            break
+        if options.polish_every and (nodes - 1) % options.polish_every == 0:
+            try_placement(heap[0])
+            if done():
+                break
+        cell = heapq.heappop(heap)
+        if cell.bound.value <= best_value:
+            closed = max(closed, cell.bound.value)
+            continue
+        split = _split(lp, cell)
+        if split is None:  # every contact on one point: the bound is its placement's own
+            closed = max(closed, cell.bound.value)
+            continue
+        for pieces in split:
+            bound = lp.bound(pieces, options.cell_cuts, options.cut_tolerance)
+            nodes += 1
+            child = _Cell(pieces, bound, cell.depth + 1)
+            if bound.value <= best_value:
+                closed = max(closed, bound.value)
+            else:
+                heapq.heappush(heap, child)
+        history.append((time.perf_counter() - t0, ceiling(), best_value))
+        if progress:
+            progress("capacity bound", nodes, ceiling())
+    value = ceiling()
+    gap = relative_gap(value, best_value)
+    reached = value <= zero or (gap is not None and gap <= options.gap)
+    improved = best if best is not incumbent else None
+    return CapacityBound(
+        value,
+        best_value,
+        gap,
+        improved,
+        nodes,
+        len(heap),
+        reached,
+        domain,
+        time.perf_counter() - t0,
+        root.value,
+        lp.cuts,
+        polishes,
+        tuple(history),
+    )
+
+
+def _capacity(result) -> float:
+    """Certified capacity of a placement result: ``-hi`` of its bracket (-inf for None)."""
+    if result is None:
+        return -np.inf
+    if result.bounds is not None:
+        return -float(result.bounds[1])
+    return -float(result.rho)
+
+
+def _lp_placement(lp: CellLP, cell: _Cell):
+    """The placement the cell's LP weights describe: each contact on its heaviest piece at the
+    weights' point there; (element ids, positions (m, 3))."""
+    ids, positions = [], []
+    lam, at = cell.bound.lam, 0
+    for pieces in cell.pieces:
+        weights = []
+        for p in pieces:
+            weights.append(lam[at : at + len(p.vertices)])
+            at += len(p.vertices)
+        j = int(np.argmax([w.sum() for w in weights]))
+        w = weights[j] / weights[j].sum() if weights[j].sum() > 0 else None
+        piece = pieces[j]
+        x = piece.vertices.mean(axis=0) if w is None else w @ piece.vertices
+        ids.append(piece.element)
+        positions.append(x)
+    return ids, np.array(positions)
+
+
+def _split(lp: CellLP, cell: _Cell):
+    """Two cells covering ``cell``: the contact with the largest interpolation error split."""
+    lam, bound = cell.bound.lam, cell.bound
+    spec_slots, _, counts = lp.rows(cell.pieces)
+    active = bound.y > 1e-9
+    U, y = bound.directions[active], bound.y[active]
+    errors = np.zeros(len(cell.pieces))
+    at = 0
+    A = np.maximum(spec_slots.row_values(U), 0.0)
+    for i, pieces in enumerate(cell.pieces):
+        rows = slice(at, at + counts[i])
+        at += counts[i]
+        if len(pieces) > 1:
+            errors[i] = np.inf  # pieces of several elements: separate them first
+            continue
+        piece = pieces[0]
+        if len(piece.vertices) == 1:
+            continue
+        w = lam[rows]
+        interp = A[:, rows] @ w
+        x = w @ piece.vertices
+        spec = lp.eligibility.specs[i]
+        contact = ContactSet(
+            (spec.at(x, piece.inward_normal),),
+            lp.eligibility.torque_scale,
+            lp.eligibility.model.reference_point,
+        )
+        true = np.maximum(WrenchSlots.from_contacts(contact).row_values(U)[:, 0], 0.0)
+        # a tie-break by size, so that a cell whose error is zero still shrinks
+        errors[i] = float(y @ (interp - true)) + 1e-12 * piece.size
+    i = int(np.argmax(errors))
+    if errors[i] <= 0.0:
+        return None
+    pieces = cell.pieces[i]
+    if len(pieces) > 1:
+        at = sum(counts[:i])
+        mass = []
+        for p in pieces:
+            mass.append(lam[at : at + len(p.vertices)].sum())
+            at += len(p.vertices)
+        j = int(np.argmax(mass))
+        parts = ([pieces[j]], [p for k, p in enumerate(pieces) if k != j])
+    else:
+        halves = pieces[0].halves()
+        if halves is None:
+            return None
+        parts = ([halves[0]], [halves[1]])
+    return tuple(cell.pieces[:i] + (part,) + cell.pieces[i + 1 :] for part in parts)
+
+
+__all__ = [
+    "BoundOptions",
+    "CapacityBound",
+    "CellLP",
+    "Piece",
+    "capacity_bound",
+    "domain_of",
+    "dual_bound",
+    "relative_gap",
+]

@@ -1,0 +1,158 @@
+"""The certified ceiling on placements: never below a placement's certified capacity."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from closure_nlp import placement_bound
+from closure_nlp.contacts import ContactSet, contact_specs
+from closure_nlp.eligibility import Eligibility
+from closure_nlp.placement import PlacementOptions, Placer
+from closure_nlp.placement_bound import (
+    BoundOptions,
+    CellLP,
+    capacity_bound,
+    element_pieces,
+    relative_gap,
+)
+from closure_nlp.quality import rho
+from tests.shapes import box_model
+
+
+def _random_cell(rng, eligibility, elements, depth=(0, 10)):
+    """Each contact on a random sub-piece of its element (halved ``depth`` times, at random in
+    that range: deep cells make the bound tight), sometimes with a second piece from another
+    element."""
+    cell = []
+    for e in elements:
+        piece = element_pieces(eligibility, e)[0]
+        for _ in range(int(rng.integers(*depth))):
+            piece = piece.halves()[int(rng.integers(0, 2))]
+        pieces = [piece]
+        if rng.random() < 0.25:
+            other = int(rng.integers(0, len(eligibility.model.elements)))
+            pieces.append(element_pieces(eligibility, other)[0])
+        cell.append(pieces)
+    return tuple(cell)
+
+
+def _sample(rng, eligibility, cell) -> ContactSet:
+    contacts = []
+    for spec, pieces in zip(eligibility.specs, cell):
+        piece = pieces[int(rng.integers(0, len(pieces)))]
+        w = rng.dirichlet(np.full(len(piece.vertices), 0.5))
+        contacts.append(spec.at(w @ piece.vertices, piece.inward_normal))
+    return ContactSet(tuple(contacts), eligibility.torque_scale, eligibility.model.reference_point)
+
+
+def _violations(eligibility, elements, cells=4, samples=5, seed=0, depth=(0, 10)):
+    """(samples whose certified capacity -hi exceeds their cell's bound, force-closure samples)."""
+    rng = np.random.default_rng(seed)
+    lp = CellLP(eligibility)
+    bad = closure = 0
+    for _ in range(cells):
+        cell = _random_cell(rng, eligibility, elements, depth)
+        bound = lp.bound(cell, rounds=2, tolerance=1e-3).value
+        for _ in range(samples):
+            result = rho(_sample(rng, eligibility, cell))
+            capacity = -result.bounds[1]  # certified: the true -rho is at least this
+            closure += capacity > 0
+            bad += capacity > bound
+    return bad, closure
+
+
+CASES = [
+    ("pcwf", 0.5, (0, 1, 2, 3)),
+    ("sfce", 0.3, (0, 1, 4, 5)),
+    (["fpc", "pcwf", "sfcl", "sfce", "pcwf"], 0.4, (0, 1, 2, 3, 4)),
+]
+
+
+@pytest.mark.parametrize("kind, mu, elements", CASES)
+def test_cell_bound_is_above_every_sampled_placement(kind, mu, elements):
+    model = box_model(2.0)
+    specs = contact_specs(len(elements), type=kind, mu=mu, mu_s=0.2)
+    eligibility = Eligibility(model, specs, 0.5)
+    bad, closure = _violations(eligibility, elements)
+    assert bad == 0
+    assert closure >= 8  # the samples are held: the comparison is not against zero
+
+
+def test_the_check_fails_when_a_term_is_dropped(monkeypatch):
+    """With the last contact's term left out of the LP, sampled placements beat the 'bound'."""
+    solve = placement_bound._solve_lp
+
+    def dropped(A, owner, U):
+        A = A.copy()
+        A[:, owner == owner.max()] = 0.0
+        return solve(A, owner, U)
+
+    monkeypatch.setattr(placement_bound, "_solve_lp", dropped)
+    model = box_model(2.0)
+    specs = contact_specs(4, type="pcwf", mu=0.5)
+    bad, _ = _violations(Eligibility(model, specs, 0.5), (0, 1, 2, 3), 3, 3, depth=(10, 11))
+    assert bad > 0
+
+
+def test_dual_bound_holds_for_any_weights():
+    """D(y) is above min_k (A lam)_k for every feasible lam (weak duality), and equals the LP's
+    value at its dual."""
+    rng = np.random.default_rng(1)
+    A = rng.random((30, 7))
+    owner = np.array([0, 0, 0, 1, 1, 2, 2])
+    result = placement_bound._solve_lp(A, owner, np.zeros((30, 6)))
+    assert result.value == pytest.approx(result.lp_value, rel=1e-6)
+    for _ in range(200):
+        lam = np.concatenate(
+            [rng.dirichlet(np.ones(3)), rng.dirichlet(np.ones(2)), rng.dirichlet(np.ones(2))]
+        )
+        assert (A @ lam).min() <= result.value
+        y = rng.dirichlet(np.ones(30))
+        assert (A @ lam).min() <= placement_bound.dual_bound(A, owner, y)
+
+
+def test_capacity_bound_on_the_box():
+    """The ceiling is above the exchange method's placement and above random placements on the
+    elements; the gap is what it says."""
+    model = box_model(1.0)
+    specs = contact_specs(4, type="pcwf", mu=0.5)
+    eligibility = Eligibility(model, specs, 1.0)
+    placer = Placer(eligibility, PlacementOptions(neighbour_moves=0, starts=1, extra_starts=0))
+    elements = (0, 1, 2, 3)
+    placed = placer(elements)
+    options = BoundOptions(time_budget=1.0, root_cuts=8, polish_every=0)
+    result = capacity_bound(placer, elements, placed, options)
+    assert result.domain == tuple((e,) for e in elements)
+    assert result.value >= -placed.bounds[1]
+    assert result.capacity >= -placed.bounds[1]
+    assert result.gap == pytest.approx(relative_gap(result.value, result.capacity))
+    assert 0 <= result.gap < 1 and result.value <= result.root_value
+    rng = np.random.default_rng(2)
+    cell = tuple(element_pieces(eligibility, e) for e in elements)
+    for _ in range(10):
+        capacity = -rho(_sample(rng, eligibility, cell)).bounds[1]
+        assert capacity <= result.value
+
+
+def test_no_force_closure_gives_a_zero_ceiling():
+    """All four contacts on one face push one way: the ceiling is 0 (a proof that no placement
+    there is force closure) and the gap is undefined."""
+    model = box_model(1.0)
+    specs = contact_specs(4, type="pcwf", mu=0.5)
+    eligibility = Eligibility(model, specs, 1.0)
+    placer = Placer(eligibility, PlacementOptions(neighbour_moves=0, starts=1, extra_starts=0))
+    placed = placer((0, 0, 0, 0))
+    options = BoundOptions(time_budget=1.0, polish_every=0)
+    result = capacity_bound(placer, (0, 0, 0, 0), placed, options)
+    assert 0.0 <= result.value <= 1e-6  # round-off margin only (f_max 1)
+    assert result.gap is None and result.reached
+
+
+def test_options_are_checked():
+    with pytest.raises(ValueError, match="gap"):
+        BoundOptions(gap=-1.0)
+    with pytest.raises(ValueError, match="time_budget"):
+        BoundOptions(time_budget=float("nan"))
+    with pytest.raises(ValueError, match="root_cuts"):
+        BoundOptions(root_cuts=1.5)
