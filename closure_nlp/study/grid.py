@@ -15,6 +15,7 @@ except ModuleNotFoundError:  # Python 3.10
 from ..contact_count import closure_count_problem
 from ..contacts import DEFAULT_F_MAX, DEFAULT_MU, DEFAULT_MU_S, ContactType, contact_specs
 from ..elements import load_model
+from ..files import read_input
 from ..placement import PlacementOptions
 from ..selection import SelectionOptions
 from ..validation import (
@@ -117,11 +118,9 @@ def load_study(path) -> Study:
     """
     path = Path(path)
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ValueError("file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ValueError(f"cannot read file: {exc.__class__.__name__}: {exc}") from None
+        data = tomllib.loads(read_input(path).decode("utf-8"))
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"cannot read file: not UTF-8 text ({exc.reason})") from None
     except tomllib.TOMLDecodeError as exc:
         raise ValueError(f"malformed TOML: {exc}") from None
     except RecursionError:
@@ -282,7 +281,7 @@ def _models(value, base_dir: Path) -> tuple[ModelRef, ...]:
 
 def _model_ref(path: Path, where: str) -> ModelRef:
     try:
-        raw = path.read_bytes()
+        raw = read_input(path)
         load_model(path)  # validates every element now, not in a worker later
     except OSError as exc:
         raise ValueError(f"{where}: cannot read {str(path)!r}: {exc.strerror or exc}") from None

@@ -21,6 +21,7 @@ from .. import __version__
 from ..contacts import contact_specs
 from ..elements import model_from_dict
 from ..eligibility import Eligibility
+from ..files import parse_json, read_input
 from ..placement import PlacementOptions, Placer
 from ..planning import plan
 from ..quality import SupportMinimizer
@@ -143,11 +144,11 @@ def _solvers(task: Task, model_text: str | None) -> tuple[Eligibility, Placer, d
     built = key not in cache
     if built:
         if model_text is None:
-            raw = Path(task.model_file).read_bytes()
+            raw = read_input(task.model_file)
             if hashlib.sha256(raw).hexdigest()[:16] != task.model_digest:
                 raise ValueError(f"{task.model_file}: model file changed since the study was read")
             model_text = raw.decode("utf-8")
-        model = model_from_dict(json.loads(model_text), Path(task.model_file).parent)
+        model = model_from_dict(parse_json(model_text), Path(task.model_file).parent)
         eligibility = Eligibility(model, task.specs(), task.torque_scale, _local.minimizer)
         cache[key] = (eligibility, {}, {})
         while len(cache) > _CACHE_SIZE:
