@@ -24,7 +24,7 @@ mesh edge from the vertices it stands for (its own, and the dropped ones nearest
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -33,10 +33,13 @@ from scipy.sparse.csgraph import connected_components, dijkstra
 
 from .contacts import as_reference_point
 from .drafts import Draft, thin
-from .elements import Element, ElementKind, Model
+from .elements import UNITS, Element, ElementKind, Model, part_size
 from .meshes import load_mesh, repair_mesh
+from .model_mesh import outward_elements
 from .planar import facets
 from .rulings import rulings, segments
+from .scale import part_radius
+from .tolerances import DEFAULT_TOLERANCES
 
 
 @dataclass(frozen=True)
@@ -100,13 +103,18 @@ class CharacterizeOptions:
 # --- characterization ------------------------------------------------------------------------
 
 
-SPACING_FRACTION = 0.2  # default point and ruling spacing: this fraction of the part's radius
+SPACING_FRACTION = 0.2  # default point and ruling spacing: this fraction of the mesh's radius
 AUTO = "auto"
+DEFAULT_UNITS = "m"  # a mesh file carries no unit; glTF's, and robotics datasets', is the metre
 
 
 @dataclass(frozen=True)
 class Characterization:
-    """A model and the settings that made it (what ``characterize`` prints and records)."""
+    """A model and the settings that made it (what ``characterize`` prints and records).
+
+    ``radius`` is the model's (:attr:`Model.radius`), the one every model command scales by;
+    ``dropped`` says which elements were left out of the model and why.
+    """
 
     model: Model
     reference_point: np.ndarray
@@ -116,14 +124,16 @@ class Characterization:
     repairs: tuple[str, ...]
     reference_source: str = "given"
     mesh: object = field(default=None, repr=False)  # the closed mesh the elements come from
+    dropped: tuple[str, ...] = ()
+    units_source: str = "given"
 
     def text(self) -> str:
-        unit = f" {self.model.units}" if self.model.units else ""
+        unit = f" {self.model.units}"
         point = ", ".join(f"{x:.6g}" for x in self.reference_point)
         return (
-            f"torques about [{point}]{unit} ({self.reference_source}); radius "
-            f"{self.radius:.6g}{unit}; spacing of points {self.point_spacing:.6g}{unit}, of "
-            f"rulings {self.segment_spacing:.6g}{unit}"
+            f"units {self.model.units} ({self.units_source}); torques about [{point}]{unit} "
+            f"({self.reference_source}); radius {self.radius:.6g}{unit}; spacing of points "
+            f"{self.point_spacing:.6g}{unit}, of rulings {self.segment_spacing:.6g}{unit}"
             + "".join(f"\n  repaired: {r}" for r in self.repairs)
         )
 
@@ -146,10 +156,11 @@ def characterize_mesh(
     facet_area_ratio: float = 4.0,
     faceted_limit: int = 100,
     name: str | None = None,
-    units: str = "",
+    units: str | None = None,
     mesh_ref: str | None = None,
     reference_point=None,
     up: str = "z",
+    merge_bodies: bool = False,
 ) -> Characterization:
     """Describe a closed mesh by convex facets, line segments and discrete points.
 
@@ -159,38 +170,49 @@ def characterize_mesh(
         The object's surface.
     segment_spacing, point_spacing : float or "auto", optional
         Thinning distances for rulings and points (in the mesh's unit); ``"auto"`` (default) is
-        ``SPACING_FRACTION`` times the part's radius about the reference point; None or 0 keeps
-        them all (exact duplicates are always dropped).
+        ``SPACING_FRACTION`` times the radius of the mesh's vertices about the reference point
+        (:func:`closure_nlp.scale.part_radius`); None or 0 keeps them all (exact duplicates are
+        always dropped).
     sharp_angle, flat_angle, facet_area_ratio, faceted_limit
         See :class:`CharacterizeOptions`.
     name : str, optional
         Model name (default: the file's stem, or ``"mesh"``).
-    units : str
-        The mesh's length unit, recorded in the model.
+    units : {"m", "cm", "mm", "in"}, optional
+        The mesh's length unit, recorded in the model; default ``DEFAULT_UNITS`` (metres).
     mesh_ref : str, optional
         Stored as the model's ``mesh`` (a path relative to where the model file will go).
     reference_point : [x, y, z], optional
         The point torques are taken about; default the centre of mass of the closed mesh.
     up : str
         The model's up axis for pictures (x, y or z).
+    merge_bodies : bool
+        Hold several disjoint bodies as one rigid part (default: refuse such a mesh).
 
     Returns
     -------
     Characterization
         The model (facets first, then segments, then points; adjacency from the mesh topology)
-        and the reference point, radius, spacings and repairs used.
+        and the reference point, radius, spacings and repairs used. Facets and segments too
+        small for a model against the part's size are left out and counted in ``dropped``.
+        The normals are judged against the mesh file a model will read
+        (:func:`drop_outward`, which ``closure-nlp characterize`` applies once it is written).
     """
+    units_source = "given"
+    if units is None:
+        units, units_source = DEFAULT_UNITS, "default: --units sets it"
+    if units not in UNITS:
+        raise ValueError(f"units: expected one of {', '.join(UNITS)}, got {units!r}")
     repairs: list[str] = []
-    mesh = load_mesh(mesh_or_path, None, repairs)
+    mesh = load_mesh(mesh_or_path, None, repairs, merge_bodies)
     if reference_point is not None:
         point, source = as_reference_point(reference_point, "reference_point"), "given"
     elif mesh.is_volume:
         point, source = np.asarray(mesh.center_mass), "the part's centre of mass"
     else:
         point, source = mesh.vertices.mean(axis=0), "the centroid of the mesh's vertices"
-    radius = float(np.linalg.norm(mesh.vertices - point, axis=1).max())
+    spread = part_radius(mesh.vertices, point)
     spacings = [
-        SPACING_FRACTION * radius if _is_auto(v) else (0.0 if v is None else v)
+        SPACING_FRACTION * spread if _is_auto(v) else (0.0 if v is None else v)
         for v in (segment_spacing, point_spacing)
     ]
     options = CharacterizeOptions(
@@ -203,6 +225,7 @@ def characterize_mesh(
         range(len(drafts)), key=lambda i: list(ElementKind).index(drafts[i].element.kind)
     )
     drafts = [drafts[i] for i in order]
+    drafts, dropped = _without_tiny(drafts)
     elements = tuple(
         Element(d.element.kind, d.element.vertices, d.element.inward_normal, name=f"elements[{i}]")
         for i, d in enumerate(drafts)
@@ -218,8 +241,91 @@ def characterize_mesh(
         up=up,
     )
     return Characterization(
-        model, model.reference_point, radius, *spacings, tuple(repairs), source, mesh
+        model,
+        model.reference_point,
+        model.radius,
+        *spacings,
+        tuple(repairs),
+        source,
+        mesh,
+        tuple(dropped),
+        units_source,
     )
+
+
+def _without_tiny(drafts: list[Draft]) -> tuple[list[Draft], list[str]]:
+    """Drafts without the facets and segments a model refuses as degenerate against the part's
+    size (slivers a boolean union leaves), and a line saying how many went."""
+    tol = DEFAULT_TOLERANCES.geometry
+    gone = {ElementKind.FACET: 0, ElementKind.SEGMENT: 0}
+    while drafts:
+        size = part_size([d.element for d in drafts])
+        small = [
+            d.element.kind is not ElementKind.POINT
+            and not float(np.ptp(d.element.vertices, axis=0).max()) > tol * size
+            for d in drafts
+        ]
+        if not any(small):
+            break
+        for d in (d for d, s in zip(drafts, small) if s):
+            gone[d.element.kind] += 1
+        drafts = [d for d, s in zip(drafts, small) if not s]
+    lines = [
+        f"{n} {kind.value}(s) smaller than {tol:g} x the part's size (slivers)"
+        for kind, n in gone.items()
+        if n
+    ]
+    return drafts, lines
+
+
+def drop_outward(model: Model, mesh) -> tuple[Model, list[str]]:
+    """``model`` without the elements whose inward normal points out of ``mesh`` (the check every
+    model command applies, :func:`closure_nlp.model_mesh.outward_elements`), and one line naming
+    each. Such an element is a small facet on a fold or at a thin edge of the mesh, where the
+    faces around its corners outweigh its own and face the other way."""
+    bad = outward_elements(model, mesh)
+    if not bad:
+        return model, []
+    lines = [
+        f"the {model.elements[i].kind.value} at "
+        f"[{', '.join(f'{x:.6g}' for x in model.elements[i].centroid)}] "
+        f"({model.elements[i].size:.3g} across): its inward normal points out of the mesh "
+        "around it (the faces at its corners face the other way: a fold or a thin edge)"
+        for i in bad
+    ]
+    return without_elements(model, bad), lines
+
+
+def without_elements(model: Model, ids) -> Model:
+    """``model`` without the elements ``ids``: the others renumbered in order, and the neighbours
+    of a removed element made neighbours of each other (the iterative selection still moves
+    across it)."""
+    gone = set(ids)
+    new_id, elements = {}, []
+    for i, e in enumerate(model.elements):
+        if i not in gone:
+            new_id[i] = len(elements)
+            elements.append(replace(e, name=f"elements[{len(elements)}]"))
+    if not elements:
+        raise ValueError(f"{model.name}: every element was dropped")
+    pairs = {(new_id[a], new_id[b]) for a, b in model.adjacency if a in new_id and b in new_id}
+    for i in gone:
+        around = sorted(new_id[j] for j in _reach(model, i, gone))
+        pairs |= {(a, b) for a in around for b in around if a < b}
+    return replace(model, elements=tuple(elements), adjacency=tuple(sorted(pairs)))
+
+
+def _reach(model: Model, start: int, gone: set[int]) -> set[int]:
+    """Kept elements reached from ``start`` through removed ones."""
+    seen, todo, out = {start}, [start], set()
+    while todo:
+        for j in model.neighbours(todo.pop()):
+            if j in gone and j not in seen:
+                seen.add(j)
+                todo.append(j)
+            elif j not in gone:
+                out.add(j)
+    return out
 
 
 def _is_auto(value) -> bool:
@@ -426,10 +532,13 @@ def _owners(mesh, drafts: list[Draft], curved: list) -> list[set[int]]:
 
 
 __all__ = [
+    "DEFAULT_UNITS",
     "Characterization",
     "CharacterizeOptions",
     "characterize",
     "characterize_mesh",
+    "drop_outward",
+    "without_elements",
     "load_mesh",
     "repair_mesh",
     "winding_number",

@@ -214,14 +214,15 @@ def _eligibility(args, m: int, field: str = "--contacts"):
     return Eligibility(model, specs, scale.torque_scale)
 
 
-def _load_model(args):
+def _load_model(args, marked: list | None = None):
     """``args.model`` with its mesh checked: inside the model's folder (unless
     ``--allow-outside-mesh``), facet and segment normals pointing into it; a missing or broken
-    mesh is one warning (it only serves pictures)."""
+    mesh is one warning (it only serves pictures). With ``marked`` (a picture), elements whose
+    normal points out of the mesh are put there, with one warning, instead of refused."""
     from dataclasses import replace
 
     from .elements import ElementKind
-    from .model_mesh import check_normals, read_model_mesh
+    from .model_mesh import check_normals, outward_elements, read_model_mesh
 
     [(_, model)] = _load_each([args.model], load_model)
     if getattr(args, "allow_outside_mesh", False):
@@ -230,7 +231,17 @@ def _load_model(args):
         model.mesh_path  # noqa: B018 - refuses a path outside the model's folder, before work
         judged = any(e.kind is not ElementKind.POINT for e in model.elements)
         if judged and not getattr(args, "no_mesh", False):  # points have nothing to check
-            check_normals(model, read_model_mesh(model))
+            if marked is None:
+                check_normals(model, read_model_mesh(model))
+            else:
+                marked += outward_elements(model, read_model_mesh(model))
+    if marked:
+        ids = ", ".join(str(i) for i in marked[:10]) + (", ..." if len(marked) > 10 else "")
+        sys.stderr.write(
+            f"warning: {args.model}: {len(marked)} element(s) with an inward normal pointing out "
+            f"of the model's mesh, drawn marked (plan and the other commands refuse the model): "
+            f"{ids}\n"
+        )
     return model
 
 
@@ -567,7 +578,14 @@ def _add_characterize(sub, common) -> None:
     )
     p.add_argument("--name", help="model name (default: the mesh file's stem)")
     p.add_argument(
-        "--units", default="", choices=["", "m", "cm", "mm", "in"], help="length unit of the mesh"
+        "--units",
+        choices=["m", "cm", "mm", "in"],
+        help="length unit of the mesh (default m; the unit used is printed)",
+    )
+    p.add_argument(
+        "--merge-bodies",
+        action="store_true",
+        help="hold a mesh of several separate bodies as one rigid part (default: refuse it)",
     )
     p.add_argument(
         "--reference-point",
@@ -581,11 +599,13 @@ def _add_characterize(sub, common) -> None:
 
 def _cmd_characterize(args) -> None:
     import os
+    from dataclasses import replace
     from pathlib import Path
 
-    from .characterize import characterize_mesh
+    from .characterize import characterize_mesh, drop_outward
     from .elements import save_model
     from .files import write_atomic
+    from .model_mesh import read_model_mesh
     from .scale import units_warning
 
     with _reading(args.out):
@@ -606,20 +626,27 @@ def _cmd_characterize(args) -> None:
             mesh_ref=mesh_ref,
             reference_point=args.reference_point,
             up=args.up,
+            merge_bodies=args.merge_bodies,
         )
     except ValueError as exc:
         text, prefix = str(exc), f"{args.mesh}: "
         raise InputError(args.mesh, text.removeprefix(prefix)) from None
-    model = found.model
-    warning = units_warning(found.radius, args.units)
-    if warning:
-        sys.stderr.write(f"warning: {args.mesh}: {warning}\n")
+    model, dropped = found.model, list(found.dropped)
     try:
         if copy is not None:  # the repaired mesh, beside the model (pictures draw it)
             write_atomic(copy, found.mesh.export(file_type="stl"))
+        # The model commands judge normals against the mesh file as they read it (an STL holds
+        # 32-bit coordinates): judged here the same way, so they never refuse what is written.
+        model, more = drop_outward(model, read_model_mesh(replace(model, base_dir=out.parent)))
+        dropped += more
         save_model(model, out)
     except OSError as exc:
         raise InputError(args.out, f"cannot write: {exc.strerror or exc}") from None
+    for line in dropped:
+        sys.stderr.write(f"warning: {args.mesh}: dropped {line}\n")
+    warning = units_warning(model.radius, model.units)
+    if warning:
+        sys.stderr.write(f"warning: {args.mesh}: {warning}\n")
     counts = model.counts()
     summary = ", ".join(f"{n} {kind}s" for kind, n in counts.items())
     payload = {
@@ -629,10 +656,11 @@ def _cmd_characterize(args) -> None:
         "out": str(out),
         "units": model.units,
         "reference_point": model.reference_point.tolist(),
-        "radius": found.radius,
+        "radius": model.radius,
         "segment_spacing": found.segment_spacing,
         "point_spacing": found.point_spacing,
         "repairs": list(found.repairs),
+        "dropped": dropped,
     }
     _emit(
         args,
@@ -700,7 +728,8 @@ def _cmd_show(args) -> None:
 
     with _reading(args.out):
         check_output_file(args.out)
-    model = _load_model(args)
+    marked: list[int] = []
+    model = _load_model(args, marked)
     contacts, highlight = None, []
     if args.contacts:
         [(_, contacts)] = _load_each([args.contacts], load_contacts)
@@ -734,7 +763,7 @@ def _cmd_show(args) -> None:
         }
     )
     try:
-        out = save_view(model, args.out, contacts, highlight=highlight, **options)
+        out = save_view(model, args.out, contacts, highlight=highlight, marked=marked, **options)
     except OSError as exc:
         raise InputError(args.out, f"cannot write: {exc.strerror or exc}") from None
     point = ", ".join(f"{x:.6g}" for x in model.reference_point)
@@ -745,6 +774,7 @@ def _cmd_show(args) -> None:
             "out": str(out),
             "units": model.units,
             "reference_point": model.reference_point.tolist(),
+            "marked": marked,
         },
         f"{args.model}: drawn to {out} (torques about [{point}]"
         + (f" {model.units}" if model.units else "")

@@ -21,6 +21,7 @@ FACET_COLOUR = np.array([0.62, 0.74, 0.88])
 SEGMENT_COLOUR = np.array([0.12, 0.31, 0.47])
 POINT_COLOUR = np.array([0.16, 0.5, 0.38])
 HIGHLIGHT_COLOUR = np.array([0.95, 0.55, 0.15])
+MARKED_COLOUR = np.array([0.85, 0.1, 0.55])  # elements a check refused (shown, not hidden)
 CONTACT_COLOUR = "#c0392b"
 LIGHT = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
 PICTURE_SUFFIXES = {".png", ".pdf", ".svg", ".jpg", ".jpeg"}
@@ -79,6 +80,7 @@ def draw_model(
     ax=None,
     *,
     highlight: Sequence[int] = (),
+    marked: Sequence[int] = (),
     contact_sizes: float | Sequence[float] = 80.0,
     contact_colour: str = CONTACT_COLOUR,
     show_mesh: bool = True,
@@ -100,6 +102,9 @@ def draw_model(
         Axes to draw into; a new figure is made when omitted.
     highlight : sequence of int
         Element ids drawn in the highlight colour (e.g. the selected elements).
+    marked : sequence of int
+        Element ids drawn in the marking colour: elements a check refused (e.g. an inward
+        normal that points out of the mesh), shown where they are.
     contact_sizes : float or (m,) float
         Marker areas of the contact balls (points^2).
     show_mesh : bool
@@ -133,10 +138,11 @@ def draw_model(
     ax._closure_axes = UP_AXES[up]  # every later drawing call on ax shows the same axis up
     ax.computed_zorder = False  # draw in call order: contacts last, on top
     chosen = {model.check_id(i, "highlight") for i in highlight}
+    bad = {model.check_id(i, "marked") for i in marked}
     if show_mesh:
         _draw_mesh(ax, model)
-    _draw_facets(ax, model, chosen)
-    _draw_segments(ax, model, chosen)
+    _draw_facets(ax, model, chosen, bad)
+    _draw_segments(ax, model, chosen, bad)
     _draw_points(ax, model, chosen)
     if ids:
         for i, e in enumerate(model.elements):
@@ -159,7 +165,7 @@ def draw_model(
     for axis, k in zip(("x", "y", "z"), ax._closure_axes):
         getattr(ax, f"set_{axis}label")("xyz"[k] + unit)
     if legend:
-        update_legend(ax, model, chosen)
+        update_legend(ax, model, chosen, bad)
     return ax
 
 
@@ -172,7 +178,7 @@ def _shown(ax, points) -> np.ndarray:
     return np.asarray(points, dtype=float)[..., list(getattr(ax, "_closure_axes", (0, 1, 2)))]
 
 
-def update_legend(ax, model: Model | None = None, chosen=()) -> None:
+def update_legend(ax, model: Model | None = None, chosen=(), marked=()) -> None:
     """A legend of the element kinds present, the chosen elements, the reference point and
     every contact set drawn (by its label)."""
     from matplotlib.lines import Line2D
@@ -189,6 +195,7 @@ def update_legend(ax, model: Model | None = None, chosen=()) -> None:
                 Line2D([], [], color=POINT_COLOUR, marker="o", ls="", ms=3, label="points"),
             ),
             (len(chosen), Patch(facecolor=HIGHLIGHT_COLOUR, label="chosen elements")),
+            (len(marked), Patch(facecolor=MARKED_COLOUR, label="normal out of the mesh")),
             (1, Line2D([], [], color="black", marker="x", ls="", label="reference point")),
         ]
         ax._closure_model_legend = [h for n, h in kinds if n]
@@ -219,7 +226,11 @@ def _draw_mesh(ax, model: Model) -> None:
     )
 
 
-def _draw_facets(ax, model: Model, chosen: set[int]) -> None:
+def _colour(i: int, base, chosen: set[int], marked: set[int]):
+    return MARKED_COLOUR if i in marked else HIGHLIGHT_COLOUR if i in chosen else base
+
+
+def _draw_facets(ax, model: Model, chosen: set[int], marked: set[int] = frozenset()) -> None:
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
     ids = _ids(model, ElementKind.FACET)
@@ -228,7 +239,7 @@ def _draw_facets(ax, model: Model, chosen: set[int]) -> None:
     normals = np.array([model.elements[i].inward_normal for i in ids])
     colours = np.array(
         [
-            _shade(n[None], HIGHLIGHT_COLOUR if i in chosen else FACET_COLOUR)[0]
+            _shade(n[None], _colour(i, FACET_COLOUR, chosen, marked))[0]
             for i, n in zip(ids, normals)
         ]
     )
@@ -243,15 +254,15 @@ def _draw_facets(ax, model: Model, chosen: set[int]) -> None:
     )
 
 
-def _draw_segments(ax, model: Model, chosen: set[int]) -> None:
+def _draw_segments(ax, model: Model, chosen: set[int], marked: set[int] = frozenset()) -> None:
     from mpl_toolkits.mplot3d.art3d import Line3DCollection
 
     ids = _ids(model, ElementKind.SEGMENT)
     if not ids:
         return
     lines = [_shown(ax, model.elements[i].vertices) for i in ids]
-    colours = np.array([HIGHLIGHT_COLOUR if i in chosen else SEGMENT_COLOUR for i in ids])
-    widths = [3.0 if i in chosen else 1.4 for i in ids]
+    colours = np.array([_colour(i, SEGMENT_COLOUR, chosen, marked) for i in ids])
+    widths = [3.0 if i in chosen or i in marked else 1.4 for i in ids]
     ax.add_collection3d(Line3DCollection(lines, colors=colours, linewidths=widths))
 
 
@@ -393,11 +404,14 @@ def save_figure(fig, path, dpi: int = 130) -> Path:
 # --- interactive scenes ----------------------------------------------------------------------
 
 
-def build_scene(model: Model, contacts=None, *, highlight: Sequence[int] = ()):
+def build_scene(
+    model: Model, contacts=None, *, highlight: Sequence[int] = (), marked: Sequence[int] = ()
+):
     """A ``trimesh.Scene`` of the model: mesh, facets, segments (thin rods), points, contacts."""
     import trimesh
 
     chosen = {model.check_id(i, "highlight") for i in highlight}
+    bad = {model.check_id(i, "marked") for i in marked}
     scene = trimesh.Scene()
     size = model_extent(model)
     from .model_mesh import read_model_mesh
@@ -412,7 +426,7 @@ def build_scene(model: Model, contacts=None, *, highlight: Sequence[int] = ()):
         ElementKind.POINT: POINT_COLOUR,
     }
     for i, element in enumerate(model.elements):
-        colour = (HIGHLIGHT_COLOUR if i in chosen else base[element.kind]) * 255
+        colour = _colour(i, base[element.kind], chosen, bad) * 255
         part = _element_mesh(element, size, chosen=i in chosen)
         part.visual.face_colors = [*colour.astype(int).tolist(), 255]
         scene.add_geometry(part, geom_name=f"element_{i}")
@@ -445,13 +459,15 @@ def _element_mesh(element, size: float, chosen: bool = False):
     return ball
 
 
-def export_scene(model: Model, contacts, path, *, highlight: Sequence[int] = ()) -> Path:
+def export_scene(
+    model: Model, contacts, path, *, highlight: Sequence[int] = (), marked: Sequence[int] = ()
+) -> Path:
     """Write an interactive scene, atomically: ``.glb`` (binary glTF) or ``.html`` (three.js)."""
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in SCENE_SUFFIXES:
         raise ValueError(f"out: unsupported scene type {suffix or path.name!r} (use .glb or .html)")
-    scene = build_scene(model, contacts, highlight=highlight)
+    scene = build_scene(model, contacts, highlight=highlight, marked=marked)
     if suffix == ".glb":
         data = scene.export(file_type="glb")
     else:
@@ -462,13 +478,19 @@ def export_scene(model: Model, contacts, path, *, highlight: Sequence[int] = ())
 
 
 def save_view(
-    model: Model, path, contacts=None, *, highlight: Sequence[int] = (), **options
+    model: Model,
+    path,
+    contacts=None,
+    *,
+    highlight: Sequence[int] = (),
+    marked: Sequence[int] = (),
+    **options,
 ) -> Path:
     """Picture or interactive scene, chosen by the suffix of ``path``."""
     suffix = Path(path).suffix.lower()
     if suffix in SCENE_SUFFIXES:
-        return export_scene(model, contacts, path, highlight=highlight)
-    return render_model(model, path, contacts, highlight=highlight, **options)
+        return export_scene(model, contacts, path, highlight=highlight, marked=marked)
+    return render_model(model, path, contacts, highlight=highlight, marked=marked, **options)
 
 
 __all__ = [

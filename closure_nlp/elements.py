@@ -168,6 +168,9 @@ def _caliper_diameter(xy: np.ndarray) -> float:
     return float(np.sqrt(best))
 
 
+COINCIDENT = 1e-12  # two coordinates closer than this relative to their size are one point
+
+
 def _check_point(vertices, normal, name, tol) -> None:
     if len(vertices) != 1:
         raise ValueError(f"{name}: a point has exactly 1 vertex, got {len(vertices)}")
@@ -178,7 +181,8 @@ def _check_segment(vertices, normal, name, tol) -> None:
         raise ValueError(f"{name}: a segment has exactly 2 vertices, got {len(vertices)}")
     span = vertices[1] - vertices[0]
     length = float(np.linalg.norm(span))
-    if not length > tol * max(1.0, float(np.abs(vertices).max())):
+    # Distinct within the precision of its coordinates; small against the part: Model's check.
+    if not length > COINCIDENT * float(np.abs(vertices).max()):
         raise ValueError(f"{name}: the segment's two vertices coincide ({vertices[0].tolist()})")
     off = abs(float(normal @ span)) / length
     if off > tol:
@@ -293,6 +297,7 @@ class Model:
         point = as_reference_point(self.reference_point, "reference_point")
         object.__setattr__(self, "reference_point", point)
         elements = tuple(_about(e, point) for e in elements)
+        _check_sizes(elements)
         object.__setattr__(self, "elements", elements)
         pairs = []
         for k, pair in enumerate(self.adjacency):
@@ -327,10 +332,11 @@ class Model:
 
     @property
     def radius(self) -> float:
-        """Radius of the part's bounding sphere about the reference point: the largest distance
-        from it to an element vertex (the part's characteristic length)."""
-        pts = np.vstack([e.vertices for e in self.elements])
-        return float(np.sqrt(((pts - self.reference_point) ** 2).sum(axis=1).max()))
+        """The part's radius about the reference point (:func:`closure_nlp.scale.part_radius`
+        of the element vertices): the part's characteristic length."""
+        from .scale import part_radius
+
+        return part_radius(np.vstack([e.vertices for e in self.elements]), self.reference_point)
 
     @property
     def mesh_path(self) -> Path | None:
@@ -359,6 +365,28 @@ class Model:
         if self.mesh is not None:
             out["mesh"] = self.mesh
         return out
+
+
+def part_size(elements) -> float:
+    """The part's size: the largest side of the bounding box of its elements' vertices."""
+    lo = np.min([e.vertices.min(axis=0) for e in elements], axis=0)
+    hi = np.max([e.vertices.max(axis=0) for e in elements], axis=0)
+    return float((hi - lo).max())
+
+
+def _check_sizes(elements) -> None:
+    """Refuse a facet or segment too small to tell from a point against the part's size (the
+    element's own checks judge its shape at any scale: a sliver is refused there)."""
+    size = part_size(elements)
+    for e in elements:
+        if e.kind is ElementKind.POINT:
+            continue
+        extent = float(np.ptp(e.vertices, axis=0).max())
+        if not extent > e.tolerances.geometry * size:
+            raise ValueError(
+                f"{e.name}: the {e.kind.value} is {extent:.3g} across, degenerate against the "
+                f"part's size {size:.3g} (at least {e.tolerances.geometry:g} x size)"
+            )
 
 
 def _about(element: Element, point: np.ndarray) -> Element:

@@ -286,8 +286,11 @@ def read_mesh(path, source: str | None = None):
             f"{source}: vertices: |coordinate| {float(np.abs(vertices).max()):.3g} is beyond "
             f"the accepted range [-{MAX_COORDINATE:g}, {MAX_COORDINATE:g}]"
         )
-    loaded.process()  # merge duplicate vertices, drop degenerate faces (as process=True would)
-    return loaded
+    from .meshes import process_at_unit_scale
+
+    # Merge duplicate vertices, drop degenerate faces (as process=True would), with tolerances
+    # relative to the part's size (trimesh's are absolute: at 1e11 they overflow).
+    return process_at_unit_scale(loaded)
 
 
 def _check_stl(path: Path, source: str) -> None:

@@ -10,9 +10,14 @@ closed, consistently wound surface with outward normals, or says why it cannot:
    ones, kept only when the piece is then closed and consistently wound); stray open sheets
    with almost no area are dropped;
 3. several closed bodies are merged by a boolean union (manifold3d), so no element lies inside
-   the part.
+   the part. Bodies that stay apart after the union (200 separate boxes in one file) are one
+   part only when the caller says so (``merge_bodies``): a file of several objects is refused,
+   naming how many there are.
 
-Every repair is described in the ``repairs`` list the caller passes.
+Every repair is described in the ``repairs`` list the caller passes. Every threshold (merging
+vertices, degenerate triangles) is relative to the part's size: the repairs run on a copy moved
+and scaled to unit size, and the result is scaled back, so the same part at 1e-3, 1 and 1e11
+is repaired alike.
 """
 
 from __future__ import annotations
@@ -25,9 +30,16 @@ import numpy as np
 from .files import read_mesh
 
 STRAY_AREA = 1e-3  # an open piece with less than this share of the area is dropped as debris
+# A body at unit size (the repairs run there) enclosing less is flat: two faces back to back.
+MIN_VOLUME = 1e-12
 
 
-def load_mesh(mesh_or_path, source: str | None = None, repairs: list | None = None):
+def load_mesh(
+    mesh_or_path,
+    source: str | None = None,
+    repairs: list | None = None,
+    merge_bodies: bool = False,
+):
     """A closed, consistently wound ``trimesh.Trimesh`` with outward normals.
 
     Parameters
@@ -38,12 +50,14 @@ def load_mesh(mesh_or_path, source: str | None = None, repairs: list | None = No
         How errors name the input (default: the path, or ``"mesh"``).
     repairs : list, optional
         Receives one line per repair made.
+    merge_bodies : bool
+        Hold bodies that stay apart after the union as one rigid part (default: refuse them).
 
     Raises
     ------
     ValueError
-        Unreadable file, no triangles, or a mesh that stays open (the message names the holes'
-        sizes) or inconsistently wound.
+        Unreadable file, no triangles, a mesh that stays open (the message names the holes'
+        sizes) or inconsistently wound, or several disjoint bodies without ``merge_bodies``.
     """
     import trimesh
 
@@ -59,7 +73,7 @@ def load_mesh(mesh_or_path, source: str | None = None, repairs: list | None = No
             mesh = raw  # the file's own vertices: touching pieces stay apart until merged
     else:
         raise TypeError(f"mesh: expected a trimesh.Trimesh or a path, got {mesh_or_path!r}")
-    return repair_mesh(mesh, source, repairs)
+    return repair_mesh(mesh, source, repairs, merge_bodies)
 
 
 def _read_unmerged(path: Path):
@@ -73,13 +87,16 @@ def _read_unmerged(path: Path):
     return raw if isinstance(raw, trimesh.Trimesh) else None
 
 
-def repair_mesh(mesh, source: str = "mesh", repairs: list | None = None):
+def repair_mesh(
+    mesh, source: str = "mesh", repairs: list | None = None, merge_bodies: bool = False
+):
     """One closed, consistently wound surface with outward normals (see the module's steps).
 
     Raises
     ------
     ValueError
-        When the mesh stays open, inconsistently wound or encloses no volume.
+        When the mesh stays open, inconsistently wound or encloses no volume, or has several
+        disjoint bodies and ``merge_bodies`` is not set.
     """
     import trimesh
 
@@ -90,6 +107,41 @@ def repair_mesh(mesh, source: str = "mesh", repairs: list | None = None):
         raise ValueError(f"{source}: the mesh has no triangles")
     if not np.all(np.isfinite(vertices)):
         raise ValueError(f"{source}: vertices must be finite")
+    centre, size = unit_frame(vertices)
+    if not size > 0:
+        raise ValueError(f"{source}: every vertex of the mesh is at one point")
+    unit = trimesh.Trimesh((vertices - centre) / size, faces, process=False)
+    out = _repair_unit(unit, source, repairs, merge_bodies)
+    out.vertices = out.vertices * size + centre
+    return out
+
+
+def unit_frame(vertices: np.ndarray) -> tuple[np.ndarray, float]:
+    """Centre (3,) of the bounding box and its largest side: ``(v - centre) / size`` is the part
+    at unit size, where trimesh's absolute tolerances (1e-8) become relative ones."""
+    lo, hi = vertices.min(axis=0), vertices.max(axis=0)
+    return (lo + hi) / 2, float((hi - lo).max())
+
+
+def process_at_unit_scale(mesh):
+    """trimesh's ``process()`` (merge duplicate vertices, drop degenerate triangles) with its
+    tolerances relative to the part's size; ``mesh`` is changed in place and returned."""
+    vertices = np.asarray(mesh.vertices, dtype=float)
+    centre, size = unit_frame(vertices)
+    if not size > 0:
+        return mesh
+    mesh.vertices = (vertices - centre) / size
+    mesh.process()
+    mesh.vertices = mesh.vertices * size + centre
+    return mesh
+
+
+def _repair_unit(mesh, source: str, repairs: list, merge_bodies: bool):
+    """:func:`repair_mesh` on a mesh at unit size."""
+    import trimesh
+
+    faces = np.asarray(mesh.faces)
+    vertices = np.asarray(mesh.vertices, dtype=float)
     merged = _clean(trimesh.Trimesh(vertices, faces, process=True))
     if len(merged.faces) == 0:
         raise ValueError(f"{source}: every triangle of the mesh is degenerate")
@@ -114,7 +166,7 @@ def repair_mesh(mesh, source: str = "mesh", repairs: list | None = None):
         raise ValueError(f"{source}: the mesh encloses no volume")
     if len(bodies) == 1:
         return _oriented(bodies[0], source, repairs)
-    return _union(bodies, source, repairs)
+    return _union(bodies, source, repairs, merge_bodies)
 
 
 def _clean(mesh):
@@ -155,7 +207,7 @@ def _close(piece, repairs: list):
             return None
         repairs.append("made the triangles' winding consistent")
     trimesh.repair.fix_normals(piece)
-    return piece if piece.volume > 0 else None
+    return piece if piece.volume > MIN_VOLUME else None
 
 
 def _oriented(mesh, source: str, repairs: list):
@@ -169,8 +221,9 @@ def _oriented(mesh, source: str, repairs: list):
     return closed
 
 
-def _union(bodies, source: str, repairs: list):
-    """Boolean union of closed bodies (manifold3d): overlapping pieces become one surface."""
+def _union(bodies, source: str, repairs: list, merge_bodies: bool):
+    """Boolean union of closed bodies (manifold3d): overlapping pieces become one surface;
+    pieces that stay apart are one part only with ``merge_bodies``."""
     import trimesh
 
     try:
@@ -180,13 +233,19 @@ def _union(bodies, source: str, repairs: list):
             f"{source}: the mesh has {len(bodies)} separate closed bodies and their union "
             f"failed ({exc.__class__.__name__}: {exc}); merge them into one part first"
         ) from None
-    if not (union.is_watertight and union.is_winding_consistent and union.volume > 0):
+    if not (union.is_watertight and union.is_winding_consistent and union.volume > MIN_VOLUME):
         raise ValueError(
             f"{source}: the union of its {len(bodies)} bodies is not a closed surface; merge "
             "them into one part first"
         )
     trimesh.repair.fix_normals(union)
     pieces = union.body_count
+    if pieces > 1 and not merge_bodies:
+        raise ValueError(
+            f"{source}: the mesh is {pieces} separate bodies (after merging those that overlap "
+            "or touch), not one part; --merge-bodies (merge_bodies=True) holds them as one "
+            "rigid part, or split the file"
+        )
     repairs.append(
         f"merged {len(bodies)} bodies by boolean union (manifold3d)"
         + (f": {pieces} disjoint pieces remain, held as one rigid part" if pieces > 1 else "")
@@ -307,4 +366,4 @@ def _open_message(pieces) -> str:
     )
 
 
-__all__ = ["load_mesh", "repair_mesh"]
+__all__ = ["load_mesh", "process_at_unit_scale", "repair_mesh", "unit_frame"]

@@ -29,7 +29,32 @@ def read_model_mesh(model: Model):
 
 
 def check_normals(model: Model, mesh, source: str | None = None, neighbours: int = 16) -> None:
-    """Refuse a facet or segment whose inward normal points out of ``mesh``.
+    """Refuse a facet or segment whose inward normal points out of ``mesh``
+    (:func:`outward_elements` says which).
+
+    Raises
+    ------
+    ValueError
+        Naming the first such element, e.g. ``elements[3].inward_normal: points out of the
+        model's mesh``, and how many there are when there are several.
+    """
+    bad = outward_elements(model, mesh, neighbours)
+    if bad:
+        where = f"{source}: " if source else ""
+        more = f" (and {len(bad) - 1} more: {_ids_text(bad[1:])})" if len(bad) > 1 else ""
+        raise ValueError(
+            f"{where}elements[{bad[0]}].inward_normal: points out of the model's mesh "
+            f"({model.mesh}){more}; inward normals point into the part"
+        )
+
+
+def _ids_text(ids, limit: int = 10) -> str:
+    shown = ", ".join(str(i) for i in ids[:limit])
+    return shown + (", ..." if len(ids) > limit else "")
+
+
+def outward_elements(model: Model, mesh, neighbours: int = 16) -> tuple[int, ...]:
+    """Ids of the facets and segments whose inward normal points out of ``mesh``, ascending.
 
     The mesh faces an element lies on give its outward direction: faces around the mesh vertices
     that coincide with the element's vertices (``characterize`` builds elements from them), and
@@ -39,19 +64,26 @@ def check_normals(model: Model, mesh, source: str | None = None, neighbours: int
     normal is wrong. All in O((n + F) log F). Elements on no face of this mesh, and meshes that
     are not closed and consistently wound, are not judged.
 
-    Raises
-    ------
-    ValueError
-        Naming the element, e.g. ``elements[3].inward_normal: points out of the model's mesh``.
+    Parameters
+    ----------
+    model : Model
+    mesh : trimesh.Trimesh or None
+        None judges nothing.
+    neighbours : int
+        Face centroids tried per element centroid.
+
+    Returns
+    -------
+    ids : tuple of int
     """
     import trimesh
     from scipy.spatial import cKDTree
 
     if mesh is None or not (mesh.is_watertight and mesh.is_winding_consistent):
-        return
+        return ()
     ids = [i for i, e in enumerate(model.elements) if e.kind is not ElementKind.POINT]
     if not ids:
-        return
+        return ()
     sign = 1.0 if mesh.volume > 0 else -1.0  # outward-wound (as trimesh reads most files)
     triangles = np.asarray(mesh.triangles)
     normals = sign * np.asarray(mesh.face_normals)
@@ -67,23 +99,18 @@ def check_normals(model: Model, mesh, source: str | None = None, neighbours: int
         triangles[near.ravel()], np.repeat(centroids, k, axis=0)
     ).reshape(len(ids), k, 3)
     touching = np.linalg.norm(closest - centroids[:, None, :], axis=2) <= tol
+    bad = []
     for row, i in enumerate(ids):
         element = model.elements[i]
         distance, vertex = vertex_tree.query(element.vertices)
         around = vertex_faces[vertex[distance <= tol]].ravel()
         faces = np.union1d(around[around >= 0], near[row][touching[row]])
-        if len(faces) == 0:
-            continue
-        cos = normals[faces] @ element.inward_normal
-        faces, cos = faces[np.abs(cos) > 0.7], cos[np.abs(cos) > 0.7]
+        faces = faces[np.abs(normals[faces] @ element.inward_normal) > 0.7]
         outward = (areas[faces, None] * normals[faces]).sum(axis=0)
         length = float(np.linalg.norm(outward))
         if length > 0 and float(element.inward_normal @ outward) > 0.5 * length:
-            where = f"{source}: " if source else ""
-            raise ValueError(
-                f"{where}elements[{i}].inward_normal: points out of the model's mesh "
-                f"({model.mesh}); inward normals point into the part"
-            )
+            bad.append(i)
+    return tuple(bad)
 
 
-__all__ = ["check_normals", "read_model_mesh"]
+__all__ = ["check_normals", "outward_elements", "read_model_mesh"]

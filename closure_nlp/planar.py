@@ -13,10 +13,14 @@ from .meshes import simple_loops
 def facets(mesh, faces: np.ndarray) -> list[Draft]:
     """Convex facets covering one planar patch (faces: (k,) int)."""
     areas = mesh.area_faces[faces]
-    if not areas.sum() > 0:
+    # Twice the area-weighted normal, from the triangles themselves: trimesh gives a zero normal
+    # to a triangle whose area is below its absolute tolerance, however large the part.
+    tri = mesh.triangles[faces]
+    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]).sum(0)
+    length = float(np.linalg.norm(normal))
+    if not length > 0:
         return []  # a patch of zero-area slivers
-    normal = (mesh.face_normals[faces] * areas[:, None]).sum(0)
-    normal /= np.linalg.norm(normal)
+    normal /= length
     centre = (mesh.triangles_center[faces] * areas[:, None]).sum(0) / areas.sum()
     verts = mesh.vertices
     flat = verts - np.outer((verts - centre) @ normal, normal)  # every vertex onto the plane

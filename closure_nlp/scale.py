@@ -11,6 +11,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 from .elements import UNITS, Model
 from .validation import as_torque_scale
 
@@ -22,6 +24,14 @@ PART_SIZE_METRES = (1e-3, 10.0)  # radius of a part that a robot grasps or a fix
 
 def is_auto(value) -> bool:
     return value is None or (isinstance(value, str) and value.strip().lower() == AUTO)
+
+
+def part_radius(points, reference_point) -> float:
+    """Radius of the part's bounding sphere about the reference point: the largest distance from
+    ``reference_point`` (3,) to ``points`` (n, 3) (a model's element vertices). The one
+    definition of the radius every command prints and scales by."""
+    pts = np.asarray(points, dtype=float) - np.asarray(reference_point, dtype=float)
+    return float(np.sqrt((pts**2).sum(axis=1).max()))
 
 
 def auto_torque_scale(model: Model) -> float:
@@ -146,6 +156,7 @@ __all__ = [
     "auto_torque_scale",
     "default_mu_s",
     "is_auto",
+    "part_radius",
     "resolve",
     "scale_warnings",
     "units_warning",

@@ -352,7 +352,9 @@ def _model_cases() -> list[Case]:
         content = _json_with_raw(base, path, value) if raw else _with(base, path, value)
         elig_case(f"normal={label}", content, ERROR)
     for label, scale, expect in [
-        ("1e12", 1e12, ANSWER), ("1e13", 1e13, ERROR), ("1e200", 1e200, ERROR),
+        # A facet of size 2e12 next to unit ones: they are degenerate against the part (the
+        # whole box at 1e11 is accepted: group mesh_scale).
+        ("1e12", 1e12, ERROR), ("1e13", 1e13, ERROR), ("1e200", 1e200, ERROR),
         ("1e-200", 1e-200, ERROR),  # a facet of size 1e-200 next to unit ones: degenerate
     ]:
         content = _with(base, (*e0, "vertices"), [[-1, y * scale, z * scale] for y, z in
@@ -780,12 +782,60 @@ def _api_cases() -> list[Case]:
     return cases
 
 
+def _mesh_scale_cases() -> list[Case]:
+    """Degeneracy judged against the part's size, and files of several separate bodies."""
+    import trimesh
+
+    cases = []
+
+    def char_case(name, mesh, expect, suffix="obj", extra=()):
+        def make(folder):
+            path = _write(folder, f"part.{suffix}", mesh.export(file_type=suffix))
+            return ["characterize", path, "--out", folder / "out.model.json", "--json", *extra]
+
+        cases.append(Case("mesh_scale", name, make, expect))
+
+    for scale in (1e-3, 1.0, 1e11):
+        cube = trimesh.creation.box(extents=(scale, 2 * scale, 3 * scale))
+        char_case(f"cube_at_{scale:g}.obj", cube, ANSWER)
+        char_case(f"cube_at_{scale:g}.stl", cube, ANSWER, "stl")
+    boxes = trimesh.util.concatenate(
+        [trimesh.creation.box(extents=(1, 1, 1)).apply_translation([3.0 * k, 0, 0])
+         for k in range(200)]
+    )
+    char_case("200_separate_boxes.glb", boxes, ERROR, "glb")
+    char_case("200_separate_boxes.glb_merge_bodies", boxes, ANSWER, "glb", ("--merge-bodies",))
+
+    def elig_case(name, content, expect):
+        def make(folder):
+            path = _write(folder, "m.model.json", content)
+            return ["eligibility", path, "--elements", "0,1,2,3", "--type", "pcwf", "--json"]
+
+        cases.append(Case("mesh_scale", name, make, expect))
+
+    base = _box_model()
+    for scale in (1e-15, 1e-3, 1e11):
+        scaled = json.loads(json.dumps(base))
+        for e in scaled["elements"]:
+            e["vertices"] = [[x * scale for x in v] for v in e["vertices"]]
+        elig_case(f"box_model_at_{scale:g}", scaled, ANSWER)
+        for label, size in (("triangle", 1e-15), ("sliver", 1.0)):
+            tri = [[-1, 0, 0], [-1, size, 0], [-1, size / 2, 1e-9 * size if label == "sliver"
+                                                  else size]]
+            facet = {"kind": "facet", "vertices": [[x * scale for x in v] for v in tri],
+                     "inward_normal": [1, 0, 0]}
+            elig_case(f"{label}_{size:g}_in_box_at_{scale:g}",
+                      {**scaled, "elements": [*scaled["elements"], facet]}, ERROR)
+    return cases
+
+
 def corpus() -> list[Case]:
     """Every case, in group order."""
     return [
         *_contact_cases(),
         *_model_cases(),
         *_mesh_cases(),
+        *_mesh_scale_cases(),
         *_study_cases(),
         *_flag_cases(),
         *_api_cases(),

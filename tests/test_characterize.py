@@ -437,3 +437,151 @@ def test_finely_meshed_flat_faces_are_one_facet_each():
     model = characterize(box)
     assert model.counts() == {"facet": 6, "segment": 0, "point": 0}
     assert all(len(e.vertices) == 4 for e in model.elements)  # straight corners dropped
+
+
+# --- what characterize writes, the other commands accept -------------------------------------
+
+
+def test_the_same_cube_characterizes_alike_at_any_scale(tmp_path, capsys):
+    """Thresholds are relative to the part: trimesh's absolute ones refused a cube at 1e11 as
+    'every triangle degenerate' (its vertex merge overflowed)."""
+    radii = {}
+    for scale in (1e-3, 1.0, 1e11):
+        mesh = tmp_path / f"cube{scale:g}.obj"
+        trimesh.creation.box(extents=(scale, 2 * scale, 3 * scale)).export(mesh)
+        out = tmp_path / f"cube{scale:g}.model.json"
+        code, stdout, err = run_cli(capsys, "characterize", mesh, "--out", out, "--json")
+        assert code == 0, err
+        assert json.loads(stdout)["elements"] == {"facet": 6, "segment": 0, "point": 0}
+        radii[scale] = load_model(out).radius / scale
+    assert radii[1e-3] == pytest.approx(radii[1.0], rel=1e-9)
+    assert radii[1e11] == pytest.approx(radii[1.0], rel=1e-9)
+
+
+def test_separate_bodies_are_one_part_only_when_the_user_says_so(tmp_path, capsys):
+    boxes = []
+    for k in range(200):
+        box = trimesh.creation.box(extents=(1, 1, 1))
+        box.apply_translation([3.0 * (k % 20), 3.0 * (k // 20), 0.0])
+        boxes.append(box)
+    mesh = tmp_path / "boxes.glb"
+    trimesh.Scene(boxes).export(mesh)
+    out = tmp_path / "boxes.model.json"
+    code, stdout, err = run_cli(capsys, "characterize", mesh, "--out", out)
+    assert code == 2 and not out.exists()
+    assert err.startswith(f"error: {mesh}: ") and "200 separate bodies" in err
+    assert "--merge-bodies" in err and len(err.splitlines()) == 1
+    code, stdout, err = run_cli(capsys, "characterize", mesh, "--out", out, "--merge-bodies")
+    assert code == 0, err
+    assert load_model(out).counts()["facet"] == 6 * 200
+
+
+def test_units_default_to_metres_and_are_printed(tmp_path, capsys):
+    mesh = tmp_path / "cube.stl"
+    trimesh.creation.box(extents=(0.02, 0.03, 0.04)).export(mesh)
+    out = tmp_path / "cube.model.json"
+    code, stdout, err = run_cli(capsys, "characterize", mesh, "--out", out)
+    assert code == 0, err
+    assert "units m (default" in stdout
+    assert json.loads(out.read_text())["units"] == "m"
+    code, stdout, err = run_cli(capsys, "characterize", mesh, "--out", out, "--units", "mm")
+    assert code == 0 and "units mm (given)" in stdout
+    assert "far too small" in err  # a 0.03 mm part: the warning judges the unit used
+    assert json.loads(out.read_text())["units"] == "mm"
+
+
+def test_characterize_and_the_model_commands_report_one_radius(tmp_path, capsys):
+    """Points thinned away used to leave characterize's radius (of every mesh vertex) above
+    the model's (of its elements), which plan scales by."""
+    mesh = tmp_path / "blob.stl"
+    blob = trimesh.creation.icosphere(subdivisions=3, radius=1.0)
+    blob.vertices *= [1.0, 0.8, 0.6]
+    blob.vertices += 0.01 * np.sin(7 * blob.vertices)  # no two vertices at the same distance
+    blob.export(mesh)
+    out = tmp_path / "blob.model.json"
+    code, stdout, err = run_cli(capsys, "characterize", mesh, "--out", out, "--json")
+    assert code == 0, err
+    reported = json.loads(stdout)["radius"]
+    model = load_model(out)
+    assert model.counts()["point"] > 0
+    code, stdout, err = run_cli(
+        capsys, "eligibility", out, "--elements", "0,1,2,3", "--type", "pcwf", "--json"
+    )
+    assert code == 0, err
+    assert reported == json.loads(stdout)["radius"] == model.radius
+
+
+def test_a_patch_of_tiny_triangles_makes_no_library_warning():
+    """trimesh gives a zero normal to a triangle below its absolute area tolerance: a patch of
+    such triangles (a boolean union leaves some) divided 0 by 0."""
+    import warnings
+
+    from closure_nlp.planar import facets
+
+    tiny = 1e-7 * np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    mesh = trimesh.Trimesh(tiny, [[0, 1, 2]], process=False)
+    assert not np.any(mesh.face_normals) and mesh.area_faces[0] > 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        [draft] = facets(mesh, np.array([0]))
+    assert np.allclose(draft.element.inward_normal, [0, 0, -1])
+
+
+def test_drop_outward_leaves_out_exactly_the_refused_elements():
+    from closure_nlp.characterize import drop_outward
+    from closure_nlp.model_mesh import check_normals, outward_elements
+
+    found = characterize_mesh(l_bracket())
+    model, mesh = found.model, found.mesh
+    assert drop_outward(model, mesh) == (model, [])
+    elements = list(model.elements)
+    elements[2] = replace(elements[2], inward_normal=-elements[2].inward_normal)
+    flipped = replace(model, elements=tuple(elements))
+    assert outward_elements(flipped, mesh) == (2,)
+    kept, lines = drop_outward(flipped, mesh)
+    check_normals(kept, mesh)  # what the model commands apply: nothing left to refuse
+    assert len(kept) == len(model) - 1 and len(lines) == 1 and "facet at [" in lines[0]
+    assert [e.name for e in kept.elements] == [f"elements[{i}]" for i in range(len(kept))]
+    # The dropped facet's neighbours stay connected through where it was.
+    around = [j - (j > 2) for j in model.neighbours(2)]
+    assert all(b in kept.neighbours(a) for a in around for b in around if a != b)
+
+
+def test_show_draws_a_refused_element_marked(tmp_path, capsys):
+    mesh = tmp_path / "bracket.stl"
+    l_bracket().export(mesh)
+    out = tmp_path / "bracket.model.json"
+    assert run_cli(capsys, "characterize", mesh, "--out", out)[0] == 0
+    data = json.loads(out.read_text())
+    data["elements"][1]["inward_normal"] = [-x for x in data["elements"][1]["inward_normal"]]
+    out.write_text(json.dumps(data))
+    code, _, err = run_cli(capsys, "eligibility", out, "--elements", "0,1,2,3", "--type", "pcwf")
+    assert code == 2 and "elements[1].inward_normal: points out of" in err
+    code, stdout, err = run_cli(capsys, "show", out, "--out", tmp_path / "b.png", "--json")
+    assert code == 0, err
+    assert json.loads(stdout)["marked"] == [1]
+    assert err.startswith(f"warning: {out}: 1 element(s)") and err.rstrip().endswith(": 1")
+
+
+PYBULLET_MESHES = ["duck.obj", "duck_vhacd.obj", "lego/lego.obj"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", PYBULLET_MESHES)
+def test_pybullet_meshes_characterize_into_models_the_commands_accept(name, tmp_path, capsys):
+    """duck, duck_vhacd and lego: small facets whose corner faces face the other way were
+    written, then refused by every model command."""
+    data = pytest.importorskip("pybullet_data")
+    mesh = Path(data.getDataPath()) / name
+    out = tmp_path / "m.model.json"
+    code, stdout, err = run_cli(
+        capsys, "characterize", mesh, "--out", out, "--merge-bodies", "--json"
+    )
+    assert code == 0, err
+    model = load_model(out)
+    from closure_nlp.model_mesh import check_normals, read_model_mesh
+
+    check_normals(model, read_model_mesh(model))
+    code, _, err = run_cli(capsys, "eligibility", out, "--elements", "0,1,2,3", "--type", "pcwf")
+    assert code == 0, err
+    assert all(line.startswith("warning: ") for line in err.splitlines())
