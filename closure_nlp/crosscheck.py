@@ -29,6 +29,7 @@ import numpy as np
 
 from .contacts import ContactType
 from .errors import MethodError
+from .solver_cache import PerThread
 from .tolerances import DEFAULT_TOLERANCES, Tolerances
 from .wrenches import WrenchSlots, as_slots
 
@@ -139,7 +140,8 @@ class ForceClosureProblem:
         return float(self.t.value), status
 
 
-_FC_PROBLEMS: dict[tuple, ForceClosureProblem] = {}
+# A cvxpy problem holds its parameters' values: one thread's at a time.
+_FC_PROBLEMS: PerThread[dict] = PerThread(dict)
 
 
 def force_closure_check(slots_or_contact_set) -> ForceClosureCheck:
@@ -164,9 +166,10 @@ def force_closure_check(slots_or_contact_set) -> ForceClosureCheck:
         return ForceClosureCheck(
             False, 0.0, rank, "rank_deficient", time.perf_counter() - start_time
         )
-    if layout not in _FC_PROBLEMS:
-        _FC_PROBLEMS[layout] = ForceClosureProblem(layout)
-    margin, status = _FC_PROBLEMS[layout].solve(G)
+    problems = _FC_PROBLEMS.get()
+    if layout not in problems:
+        problems[layout] = ForceClosureProblem(layout)
+    margin, status = problems[layout].solve(G)
     margin = max(0.0, margin)
     return ForceClosureCheck(
         margin > MARGIN_TOL, margin, rank, status, time.perf_counter() - start_time
@@ -278,7 +281,7 @@ class BallMinProblem:
         return float(self.problem.value), np.asarray(self.u.value, dtype=float), status
 
 
-_BALL_PROBLEMS: dict[tuple, BallMinProblem] = {}
+_BALL_PROBLEMS: PerThread[dict] = PerThread(dict)
 
 
 def ball_minimum(slots_or_contact_set, tolerances: Tolerances = DEFAULT_TOLERANCES) -> BallMinimum:
@@ -302,9 +305,10 @@ def ball_minimum(slots_or_contact_set, tolerances: Tolerances = DEFAULT_TOLERANC
     start_time = time.perf_counter()
     slots = as_slots(slots_or_contact_set)
     key = (slots.n_pieces, slots.rows_per_slot)
-    if key not in _BALL_PROBLEMS:
-        _BALL_PROBLEMS[key] = BallMinProblem(*key)
-    value, u, status = _BALL_PROBLEMS[key].solve(slots)
+    problems = _BALL_PROBLEMS.get()
+    if key not in problems:
+        problems[key] = BallMinProblem(*key)
+    value, u, status = problems[key].solve(slots)
     if u is None:
         raise MethodError(f"distance SOCP: solver {SOLVER} failed with status {status}")
     norm = float(np.linalg.norm(u))

@@ -8,6 +8,7 @@ contacts in several sizes (initial contacts small, final ones large) with :func:
 from __future__ import annotations
 
 import io
+import threading
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -28,8 +29,13 @@ PICTURE_SUFFIXES = {".png", ".pdf", ".svg", ".jpg", ".jpeg"}
 SCENE_SUFFIXES = {".glb", ".html"}
 
 
+# pyplot keeps its figures in one global registry: figures are drawn by one thread at a time.
+PLOT_LOCK = threading.RLock()
+
+
 def pyplot():
-    """matplotlib.pyplot on the headless Agg backend."""
+    """matplotlib.pyplot on the headless Agg backend (draw while holding :data:`PLOT_LOCK`
+    when other threads may draw too)."""
     import matplotlib
 
     matplotlib.use("Agg")

@@ -11,6 +11,7 @@ bucket sizes, so a whole selection run needs only a handful of NLP shapes, each 
 
 from __future__ import annotations
 
+from collections import Counter
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,6 +27,7 @@ from .quality import (
     certified_search,
     signed_distance,
 )
+from .solver_cache import PerThread
 from .validation import as_torque_scale
 from .wrenches import WrenchSlots, padded_rows
 
@@ -105,9 +107,15 @@ class Eligibility:
         self.specs = specs
         self.torque_scale = as_torque_scale(torque_scale)
         self.minimizer = minimizer or SupportMinimizer()
-        self.evaluations = 0
+        self._counts: PerThread[Counter] = PerThread(Counter)
         self._vertex_G = [e.grasp_matrices(self.torque_scale) for e in model.elements]
         self._all: dict[ContactSpec, WrenchSlots] = {}
+
+    @property
+    def evaluations(self) -> int:
+        """Element sets evaluated so far by the calling thread (a selection counts its own
+        evaluations by it, also while other threads use this eligibility)."""
+        return self._counts.get()["evaluations"]
 
     @property
     def m(self) -> int:
@@ -150,7 +158,7 @@ class Eligibility:
             raise TypeError(f"certify: expected a bool, got {type(certify).__name__}")
         elements = self.check_elements(elements, partial=partial)
         slots = self.slots(elements)
-        self.evaluations += 1
+        self._counts.get()["evaluations"] += 1
         if certify:
             return self._result(elements, certified_search(self.minimizer, slots, warm_start))
         found = self.minimizer(slots, warm_start)

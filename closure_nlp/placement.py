@@ -31,7 +31,7 @@ from .interrupts import interruptible
 from .progress import Progress
 from .quality import SearchOptions, certificate_keys, rho, search_rho
 from .selection import SCREEN_SEARCH
-from .solver_cache import cached
+from .solver_cache import PerThread, cached
 from .sphere_search import sphere_samples
 from .wrenches import WrenchSlots, pad_rows
 
@@ -485,19 +485,27 @@ class Placer:
     ``problems`` (optional) is a cache of exchange NLPs to share between placers: they depend
     on the shape only (vertex rows per contact, working-set size, IPOPT tolerance and subset
     margin); the model, mu, f_max and torque scale are parameters, so a study worker builds
-    them once for all of its tasks.
+    them once for all of its tasks. It keeps one dict of NLPs per thread, as the placer does
+    without it: a placer may be called from several threads at once.
     """
 
     def __init__(
         self,
         eligibility: Eligibility,
         options: PlacementOptions = PlacementOptions(),
-        problems: dict | None = None,
+        problems: PerThread[dict] | None = None,
     ):
         require_closure_count(eligibility.specs)
+        if not (problems is None or isinstance(problems, PerThread)):
+            raise TypeError(f"problems: expected a PerThread cache, got {type(problems).__name__}")
         self.eligibility = eligibility
         self.options = options
-        self._problems: dict[tuple, ExchangeProblem] = {} if problems is None else problems
+        self._caches: PerThread[dict] = PerThread(dict) if problems is None else problems
+
+    @property
+    def _problems(self) -> dict[tuple, ExchangeProblem]:
+        """This thread's exchange NLPs by shape."""
+        return self._caches.get()
 
     def _problem(self, rows, count) -> ExchangeProblem:
         capacity = next((b for b in DIRECTION_BUCKETS if count <= b), count)

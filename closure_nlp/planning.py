@@ -16,6 +16,7 @@ import os
 import platform
 import sys
 import tempfile
+import threading
 import time
 from dataclasses import dataclass
 from functools import lru_cache
@@ -266,9 +267,17 @@ def _pool(pool, run: SelectionResult, eligibility: Eligibility) -> list:
     return sorted(pool, key=lambda item: item[1])
 
 
-@lru_cache(maxsize=1)
+_VERSIONS_LOCK = threading.Lock()  # the IPOPT banner is caught by redirecting file descriptor 1
+
+
 def versions() -> dict:
     """Versions of Python, this package, numpy, casadi and the IPOPT that casadi bundles."""
+    with _VERSIONS_LOCK:
+        return dict(_versions())
+
+
+@lru_cache(maxsize=1)
+def _versions() -> dict:
     import casadi
 
     from . import __version__
@@ -373,7 +382,7 @@ def write_report(model, result: PlanResult, out_dir, options: dict) -> dict:
     """Write ``report.json``, ``contacts.json`` (a contact-set file of the placed contacts),
     ``placement.png``, ``history.png`` and ``summary.md`` in ``out_dir``; returns their paths
     by name."""
-    from .drawing import draw_contacts, draw_model, model_extent, pyplot, save_figure
+    from .drawing import PLOT_LOCK
 
     out = Path(out_dir)
     paths = {}
@@ -386,6 +395,19 @@ def write_report(model, result: PlanResult, out_dir, options: dict) -> dict:
         "versions": versions(),
     }
     json.dumps(report, allow_nan=False)  # refuse NaN before anything is written
+    with PLOT_LOCK:
+        paths.update(_figures(model, result, out))
+    paths["summary.md"] = write_atomic(out / "summary.md", summary_markdown(model, result, options))
+    paths["contacts.json"] = write_json(out / "contacts.json", contacts)
+    paths["report.json"] = write_json(out / "report.json", report)
+    return {name: str(p) for name, p in paths.items()}
+
+
+def _figures(model, result: PlanResult, out: Path) -> dict:
+    """``placement.png`` (the paper's Fig. 1) and ``history.png`` (its Fig. 3)."""
+    from .drawing import draw_contacts, draw_model, model_extent, pyplot, save_figure
+
+    paths = {}
     plt = pyplot()
     # Fig. 1: initial contacts (element centroids) small, final ones large, on chosen elements.
     start = [
@@ -422,10 +444,7 @@ def write_report(model, result: PlanResult, out_dir, options: dict) -> dict:
     fig.tight_layout()
     paths["history.png"] = save_figure(fig, out / "history.png")
     plt.close(fig)
-    paths["summary.md"] = write_atomic(out / "summary.md", summary_markdown(model, result, options))
-    paths["contacts.json"] = write_json(out / "contacts.json", contacts)
-    paths["report.json"] = write_json(out / "report.json", report)
-    return {name: str(p) for name, p in paths.items()}
+    return paths
 
 
 __all__ = [

@@ -27,7 +27,7 @@ import numpy as np
 
 from .contacts import ContactSet
 from .interrupts import interruptible
-from .solver_cache import cached
+from .solver_cache import PerThread, cached
 from .sphere_search import descend, smoothed_descent, sphere_samples
 from .tolerances import DEFAULT_TOLERANCES, Tolerances
 from .validation import as_unit_vector
@@ -383,12 +383,18 @@ class SupportMinimizer:
         self.search = search
         self.seed_search = seed_search
         self.ipopt_options = dict(ipopt_options or {})
-        self._problems: dict[tuple, SupportMinProblem] = {}  # most recently used last
+        # Each thread its own NLPs (solver_cache.py: one solver in two threads crashes IPOPT).
+        self._caches: PerThread[dict] = PerThread(dict)
+
+    @property
+    def _problems(self) -> dict[tuple, SupportMinProblem]:
+        """This thread's NLPs by shape, most recently used last."""
+        return self._caches.get()
 
     def with_search(self, search: SearchOptions) -> SupportMinimizer:
         """The same NLPs (the cache is shared) with another start strategy."""
         other = SupportMinimizer(self.tolerances, search, self.ipopt_options, self.seed_search)
-        other._problems = self._problems
+        other._caches = self._caches
         return other
 
     def seeding(self) -> SupportMinimizer:

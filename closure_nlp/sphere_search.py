@@ -22,8 +22,9 @@ def sphere_samples(n: int, seed: int = 0) -> np.ndarray:
         rng = np.random.default_rng(seed)
         U = rng.standard_normal((n, 6))
         U /= np.linalg.norm(U, axis=1, keepdims=True)
-        _SAMPLES[key] = np.vstack([np.eye(6), -np.eye(6), U])
-        _SAMPLES[key].flags.writeable = False
+        samples = np.vstack([np.eye(6), -np.eye(6), U])
+        samples.flags.writeable = False  # read-only before any thread can see it
+        _SAMPLES.setdefault(key, samples)
     return _SAMPLES[key]
 
 

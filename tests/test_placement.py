@@ -368,13 +368,15 @@ def test_exchange_nlp_cache_keeps_the_most_recent_shapes(monkeypatch):
     """Shapes beyond MAX_EXCHANGE_PROBLEMS evict the least recently used one (a study worker's
     memory); a placement gives the same answer with a cache of one."""
     from closure_nlp import placement
+    from closure_nlp.solver_cache import PerThread
 
     model = _strip_model()
     eligibility = Eligibility(model, contact_specs(4, type="pcwf", mu=0.5), torque_scale=0.5)
     reference_run = Placer(eligibility, PlacementOptions(starts=2))([0, 2, 3, 4])
     monkeypatch.setattr(placement, "MAX_EXCHANGE_PROBLEMS", 2)
-    shared = {}
-    placer = Placer(eligibility, PlacementOptions(starts=2), shared)
+    caches = PerThread(dict)
+    placer = Placer(eligibility, PlacementOptions(starts=2), caches)
+    shared = caches.get()
     a = placer._problem((1, 1, 1, 1), 10)
     b = placer._problem((1, 1, 1, 1), 20)
     assert placer._problem((1, 1, 1, 1), 12) is a  # same bucket: reused, now the most recent
@@ -383,6 +385,6 @@ def test_exchange_nlp_cache_keeps_the_most_recent_shapes(monkeypatch):
     assert placer._problem((1, 1, 1, 1), 20) is not b  # rebuilt
     assert len(shared) == 2
     monkeypatch.setattr(placement, "MAX_EXCHANGE_PROBLEMS", 1)
-    again = Placer(eligibility, PlacementOptions(starts=2), {})([0, 2, 3, 4])
+    again = Placer(eligibility, PlacementOptions(starts=2), PerThread(dict))([0, 2, 3, 4])
     assert again.rho == reference_run.rho
     assert [c.element for c in again.contacts] == [c.element for c in reference_run.contacts]

@@ -26,6 +26,7 @@ from ..placement import PlacementOptions, Placer
 from ..planning import plan
 from ..quality import SupportMinimizer
 from ..selection import SelectionOptions
+from ..solver_cache import PerThread
 from .store import ROW_COLUMNS
 
 TASK_VERSION = 2  # part of every task_id: bump when a task's meaning changes (2: alternatives)
@@ -137,7 +138,7 @@ def _solvers(task: Task, model_text: str | None) -> tuple[Eligibility, Placer, d
     _local.model = task.model_digest
     if not hasattr(_local, "cache"):
         _local.cache, _local.minimizer = OrderedDict(), SupportMinimizer()
-        _local.problems = {}  # exchange NLPs by shape, shared by every placer of the thread
+        _local.problems = PerThread(dict)  # exchange NLPs, shared by the thread's placers
     cache = _local.cache
     key = (task.model_digest, task.type, task.contacts, task.mu, task.mu_s, task.f_max)
     key += (task.torque_scale,)

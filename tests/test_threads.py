@@ -1,0 +1,84 @@
+"""rho, Eligibility and plan called from four threads at once give, bit for bit, the answers of
+the same calls made one after another (every solver they share keeps one NLP per thread)."""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import pytest
+
+from closure_nlp.contacts import contact_specs
+from closure_nlp.eligibility import Eligibility
+from closure_nlp.placement import PlacementOptions
+from closure_nlp.planning import plan
+from closure_nlp.quality import rho
+from closure_nlp.random_sets import random_contact_set
+from closure_nlp.selection import SelectionOptions
+from tests.shapes import box_model, random_model
+
+QUICK = PlacementOptions(starts=1, extra_starts=0, neighbour_moves=0, max_rounds=5)
+
+
+def without_time(value):
+    """A result's dict with every timing removed (the one part that differs between runs)."""
+    if isinstance(value, dict):
+        return {k: without_time(v) for k, v in value.items() if k not in ("seconds", "timing")}
+    if isinstance(value, (list, tuple)):
+        return [without_time(v) for v in value]
+    return value
+
+
+def jobs(with_plan: bool):
+    """Four lists of calls, each thread's: rho of contact sets (one default minimizer for all),
+    rho_hat of element sets (one Eligibility for all) and, with ``with_plan``, a plan."""
+    contact_sets = [
+        random_contact_set(np.random.default_rng(seed), types)
+        for seed in range(4)
+        for types in (["pcwf"] * 4, ["sfce"] * 3, ["fpc"] * 7, ["fpc", "pcwf", "sfcl", "sfce"])
+    ]
+    model = random_model(np.random.default_rng(5), ["facet"] * 4 + ["segment"] * 2 + ["point"])
+    shared = Eligibility(model, contact_specs(3, type="pcwf", mu=0.5))
+    sets = [(0, 1, 2), (3, 4, 5), (0, 4, 6), (1, 2, 5), (2, 3, 6), (0, 5, 6), (1, 3, 4), (2, 4, 5)]
+    box = Eligibility(box_model(10.0), contact_specs(4, type="pcwf", mu=0.4), torque_scale=0.1)
+
+    def a_plan():
+        return plan(box, seed=3, selection=SelectionOptions(), placement=QUICK)
+
+    calls = [
+        [lambda c=c: rho(c) for c in contact_sets[4 * k : 4 * k + 4]]  # the same shapes at once
+        + [lambda e=e: shared(e) for e in sets[k::4]]
+        for k in range(4)
+    ]
+    if with_plan:
+        calls[0].append(a_plan)
+    return calls
+
+
+def four_threads_against_serial(with_plan: bool) -> list:
+    serial = [[without_time(call().to_dict()) for call in calls] for calls in jobs(with_plan)]
+    work = jobs(with_plan)  # fresh objects: the threads build their own solvers from nothing
+    answers: list = [None] * len(work)
+    barrier = threading.Barrier(len(work))
+
+    def run(k):
+        barrier.wait()
+        answers[k] = [without_time(call().to_dict()) for call in work[k]]
+
+    threads = [threading.Thread(target=run, args=(k,)) for k in range(len(work))]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert answers == serial
+    return serial
+
+
+def test_rho_and_eligibility_in_four_threads_give_the_serial_answers_bit_for_bit():
+    four_threads_against_serial(with_plan=False)
+
+
+@pytest.mark.slow
+def test_a_plan_beside_three_threads_gives_the_serial_answers_bit_for_bit():
+    serial = four_threads_against_serial(with_plan=True)
+    assert serial[0][-1]["placement"]["force_closure"]  # the plan did place contacts
