@@ -185,7 +185,9 @@ def paper_eligibility(name: str, models_dir=MODELS_DIR) -> Eligibility:
     """The model and contacts of one of the paper's three examples."""
     setup = PAPER_EXAMPLES[name]
     model = load_model(Path(models_dir) / f"{name}.model.json")
-    return Eligibility(model, contact_specs(setup["m"], type=setup["type"], mu=0.2, mu_s=0.2))
+    return Eligibility(
+        model, contact_specs(setup["m"], type=setup["type"], mu=0.2, mu_s=0.2), torque_scale=1.0
+    )
 
 
 def bench_rho_hat(cases: int = 20, repeats: int = 3, seed: int = 0, models_dir=MODELS_DIR):

@@ -143,13 +143,32 @@ class ContactSpec:
 
 
 def contact_specs(
-    count: int, *, type=ContactType.PCWF, mu=DEFAULT_MU, mu_s=DEFAULT_MU_S, f_max=DEFAULT_F_MAX
+    count: int,
+    *,
+    type=ContactType.PCWF,
+    mu=DEFAULT_MU,
+    mu_s="auto",
+    f_max=DEFAULT_F_MAX,
+    model=None,
 ) -> tuple[ContactSpec, ...]:
     """``count`` specs; each parameter is one value for all or a sequence of ``count`` values.
 
     ``count`` is at most ``MAX_ELEMENT_CONTACTS``: these specs are for element sets.
+
+    Parameters
+    ----------
+    mu_s : float, sequence of float or "auto"
+        ``"auto"`` (the default): with ``model``, the command line's default for that model
+        (:func:`closure_nlp.scale.default_mu_s`, 0.01 x the part's radius); without a model,
+        ``DEFAULT_MU_S`` as in contact-set files. Numbers are kept as given.
+    model : Model, optional
+        The part the specs are for; it only resolves ``mu_s="auto"``.
     """
+    from .scale import default_mu_s, is_auto  # scale imports elements, which imports us
+
     count = as_count(count, "contacts", MAX_ELEMENT_CONTACTS, "contacts of an element set")
+    if isinstance(mu_s, str) and is_auto(mu_s):
+        mu_s = DEFAULT_MU_S if model is None else default_mu_s(model)
     columns = {}
     for key, value in (("type", type), ("mu", mu), ("mu_s", mu_s), ("f_max", f_max)):
         if isinstance(value, (list, tuple, np.ndarray)):

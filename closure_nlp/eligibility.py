@@ -27,6 +27,7 @@ from .quality import (
     certified_search,
     signed_distance,
 )
+from .scale import AUTO, auto_torque_scale
 from .solver_cache import PerThread
 from .validation import as_torque_scale
 from .wrenches import WrenchSlots, padded_rows
@@ -82,8 +83,12 @@ class Eligibility:
     ----------
     model : Model
     specs : sequence of ContactSpec
-        One per contact; ``len(specs)`` is the number of contacts m.
-    torque_scale : float
+        One per contact; ``len(specs)`` is the number of contacts m
+        (``contact_specs(m, ..., model=model)`` gives soft fingers the command line's ``mu_s``).
+    torque_scale : float or "auto"
+        Factor on every torque row. ``"auto"`` (the default, as on the command line):
+        ``1 / R``, R the part's radius about its reference point
+        (:func:`closure_nlp.scale.auto_torque_scale`), so rho does not depend on the model's unit.
     minimizer : SupportMinimizer, optional
         Holds the cached NLPs (one per shape) and the search options.
     """
@@ -92,7 +97,7 @@ class Eligibility:
         self,
         model: Model,
         specs,
-        torque_scale: float = 1.0,
+        torque_scale: float | str = AUTO,
         minimizer: SupportMinimizer | None = None,
     ):
         if not isinstance(model, Model):
@@ -105,7 +110,8 @@ class Eligibility:
                 raise TypeError(f"specs[{i}]: expected a ContactSpec, got {type(s).__name__}")
         self.model = model
         self.specs = specs
-        self.torque_scale = as_torque_scale(torque_scale)
+        auto = isinstance(torque_scale, str) and torque_scale == AUTO
+        self.torque_scale = auto_torque_scale(model) if auto else as_torque_scale(torque_scale)
         self.minimizer = minimizer or SupportMinimizer()
         self._counts: PerThread[Counter] = PerThread(Counter)
         self._vertex_G = [e.grasp_matrices(self.torque_scale) for e in model.elements]
@@ -196,7 +202,7 @@ class Eligibility:
 
 
 def rho_hat(
-    model: Model, elements, specs, torque_scale: float = 1.0, *, minimizer=None
+    model: Model, elements, specs, torque_scale: float | str = AUTO, *, minimizer=None
 ) -> EligibilityResult:
     """rho(0, What_c^M) of one element set (eq 33); see :class:`Eligibility` for loops."""
     return Eligibility(model, specs, torque_scale, minimizer)(elements)

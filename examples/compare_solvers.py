@@ -96,7 +96,9 @@ def element_suite(small: bool, seeds: int):
     """(kind, m, seed, Eligibility, element ids): random element sets of the example models."""
     for name, kind, m in ELEMENT_CASES:
         model = load_model(ROOT / "models" / f"{name}.model.json")
-        eligibility = Eligibility(model, contact_specs(m, type=kind, mu=0.2, mu_s=0.2))
+        eligibility = Eligibility(
+            model, contact_specs(m, type=kind, mu=0.2, mu_s=0.2), torque_scale=1.0
+        )
         for seed in range(2 if small else 4 * seeds):
             rng = np.random.default_rng(seed)
             yield f"{name} {kind}", m, seed, eligibility, rng.choice(len(model), m).tolist()

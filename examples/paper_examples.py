@@ -41,7 +41,9 @@ def run(seeds: int, placement_starts: int) -> list[dict]:
     rows = []
     for label, name, kind, m, *paper in EXAMPLES:
         model = load_model(ROOT / "models" / f"{name}.model.json")
-        eligibility = Eligibility(model, contact_specs(m, type=kind, mu=0.2, mu_s=0.2))
+        eligibility = Eligibility(
+            model, contact_specs(m, type=kind, mu=0.2, mu_s=0.2), torque_scale=1.0
+        )
         for seed in range(seeds):
             result = plan(
                 eligibility, seed=seed, placement=PlacementOptions(starts=placement_starts)

@@ -130,7 +130,7 @@ def test_the_bound_is_reached():
 
 
 def test_api_refuses_before_any_search_and_rho_hat_still_answers():
-    eligibility = Eligibility(box_model(), contact_specs(6, type="fpc"))
+    eligibility = Eligibility(box_model(), contact_specs(6, type="fpc"), torque_scale=1.0)
     for call in (
         lambda: heuristic(eligibility, seed=0),
         lambda: iterative(eligibility, [0, 1, 2, 3, 4, 5]),

@@ -89,7 +89,9 @@ def test_rho_hat_of_model_elements_lies_within_certified_bounds(name, kind, elig
     """The cross-check methods (cvxpy SOCP, qhull inner polytope) on the union of vertex sets."""
     model = load_model(MODELS / f"{name}.model.json")
     m = 7 if kind == "fpc" else 4
-    eligibility = Eligibility(model, contact_specs(m, type=kind, mu=0.2, mu_s=0.2))
+    eligibility = Eligibility(
+        model, contact_specs(m, type=kind, mu=0.2, mu_s=0.2), torque_scale=1.0
+    )
     rng = np.random.default_rng(3)
     sets = [rng.choice(len(model), m).tolist() for _ in range(3)]
     for elements in [*([eligible_set] if eligible_set else []), *sets]:
@@ -112,7 +114,7 @@ def test_contacts_inside_elements_are_never_better(kind):
     m = 4
     specs = contact_specs(m, type=kind, mu=0.4, mu_s=0.1)
     elements = [0, 1, 2, 4]
-    bound = Eligibility(model, specs).__call__(elements).rho_hat
+    bound = Eligibility(model, specs, torque_scale=1.0).__call__(elements).rho_hat
     for _ in range(4):
         contacts = []
         for i, e in enumerate(elements):
@@ -128,7 +130,7 @@ def test_point_elements_give_the_contacts_rho():
     rng = np.random.default_rng(5)
     model = random_model(rng, ["point"] * 4)
     specs = contact_specs(4, type="sfce", mu=0.5, mu_s=0.2)
-    result = rho_hat(model, [0, 1, 2, 3], specs)
+    result = rho_hat(model, [0, 1, 2, 3], specs, torque_scale=1.0)
     contacts = [s.at(e.vertices[0], e.inward_normal) for s, e in zip(specs, model.elements)]
     assert result.rho_hat == pytest.approx(rho(ContactSet(tuple(contacts))).rho, abs=1e-7)
 
@@ -136,7 +138,7 @@ def test_point_elements_give_the_contacts_rho():
 def test_box_faces_analytic():
     """4 PCwF on the 4 side faces of a cube; on one face only the set lies above the origin."""
     model = box_model(1.0)
-    eligibility = Eligibility(model, contact_specs(4, type="pcwf", mu=0.5))
+    eligibility = Eligibility(model, contact_specs(4, type="pcwf", mu=0.5), torque_scale=1.0)
     side = eligibility([0, 1, 2, 3])
     assert side.eligible and side.rho_hat < 0
     one_face = eligibility([4, 4, 4, 4])
@@ -150,7 +152,7 @@ def test_box_faces_analytic():
 def test_padding_keeps_support_values():
     rng = np.random.default_rng(3)
     model = random_model(rng, ["facet"] * 6)
-    eligibility = Eligibility(model, contact_specs(3, type="sfcl"))
+    eligibility = Eligibility(model, contact_specs(3, type="sfcl"), torque_scale=1.0)
     elements = [0, 2, 5]
     padded = eligibility.slots(elements)
     # the slots hold the vertex rows as they are; the NLP pads them to bucket sizes, sorted by
@@ -172,7 +174,7 @@ def test_padding_keeps_support_values():
 
 def test_bad_element_lists():
     model = box_model()
-    eligibility = Eligibility(model, contact_specs(2))
+    eligibility = Eligibility(model, contact_specs(2), torque_scale=1.0)
     with pytest.raises(ValueError, match=r"elements: expected 2 element ids"):
         eligibility([0, 1, 2])
     with pytest.raises(ValueError, match=r"elements\[1\]: element id 6 out of range"):
@@ -180,8 +182,35 @@ def test_bad_element_lists():
     with pytest.raises(TypeError, match=r"elements\[0\]"):
         eligibility(["a", 1])
     with pytest.raises(TypeError, match="specs"):
-        Eligibility(model, ["pcwf"])
+        Eligibility(model, ["pcwf"], torque_scale=1.0)
     with pytest.raises(ValueError, match=r"contacts\[1\]\.mu: must be >= 0"):
         contact_specs(2, mu=[0.2, -0.1])
     with pytest.raises(ValueError, match="mu: expected one value or 2 values"):
         contact_specs(2, mu=[0.2, 0.1, 0.3])
+
+
+def test_model_based_api_uses_the_command_lines_defaults(capsys):
+    """``Eligibility`` defaults to the CLI's torque scale and ``contact_specs(model=)`` to its
+    mu_s: 1 / R and 0.01 R, R the largest distance of a vertex from the reference point (computed
+    here from the file's vertices); the CLI's rho_hat of the same set is the API's."""
+    import json
+
+    from closure_nlp.cli import main
+
+    path = MODELS / "cup.model.json"
+    cup = load_model(path)
+    vertices = np.concatenate([e.vertices for e in cup.elements])
+    radius = np.max(np.linalg.norm(vertices - np.asarray(cup.reference_point), axis=1))
+    hand = Eligibility(cup, contact_specs(4, type="sfce", model=cup))
+    assert hand.torque_scale == pytest.approx(1 / radius, rel=1e-12)
+    assert [s.mu_s for s in hand.specs] == pytest.approx([0.01 * radius] * 4, rel=1e-12)
+    # without a model, and with explicit values, the values given are kept
+    assert {s.mu_s for s in contact_specs(2, type="sfce")} == {0.2}
+    assert {s.mu_s for s in contact_specs(2, type="sfce", mu_s=0.05, model=cup)} == {0.05}
+    assert Eligibility(cup, hand.specs, torque_scale=1.0).torque_scale == 1.0
+    api = hand([24, 31, 20, 3])
+    argv = ["eligibility", str(path), "--elements", "24,31,20,3", "--type", "sfce", "--json"]
+    assert main(argv) == 0
+    cli = json.loads(capsys.readouterr().out)
+    assert cli["torque_scale"] == hand.torque_scale and cli["mu_s"] == hand.specs[0].mu_s
+    assert cli["rho_hat"] == pytest.approx(api.rho_hat, rel=1e-9)

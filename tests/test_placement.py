@@ -40,7 +40,9 @@ def _check_on_elements(eligibility, result):
 
 
 def test_box_placement_beats_centroids_and_is_consistent():
-    eligibility = Eligibility(box_model(1.0), contact_specs(4, type="pcwf", mu=0.5))
+    eligibility = Eligibility(
+        box_model(1.0), contact_specs(4, type="pcwf", mu=0.5), torque_scale=1.0
+    )
     placer = Placer(eligibility, PlacementOptions(neighbour_moves=0))
     elements = [0, 1, 2, 3]
     result = placer(elements)
@@ -63,7 +65,9 @@ def test_box_placement_beats_centroids_and_is_consistent():
 
 
 def test_given_weights_start_and_bad_weights():
-    eligibility = Eligibility(box_model(), contact_specs(4, type="sfce", mu=0.4, mu_s=0.1))
+    eligibility = Eligibility(
+        box_model(), contact_specs(4, type="sfce", mu=0.4, mu_s=0.1), torque_scale=1.0
+    )
     placer = Placer(eligibility, PlacementOptions(starts=1, neighbour_moves=0))
     start = [np.array([0.7, 0.1, 0.1, 0.1])] * 4
     result = placer([0, 1, 2, 3], weights=start)
@@ -137,7 +141,7 @@ def test_frictionless_exchange_matches_the_general_form(monkeypatch):
     friction pieces under the square root) the placement is the same."""
     from closure_nlp import placement
 
-    eligibility = Eligibility(box_model(1.0), contact_specs(7, type="fpc"))
+    eligibility = Eligibility(box_model(1.0), contact_specs(7, type="fpc"), torque_scale=1.0)
     options = PlacementOptions(starts=1, extra_starts=0, neighbour_moves=0)
     elements = [0, 1, 2, 3, 4, 5, 0]
     linear = Placer(eligibility, options)
@@ -154,7 +158,9 @@ def test_element_frame_is_exact_on_every_kind_of_element():
     """The exchange NLP's affine ``d(xi)`` equals the weights' ``sum_j c_j G_j^T u`` at random
     convex combinations: on a 24-vertex pistol facet, a triangle, a segment and a point."""
     rng = np.random.default_rng(5)
-    pistol = Eligibility(load_model(MODELS / "pistol.model.json"), contact_specs(7, type="pcwf"))
+    pistol = Eligibility(
+        load_model(MODELS / "pistol.model.json"), contact_specs(7, type="pcwf"), torque_scale=1.0
+    )
     facets = [pistol.model.elements[e] for e in (6, 1)]
     line = Element("segment", np.array([[0.0, 0, 0], [3, 1, 0]]), np.array([0.0, 0, 1]))
     point = Element("point", np.array([[1.0, 2, 3]]), np.array([0.0, 1, 0]))
@@ -180,7 +186,9 @@ def test_affine_position_form_matches_the_weights_form(monkeypatch):
     from closure_nlp import placement
 
     eligibility = Eligibility(
-        load_model(MODELS / "pistol.model.json"), contact_specs(7, type="pcwf", mu=0.3)
+        load_model(MODELS / "pistol.model.json"),
+        contact_specs(7, type="pcwf", mu=0.3),
+        torque_scale=1.0,
     )
     elements = [6, 5, 1, 3, 0, 5, 2]  # facets of 24, 18 and 4 vertices
     model, rng = eligibility.model, np.random.default_rng(2)
@@ -209,7 +217,9 @@ def test_screened_rounds_are_not_certified(monkeypatch):
     calls = []
     certified = quality.certified_rho  # the start's rho and the final one both go through it
     monkeypatch.setattr(quality, "certified_rho", lambda *args: calls.append(1) or certified(*args))
-    eligibility = Eligibility(box_model(1.0), contact_specs(4, type="pcwf", mu=0.5))
+    eligibility = Eligibility(
+        box_model(1.0), contact_specs(4, type="pcwf", mu=0.5), torque_scale=1.0
+    )
     options = PlacementOptions(starts=1, extra_starts=0, neighbour_moves=0, screen=True)
     result = Placer(eligibility, options)([0, 1, 2, 3])
     assert result.force_closure and result.rounds > 2
@@ -262,7 +272,9 @@ def test_example_models_end_in_force_closure(name, kind, m):
     from closure_nlp.planning import plan
 
     model = load_model(MODELS / f"{name}.model.json")
-    eligibility = Eligibility(model, contact_specs(m, type=kind, mu=0.2, mu_s=0.2))
+    eligibility = Eligibility(
+        model, contact_specs(m, type=kind, mu=0.2, mu_s=0.2), torque_scale=1.0
+    )
     result = plan(eligibility, seed=0, placement=PlacementOptions(starts=2))
     placed = result.placement
     _check_on_elements(eligibility, placed)
@@ -349,7 +361,9 @@ def test_an_exchange_run_ends_on_a_value_the_default_search_confirms(monkeypatch
         samples=0, descent_iterations=0, smoothing=(), ipopt_starts=1
     )
     monkeypatch.setattr(placement, "ROUND_SEARCH", crippled)
-    eligibility = Eligibility(load_model(MODELS / "lamp.model.json"), contact_specs(4, mu=0.2))
+    eligibility = Eligibility(
+        load_model(MODELS / "lamp.model.json"), contact_specs(4, mu=0.2), torque_scale=1.0
+    )
     placer = Placer(eligibility, PlacementOptions(validate=validate))
     elements = [14, 10, 55, 47]
     counts = [len(eligibility.model.elements[e].vertices) for e in elements]

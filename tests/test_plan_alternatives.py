@@ -75,7 +75,7 @@ def test_budget_and_reason_when_none_works(hand):
 
 def test_no_eligible_set_is_the_reason():
     """The heuristic's restarts already failed: no further runs, the reason says why."""
-    hand = Eligibility(corner_model(), contact_specs(7, type="fpc"))
+    hand = Eligibility(corner_model(), contact_specs(7, type="fpc"), torque_scale=1.0)
     result = plan(hand, seed=0, selection=SelectionOptions(restarts=3), placement=QUICK)
     assert not result.force_closure and len(result.attempts) == 1
     assert result.failure().startswith("no eligible element set found")

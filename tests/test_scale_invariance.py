@@ -102,7 +102,7 @@ def test_rho_verdict_invariant_to_torque_scale(seed, kinds, exponent):
 @example(f_exponent=0.0, t_exponent=T_HIGH, ids=(0, 1, 2, 3)).via("the ends of the accepted range")
 def test_eligibility_verdict_invariant_to_f_max_and_torque_scale(f_exponent, t_exponent, ids):
     model = box_model()
-    reference = Eligibility(model, contact_specs(4, mu=0.5))(list(ids))
+    reference = Eligibility(model, contact_specs(4, mu=0.5), torque_scale=1.0)(list(ids))
     scaled = Eligibility(model, contact_specs(4, mu=0.5, f_max=10.0**f_exponent),
                          torque_scale=10.0**t_exponent)(list(ids))
     assert np.isfinite(scaled.rho_hat)

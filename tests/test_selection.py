@@ -35,7 +35,7 @@ def _ring_model(count: int = 12) -> Model:
 @pytest.fixture(scope="module")
 def ring():
     model = _ring_model()
-    return Eligibility(model, contact_specs(3, type="pcwf", mu=0.3))
+    return Eligibility(model, contact_specs(3, type="pcwf", mu=0.3), torque_scale=1.0)
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
@@ -52,7 +52,9 @@ def test_heuristic_certifies_each_complete_set_once_and_steers_partial_ones(monk
     certificate) instead of a full search followed by a certificate: each such set is
     evaluated once, certified, and the verdict that ends the rounds is the certified one.
     Partial sets (not yet m elements) are searched alone, without a certificate."""
-    eligibility = Eligibility(_ring_model(), contact_specs(3, type="pcwf", mu=0.3))
+    eligibility = Eligibility(
+        _ring_model(), contact_specs(3, type="pcwf", mu=0.3), torque_scale=1.0
+    )
     calls, original = [], Eligibility.__call__
 
     def spy(self, elements, *args, **kwargs):
@@ -135,7 +137,7 @@ def test_run_selection_chains_heuristic_then_iterative(ring):
 def test_heuristic_restarts_and_reports_failure():
     """No contacts on three facets around a corner are eligible: every round fails, the best
     set comes back not eligible."""
-    eligibility = Eligibility(corner_model(), contact_specs(7, type="fpc"))
+    eligibility = Eligibility(corner_model(), contact_specs(7, type="fpc"), torque_scale=1.0)
     result = heuristic(eligibility, seed=0, options=SelectionOptions(restarts=3))
     assert not result.eligible and result.rounds == 3
     assert result.rho_hat >= 0
