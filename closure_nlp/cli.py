@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import math
 import os
 import sys
 
@@ -37,6 +38,7 @@ from .progress import progress_line
 from .quality import rho
 from .scale import is_auto, scale_warnings
 from .scale import resolve as resolve_scale
+from .seeds import DEFAULT_BUDGET, DEFAULT_SEEDS, MAX_PLAN_SEEDS
 from .selection import run_selection
 from .validation import MAX_ELEMENT_CONTACTS, MAX_SEED, as_count, as_torque_scale
 
@@ -170,6 +172,17 @@ def _bounded_int(low: int, high: int, what: str):
 
 
 _seed = _bounded_int(0, MAX_SEED, "a seed")
+
+
+def _budget(text: str) -> float:
+    """argparse type: a positive, finite number of seconds."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number of seconds, got {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text}")
+    return value
 _starts = _bounded_int(1, MAX_STARTS, "the number of start weights")
 
 
@@ -412,7 +425,29 @@ def _add_plan(sub, common) -> None:
     p = sub.add_parser("plan", parents=[common], help="heuristic, iterative and placement")
     p.add_argument("model", metavar="MODEL", help="*.model.json")
     p.add_argument("--contacts", type=int, required=True, metavar="M", help="number of contacts")
-    p.add_argument("--seed", type=_seed, default=0, help="random start of the heuristic")
+    p.add_argument(
+        "--seed", type=_seed, default=0, help="random start of the heuristic (the first seed)"
+    )
+    p.add_argument(
+        "--seeds",
+        type=_bounded_int(1, MAX_PLAN_SEEDS, "the number of seeds"),
+        default=DEFAULT_SEEDS,
+        metavar="N",
+        help=f"plans from seeds S..S+N-1, the best returned (default {DEFAULT_SEEDS})",
+    )
+    p.add_argument(
+        "--budget",
+        type=_budget,
+        default=DEFAULT_BUDGET,
+        metavar="SECONDS",
+        help=f"no further seed starts after this (default {DEFAULT_BUDGET:g})",
+    )
+    p.add_argument(
+        "--workers",
+        type=_bounded_int(1, MAX_WORKERS, "the number of worker processes"),
+        metavar="K",
+        help="processes the seeds run on (default: one per core)",
+    )
     p.add_argument("--starts", type=_starts, default=4, help="placement start weights (default 4)")
     p.add_argument(
         "--alternatives",
@@ -438,12 +473,19 @@ def _cmd_plan(args) -> None:
             check_output_dir(args.out)
     progress, close = _progress(args, placement_options.starts)
     try:
+        if args.seed + args.seeds - 1 > MAX_SEED:
+            raise InputError(
+                "--seeds", f"seeds {args.seed}..{args.seed + args.seeds - 1} pass {MAX_SEED}"
+            )
+        several = {} if args.seeds == 1 else {"seeds": args.seeds, "workers": args.workers}
         result = plan(
             eligibility,
             seed=args.seed,
             placement=placement_options,
             progress=progress,
             alternatives=_alternatives_flag(args.alternatives),
+            **several,
+            **({"budget": args.budget} if several else {}),
         )
     finally:
         close()
@@ -453,6 +495,8 @@ def _cmd_plan(args) -> None:
         options = {
             "contacts": args.contacts,
             "seed": args.seed,
+            "seeds": args.seeds,
+            "budget": args.budget,
             "type": args.type,
             "mu": args.mu,
             "f_max": args.f_max,
@@ -473,7 +517,9 @@ def _cmd_plan(args) -> None:
             f"{' (force closure)' if a.force_closure else ''} ({a.seconds:.2f} s)\n"
             for a in result.attempts[1:]
         )
-        + f"{_placement_text(result.placement)}\ntotal {result.seconds:.2f} s"
+        + f"{_placement_text(result.placement)}\n"
+        + ("" if result.seeds is None else result.seeds.line() + "\n")
+        + f"total {result.seconds:.2f} s"
         + (f"; report in {args.out}" if args.out else "")
     )
     _emit(args, payload, text)

@@ -21,6 +21,7 @@ import time
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -38,6 +39,9 @@ from .selection import (
     light_rho_hat,
 )
 from .solver_cache import cached
+
+if TYPE_CHECKING:
+    from .seeds import SeedSpread
 
 
 @dataclass(frozen=True)
@@ -68,7 +72,8 @@ class PlanResult:
 
     ``heuristic`` and ``iterative`` are the first selection; ``placement`` is the best placement
     over every element set tried (the first that reached force closure), and ``attempts`` lists
-    those sets in the order tried.
+    those sets in the order tried. A plan of several seeds is the chosen seed's, and ``seeds``
+    holds every seed's plan and their spread (:class:`~closure_nlp.seeds.SeedSpread`).
     """
 
     heuristic: SelectionResult
@@ -77,6 +82,7 @@ class PlanResult:
     seconds: float
     attempts: tuple[Attempt, ...] = ()
     reused: tuple[str, ...] = ()
+    seeds: SeedSpread | None = None
 
     @property
     def force_closure(self) -> bool:
@@ -106,6 +112,7 @@ class PlanResult:
             "attempts": [a.to_dict() for a in self.attempts],
             "seconds": self.seconds,
             "reused": list(self.reused),
+            **({} if self.seeds is None else {"seeds": self.seeds.to_dict()}),
         }
 
 
@@ -120,8 +127,16 @@ def plan(
     placer: Placer | None = None,
     alternatives: int = 4,
     memo: dict | None = None,
+    seeds: int | None = None,
+    workers: int | None = None,
+    budget: float | None = None,
 ) -> PlanResult:
     """Heuristic from ``seed`` (or ``start``), iterative from its result, then placement.
+
+    With ``seeds`` = N, the plans of seeds ``seed, ..., seed + N - 1``, over ``workers``
+    processes (default: one per core), no seed started after ``budget`` seconds: the best one,
+    its ``seeds`` field every seed's result and the spread (:func:`closure_nlp.seeds.plan_seeds`;
+    the same answer for any ``workers``).
 
     When the placement on an eligible set is not force closure, up to ``alternatives`` further
     element sets are placed, until one is: the next eligible sets the iterative run met (lowest
@@ -140,6 +155,16 @@ def plan(
         raise ValueError(f"alternatives: expected an integer >= 0, got {alternatives!r}")
     if not (memo is None or isinstance(memo, dict)):
         raise TypeError(f"memo: expected a dict or None, got {type(memo).__name__}")
+    if seeds is not None:
+        from .seeds import plan_seeds
+
+        return plan_seeds(
+            eligibility, seed=seed, seeds=seeds, workers=workers, budget=budget, start=start,
+            selection=selection, placement=placement, progress=progress, placer=placer,
+            alternatives=alternatives, memo=memo,
+        )
+    if workers is not None or budget is not None:
+        raise ValueError("workers, budget: only with seeds (a plan of several seeds)")
     t0 = time.perf_counter()
     if placer is None:
         placer = Placer(eligibility, placement)
@@ -361,7 +386,31 @@ def summary_markdown(model, result: PlanResult, options: dict) -> str:
             f"- contact {mv.contact} moved from element {mv.source} to its neighbour "
             f"{mv.target}: rho {mv.rho_before:.4f} -> {mv.rho_after:.4f}"
         )
+    if result.seeds is not None:
+        rows += ["", *_seeds_markdown(result.seeds)]
     return "\n".join(rows) + "\n"
+
+
+def _seeds_markdown(spread) -> list[str]:
+    """The spread over seeds: one line, then every seed's outcome."""
+    rows = [
+        f"Best of {spread.line().removeprefix('seeds: ')}.",
+        "",
+        "| seed | rho | verdict | elements | seconds |",
+        "|---|---|---|---|---|",
+    ]
+    for i, run in enumerate(spread.runs):
+        chosen = " (chosen)" if i == spread.chosen else ""
+        if not run.ok:
+            rows.append(f"| {run.seed} | - | failed: {run.error} | - | {run.seconds:.2f} |")
+            continue
+        p = run.result.placement
+        verdict = "force closure" if p.force_closure else "marginal" if p.marginal else "not"
+        rows.append(
+            f"| {run.seed}{chosen} | {p.rho:.4f} | {verdict} | {_ids(p.elements)} "
+            f"| {run.seconds:.2f} |"
+        )
+    return rows
 
 
 def _ids(ids) -> str:
@@ -444,7 +493,45 @@ def _figures(model, result: PlanResult, out: Path) -> dict:
     fig.tight_layout()
     paths["history.png"] = save_figure(fig, out / "history.png")
     plt.close(fig)
+    if result.seeds is not None:
+        paths["seeds.png"] = _seeds_figure(result, out / "seeds.png")
     return paths
+
+
+def _seeds_figure(result: PlanResult, path: Path) -> Path:
+    """rho of every seed, the chosen one marked, force closure and marginal told apart."""
+    from .drawing import pyplot, save_figure
+
+    plt = pyplot()
+    spread = result.seeds
+    fig, ax = plt.subplots(figsize=(6.0, 3.5))
+    for label, colour, keep in (
+        ("force closure", "tab:blue", lambda p: p.force_closure),
+        ("marginal", "tab:orange", lambda p: p.marginal),
+        ("not force closure", "tab:red", lambda p: not (p.force_closure or p.marginal)),
+    ):
+        runs = [r for r in spread.runs if r.ok and keep(r.result.placement)]
+        if runs:
+            ax.plot(
+                [r.seed for r in runs], [r.result.placement.rho for r in runs], "o",
+                color=colour, label=label,
+            )
+    chosen = spread.runs[spread.chosen]
+    ax.plot(
+        [chosen.seed], [chosen.result.placement.rho], "*", ms=16, mfc="none", color="black",
+        label=f"chosen: seed {chosen.seed}",
+    )
+    ax.axhline(float(np.median(spread.rhos)), color="grey", lw=0.8, ls="--", label="median")
+    ax.axhline(0.0, color="grey", lw=0.8)
+    ax.set_xlabel("seed")
+    ax.set_ylabel("rho (lower holds more)")
+    ax.set_title(f"{len(spread.runs)} seeds")
+    ax.legend(fontsize="small")
+    fig.tight_layout()
+    try:
+        return save_figure(fig, path)
+    finally:
+        plt.close(fig)
 
 
 __all__ = [

@@ -24,6 +24,7 @@ STAGES = (
     "neighbour move",  # a contact moved into a neighbouring element (value: rho after)
     "certification",  # 0: the final rho's wide search and bounds begin; 1: done (value: rho)
     "alternative",  # a further element set placed after a failed placement (value: its rho)
+    "seed",  # a seed of a plan of several finished (value: the best rho over the seeds so far)
 )
 
 

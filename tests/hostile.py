@@ -598,6 +598,9 @@ def _flag_cases() -> list[Case]:
     for flag, value in [("--starts", "0"), ("--starts", "1000000"), ("--seed", "-5")]:
         flag_case(f"place {flag}={value}", "place", [*el, flag, value], ERROR)
         flag_case(f"plan {flag}={value}", "plan", ["--contacts", "4", flag, value], ERROR)
+    for flag, value in [("--seeds", "0"), ("--seeds", "x"), ("--budget", "0"), ("--budget", "nan"),
+                        ("--budget", "-1"), ("--workers", "0")]:
+        flag_case(f"plan {flag}={value}", "plan", ["--contacts", "4", flag, value], ERROR)
     flag_case("place --elements 0,1 (too few pcwf)", "place", ["--elements", "0,1"], ERROR)
     flag_case("show --out .txt", "show", ["--out", "x.txt"], ERROR)
     flag_case("show --highlight 99", "show", ["--out", "x.png", "--highlight", "99"], ERROR)

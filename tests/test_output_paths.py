@@ -77,7 +77,7 @@ def test_plan_rerun_replaces_the_whole_set(tmp_path, capsys, box_file):
     (out / "stale.png").write_text("from an older version")
     code, stdout, err = run(
         capsys, "plan", box_file, "--contacts", "4", "--type", "pcwf", "--mu", "0.5",
-        "--starts", "1", "--alternatives", "0", "--out", out, "--json",
+        "--seeds", "1", "--starts", "1", "--alternatives", "0", "--out", out, "--json",
     )
     assert code == 0, err
     written = json.loads(stdout)["out"]

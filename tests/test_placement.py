@@ -296,7 +296,8 @@ def test_cli_place_and_plan_end_to_end(capsys, tmp_path):
     assert set(data["contacts"][0]) >= {"element", "weights", "position", "inward_normal"}
     _check_contact_file(capsys, placed_file, data, 0.1)
     out = tmp_path / "run"
-    code = cli.main(["plan", str(path), "--contacts", "4", "--out", str(out), *common])
+    argv = ["plan", str(path), "--contacts", "4", "--seeds", "1", "--out", str(out), *common]
+    code = cli.main(argv)
     data = json.loads(capsys.readouterr().out)
     assert code == 0
     assert set(data) >= {"heuristic", "iterative", "placement", "seconds"}

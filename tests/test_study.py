@@ -158,6 +158,24 @@ def fake_runner(task, model_text, fail_seed: int = -1):
     return row
 
 
+def test_the_summary_gives_what_plan_with_seeds_would_return(tiny, tmp_path):
+    """best_of_8: force closure first, as plan --seeds 8 chooses, even over a lower rho that is
+    not force closure (a robust check can leave it so)."""
+
+    def runner(task, model_text):
+        row = task_row(task)
+        rho, closure = (-2.0, False) if task.seed == 0 else (-1.0, True)
+        row.update(status="ok", elements=[0, 1], rho=rho, force_closure=closure)
+        row.update(seconds=0.01, iterative_rho_hat=-1.0, converged=True)
+        return row
+
+    result = run_study(load_study(tiny), tmp_path, serial=True, runner=runner)
+    summary = {(r["mu"]): r for r in result.summary}
+    assert summary[0.2]["rho_best"] == -2.0
+    assert (summary[0.2]["best_of_8_rho"], summary[0.2]["best_of_8_seed"]) == (-1.0, 1)
+    assert "best_of_8_rho" in (tmp_path / "summary.md").read_text()
+
+
 def test_failing_task_is_recorded_and_the_study_goes_on(tiny, tmp_path):
     study = load_study(tiny)
     seen = []

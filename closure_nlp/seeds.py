@@ -1,0 +1,339 @@
+"""The best of many seeds: plans from seeds ``S, S+1, ..., S+N-1``, over processes, with the spread.
+
+One plan is one seed of the heuristic, and seeds differ a lot (fixture study, 20 seeds per group:
+pistol 7 FPC median rho -0.2748, best -0.6494; stepped shaft 7 FPC median -0.2724, best -0.7125,
+5 seeds marginal). :func:`plan_seeds` runs N seeds and returns the best placement with every
+seed's outcome and their spread. Seeds run in worker processes when ``workers > 1``; each worker
+keeps one plan memo (:func:`~closure_nlp.planning.plan`) for the seeds it runs, so a seed that
+meets an element set an earlier seed of that worker met takes its iterative run and placement
+from it (with ``workers=1`` one memo serves every seed). The memo returns what computing again
+gives, and each seed's plan is deterministic, so the answer does not depend on the workers: N
+seeds over K processes give what the N seeds give one by one (all but timings and ``reused``).
+"""
+
+from __future__ import annotations
+
+import math
+import multiprocessing
+import os
+import queue
+import threading
+import time
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .eligibility import Eligibility
+from .placement import PlacementOptions, Placer
+from .progress import Progress
+from .selection import SelectionOptions
+from .validation import MAX_SEED
+
+# The command line's defaults. A plan costs 4-9 s per example on one core today, so 8 seeds take
+# about 20-40 s on 2 cores; the budget stops starting seeds after a minute on a slower machine.
+DEFAULT_SEEDS = 8
+DEFAULT_BUDGET = 60.0
+MAX_PLAN_SEEDS = 10_000
+
+
+@dataclass(frozen=True)
+class SeedRun:
+    """One seed's plan, or why it failed (``error``; a failed seed does not stop the others)."""
+
+    seed: int
+    result: object | None  # PlanResult
+    error: str | None = None
+    seconds: float = 0.0
+
+    @property
+    def ok(self) -> bool:
+        return self.result is not None
+
+    def to_dict(self) -> dict:
+        if self.result is None:
+            return {"seed": self.seed, "error": self.error, "seconds": self.seconds}
+        r = self.result
+        p = r.placement
+        return {
+            "seed": self.seed,
+            "rho": p.rho,
+            "bounds": None if p.bounds is None else list(p.bounds),
+            "force_closure": p.force_closure,
+            "marginal": p.marginal,
+            "selected": list(r.iterative.elements),
+            "elements": list(p.elements),
+            "attempts": len(r.attempts),
+            "reused": list(r.reused),
+            "seconds": self.seconds,
+        }
+
+
+@dataclass(frozen=True)
+class SeedSpread:
+    """Every seed's outcome, which one was chosen, and the spread of rho over them.
+
+    Attributes
+    ----------
+    runs : tuple of SeedRun
+        In seed order; only the seeds started before the budget was spent.
+    chosen : int
+        Index in ``runs`` of the returned plan: force closure first, then the lowest rho, then
+        the lowest seed.
+    requested : int
+        Seeds asked for; ``len(runs)`` is fewer when the budget stopped new ones.
+    workers : int
+        Processes the seeds ran on (1: in this process).
+    budget : float or None
+        Seconds after which no new seed was started.
+    """
+
+    runs: tuple[SeedRun, ...]
+    chosen: int
+    requested: int
+    workers: int
+    budget: float | None
+
+    @property
+    def rhos(self) -> np.ndarray:
+        """rho of every seed that ended with a placement, in seed order: (k,)."""
+        return np.array([run.result.placement.rho for run in self.runs if run.ok])
+
+    def element_sets(self) -> list[dict]:
+        """The element sets placed on (multisets, as sorted ids), how many seeds ended on each
+        and the best rho there; most often met first."""
+        met: dict[tuple, list[float]] = {}
+        for run in self.runs:
+            if run.ok:
+                key = tuple(sorted(run.result.placement.elements))
+                met.setdefault(key, []).append(run.result.placement.rho)
+        rows = [
+            {"elements": list(key), "seeds": len(values), "best_rho": min(values)}
+            for key, values in met.items()
+        ]
+        return sorted(rows, key=lambda row: (-row["seeds"], row["best_rho"]))
+
+    def to_dict(self) -> dict:
+        rhos = self.rhos
+        ok = [run for run in self.runs if run.ok]
+        return {
+            "requested": self.requested,
+            "run": len(self.runs),
+            "workers": self.workers,
+            "budget": self.budget,
+            "chosen_seed": self.runs[self.chosen].seed,
+            "best_rho": float(rhos.min()),
+            "median_rho": float(np.median(rhos)),
+            "worst_rho": float(rhos.max()),
+            "force_closure": sum(run.result.force_closure for run in ok),
+            "marginal": sum(run.result.placement.marginal for run in ok),
+            "failed": len(self.runs) - len(ok),
+            "element_sets": self.element_sets(),
+            "runs": [run.to_dict() for run in self.runs],
+        }
+
+    def line(self) -> str:
+        """One line of text: the spread, for the command line."""
+        d = self.to_dict()
+        cut = ""
+        if d["run"] < d["requested"]:
+            cut = f" of {d['requested']} (budget of {d['budget']:g} s spent)"
+        failed = f", {d['failed']} failed" if d["failed"] else ""
+        return (
+            f"seeds: {d['run']}{cut} on {d['workers']} process(es): best rho = "
+            f"{d['best_rho']:.6g} (seed {d['chosen_seed']}), median {d['median_rho']:.6g}, "
+            f"worst {d['worst_rho']:.6g}; {d['force_closure']} force closure, "
+            f"{d['marginal']} marginal{failed}; {len(d['element_sets'])} element set(s) placed on"
+        )
+
+
+def rank(force_closure: bool, rho: float, seed: int) -> tuple:
+    """The order in which a plan of several seeds prefers them (lowest first): force closure
+    first, then the lowest rho, then the lowest seed."""
+    return (not force_closure, rho, seed)
+
+
+def best_index(runs) -> int:
+    """The run a multi-seed plan returns (:func:`rank`; runs without a result never)."""
+    ranked = [
+        (*rank(run.result.force_closure, run.result.placement.rho, run.seed), i)
+        for i, run in enumerate(runs)
+        if run.ok
+    ]
+    if not ranked:
+        raise ValueError("no seed ended with a placement")
+    return min(ranked)[-1]
+
+
+def check_seed_options(seeds, workers, budget) -> tuple[int, int | None, float | None]:
+    """Validated ``(seeds, workers, budget)``; ``ValueError``/``TypeError`` name the field."""
+    if isinstance(seeds, bool) or not isinstance(seeds, int) or not 1 <= seeds <= MAX_PLAN_SEEDS:
+        raise ValueError(f"seeds: expected an integer in [1, {MAX_PLAN_SEEDS}], got {seeds!r}")
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)):
+        raise TypeError(f"workers: expected an integer or None, got {workers!r}")
+    if workers is not None and workers < 1:
+        raise ValueError(f"workers: expected an integer >= 1, got {workers!r}")
+    if budget is not None:
+        if isinstance(budget, bool) or not isinstance(budget, (int, float)):
+            raise TypeError(f"budget: expected a number of seconds or None, got {budget!r}")
+        if not (math.isfinite(budget) and budget > 0):
+            raise ValueError(f"budget: expected a positive number of seconds, got {budget!r}")
+        budget = float(budget)
+    return seeds, workers, budget
+
+
+def available_cores() -> int:
+    """The cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+def plan_seeds(
+    eligibility: Eligibility,
+    *,
+    seed: int = 0,
+    seeds: int = DEFAULT_SEEDS,
+    workers: int | None = None,
+    budget: float | None = None,
+    start=None,
+    selection: SelectionOptions = SelectionOptions(),
+    placement: PlacementOptions = PlacementOptions(),
+    progress: Progress | None = None,
+    placer: Placer | None = None,
+    alternatives: int = 4,
+    memo: dict | None = None,
+):
+    """The plans of seeds ``seed, seed + 1, ..., seed + seeds - 1``; the best, with the spread.
+
+    Called by :func:`closure_nlp.planning.plan` when it is given ``seeds``; see there for the
+    other parameters.
+
+    Parameters
+    ----------
+    seeds : int
+        Number of seeds.
+    workers : int, optional
+        Processes to run them on; default: one per available core, at most ``seeds``. 1 runs
+        them one by one in this process (sharing ``memo`` and ``placer``).
+    budget : float, optional
+        Seconds after which no further seed is started (the seeds running finish).
+
+    Returns
+    -------
+    PlanResult
+        The chosen seed's plan (:func:`best_index`), its ``seconds`` the whole run's, and
+        ``seeds`` the :class:`SeedSpread`.
+
+    Raises
+    ------
+    Exception
+        The first seed's error, when no seed ended with a placement.
+    """
+    if isinstance(seed, bool) or not isinstance(seed, int):
+        raise TypeError(f"seed: expected an integer with seeds, got {seed!r}")
+    seeds, workers, budget = check_seed_options(seeds, workers, budget)
+    if not 0 <= seed <= MAX_SEED - seeds + 1:
+        raise ValueError(f"seed: seeds {seed}..{seed + seeds - 1} must lie in [0, {MAX_SEED}]")
+    workers = min(seeds, workers or available_cores())
+    if placer is not None and placer.eligibility is not eligibility:
+        raise ValueError("placer: must be built on the same Eligibility as the plan")
+    options = placement if placer is None else placer.options
+    kwargs = dict(start=start, selection=selection, alternatives=alternatives)
+    t0 = time.perf_counter()
+    if workers == 1:
+        placer = placer or Placer(eligibility, options)
+        memo = {} if memo is None else memo
+        outcomes = []
+        for k in range(seeds):
+            if outcomes and budget is not None and time.perf_counter() - t0 >= budget:
+                break
+            outcomes.append(_run_one(eligibility, placer, memo, progress, kwargs, seed + k))
+            _report(progress, outcomes)
+    else:
+        outcomes = _in_processes(
+            eligibility, options, kwargs, seed, seeds, workers, budget, t0, progress
+        )
+    runs = tuple(run for run, _ in outcomes)
+    if not any(run.ok for run in runs):
+        raise outcomes[0][1]
+    chosen = best_index(runs)
+    spread = SeedSpread(runs, chosen, seeds, workers, budget)
+    return replace(runs[chosen].result, seconds=time.perf_counter() - t0, seeds=spread)
+
+
+def _run_one(eligibility, placer, memo, progress, kwargs, seed: int):
+    """``(SeedRun, error or None)`` of one seed's plan: an error ends that seed only."""
+    from .planning import plan
+
+    t = time.perf_counter()
+    try:
+        result = plan(eligibility, seed=seed, placer=placer, memo=memo, progress=progress, **kwargs)
+    except Exception as exc:  # noqa: BLE001 - recorded; raised when every seed fails
+        return SeedRun(seed, None, f"{type(exc).__name__}: {exc}", time.perf_counter() - t), exc
+    return SeedRun(seed, result, None, time.perf_counter() - t), None
+
+
+def _report(progress, outcomes) -> None:
+    """``progress("seed", seeds done, best rho so far)``."""
+    if progress:
+        runs = [run for run, _ in outcomes]
+        best = runs[best_index(runs)].result.placement.rho if any(r.ok for r in runs) else math.nan
+        progress("seed", len(runs), best)
+
+
+# A worker process's solvers and memo, made once by _start_worker and used by every seed it runs.
+_WORKER: dict = {}
+
+
+def _start_worker(eligibility, options, kwargs) -> None:
+    _WORKER.update(
+        eligibility=eligibility, placer=Placer(eligibility, options), memo={}, kwargs=kwargs
+    )
+
+
+def _worker_seed(k: int, seed: int):
+    w = _WORKER
+    return k, _run_one(w["eligibility"], w["placer"], w["memo"], None, w["kwargs"], seed)
+
+
+def _context():
+    """fork when this process runs one thread (the workers start at once, with the solvers
+    already built); forkserver otherwise (forking a threaded process is unsafe)."""
+    methods = multiprocessing.get_all_start_methods()
+    if "fork" in methods and threading.active_count() == 1:
+        return multiprocessing.get_context("fork")
+    return multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
+
+
+def _in_processes(eligibility, options, kwargs, seed, seeds, workers, budget, t0, progress):
+    """The seeds over ``workers`` processes, at most ``workers`` running at a time (so the
+    budget stops new ones), gathered in seed order. An interrupt or error ends the workers at
+    once."""
+    done: dict[int, tuple] = {}
+    finished: queue.SimpleQueue = queue.SimpleQueue()
+    pool = _context().Pool(workers, _start_worker, (eligibility, options, kwargs))
+    try:
+        k = running = 0
+        while k < seeds or running:
+            while k < seeds and running < workers:
+                if k and budget is not None and time.perf_counter() - t0 >= budget:
+                    seeds = k  # the budget is spent: no further seed starts
+                    break
+                pool.apply_async(
+                    _worker_seed, (k, seed + k), callback=finished.put, error_callback=finished.put
+                )
+                k, running = k + 1, running + 1
+            if not running:
+                break
+            item = finished.get()
+            running -= 1
+            if isinstance(item, BaseException):  # the worker itself failed (not a seed's error)
+                raise item
+            done[item[0]] = item[1]
+            _report(progress, [done[i] for i in sorted(done)])
+        pool.close()
+    finally:
+        pool.terminate()
+        pool.join()
+    return [done[i] for i in sorted(done)]

@@ -1,0 +1,167 @@
+"""plan(..., seeds=N): the best of N seeds, the same over processes as one by one, with the spread;
+a seed that fails or ends marginal does not stop the others; the budget stops new seeds."""
+
+from __future__ import annotations
+
+import json
+import time
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from closure_nlp import cli, planning
+from closure_nlp.contacts import contact_specs
+from closure_nlp.elements import save_model
+from closure_nlp.eligibility import Eligibility
+from closure_nlp.placement import PlacementOptions
+from closure_nlp.planning import PlanResult, plan
+from closure_nlp.selection import SelectionOptions
+from tests.shapes import box_model
+from tests.test_threads import without_time
+
+QUICK = PlacementOptions(starts=1, extra_starts=0, neighbour_moves=0, max_rounds=3)
+FEW = SelectionOptions(restarts=2)
+
+
+def hand() -> Eligibility:
+    return Eligibility(box_model(10.0), contact_specs(4, type="pcwf", mu=0.4), torque_scale=0.1)
+
+
+def comparable(result: PlanResult) -> dict:
+    """Everything but timings, the memo's hits and the number of processes."""
+    d = without_time(result.to_dict())
+    d.pop("reused")
+    d["seeds"].pop("workers")
+    for run in d["seeds"]["runs"]:
+        run.pop("reused")
+    return d
+
+
+@pytest.mark.slow  # six small plans
+def test_seeds_over_processes_equal_the_seeds_one_by_one_and_the_spread_is_theirs():
+    parallel = plan(hand(), seed=4, seeds=3, workers=2, selection=FEW, placement=QUICK)
+    serial = plan(hand(), seed=4, seeds=3, workers=1, selection=FEW, placement=QUICK)
+    assert comparable(parallel) == comparable(serial)
+    spread = serial.to_dict()["seeds"]
+    runs = spread["runs"]
+    assert [r["seed"] for r in runs] == [4, 5, 6] and spread["workers"] == 1
+    assert parallel.seeds.workers == 2
+    rhos = [r["rho"] for r in runs]
+    assert spread["best_rho"] == min(rhos) == serial.placement.rho
+    assert spread["median_rho"] == float(np.median(rhos))
+    assert spread["worst_rho"] == max(rhos)
+    assert spread["force_closure"] == sum(r["force_closure"] for r in runs) == 3
+    assert spread["marginal"] == 0 and spread["failed"] == 0
+    chosen = runs[[r["seed"] for r in runs].index(spread["chosen_seed"])]
+    assert chosen["rho"] == serial.placement.rho
+    assert chosen["elements"] == list(serial.placement.elements)
+    met = {tuple(s["elements"]): s["seeds"] for s in spread["element_sets"]}
+    assert sum(met.values()) == 3
+    for r in runs:
+        assert met[tuple(sorted(r["elements"]))] >= 1
+
+
+def fake_result(rho: float, force_closure: bool, marginal: bool, elements) -> PlanResult:
+    """A plan's result with only what the spread reads."""
+    placement = SimpleNamespace(
+        rho=rho, force_closure=force_closure, marginal=marginal, elements=tuple(elements),
+        bounds=(rho, rho),
+    )
+    selection = SimpleNamespace(elements=tuple(elements))
+    return PlanResult(selection, selection, placement, 0.0, (), ())
+
+
+# seed -> what its plan does: ends with a result, ends marginal, fails
+OUTCOMES = {
+    0: fake_result(-0.2, True, False, [0, 1, 2, 3]),
+    1: fake_result(0.0, False, True, [0, 1, 2, 4]),
+    2: RuntimeError("no placement"),
+    3: fake_result(-0.5, True, False, [3, 2, 1, 0]),
+    4: fake_result(-0.1, True, False, [0, 1, 2, 3]),
+}
+
+
+def fake_plan(eligibility, *, seed, **kwargs):
+    outcome = OUTCOMES[seed]
+    if isinstance(outcome, Exception):
+        raise outcome
+    return outcome
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_failed_or_marginal_seed_does_not_stop_the_plan(monkeypatch, workers):
+    monkeypatch.setattr(planning, "plan", fake_plan)  # worker processes are forked: patched too
+    from closure_nlp.seeds import plan_seeds
+
+    best = plan_seeds(hand(), seed=0, seeds=5, workers=workers)
+    spread = best.seeds.to_dict()
+    assert best.placement.rho == -0.5 and spread["chosen_seed"] == 3
+    assert (spread["force_closure"], spread["marginal"], spread["failed"]) == (3, 1, 1)
+    assert spread["runs"][2] == {
+        "seed": 2, "error": "RuntimeError: no placement", "seconds": spread["runs"][2]["seconds"]
+    }
+    assert (spread["best_rho"], spread["worst_rho"]) == (-0.5, 0.0)
+    assert spread["median_rho"] == pytest.approx(-0.15, rel=1e-12)  # of -0.2, 0.0, -0.5, -0.1
+    assert spread["element_sets"] == [
+        {"elements": [0, 1, 2, 3], "seeds": 3, "best_rho": -0.5},
+        {"elements": [0, 1, 2, 4], "seeds": 1, "best_rho": 0.0},
+    ]
+    assert "; 3 force closure, 1 marginal, 1 failed;" in best.seeds.line()
+
+
+def test_every_seed_failing_raises_the_first_error(monkeypatch):
+    monkeypatch.setattr(planning, "plan", lambda *a, **k: (_ for _ in ()).throw(ValueError("x")))
+    with pytest.raises(ValueError, match="x"):
+        plan(hand(), seeds=2, workers=1)
+
+
+def slow_plan(eligibility, *, seed, **kwargs):
+    time.sleep(0.4)
+    return OUTCOMES[0]
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_the_budget_stops_new_seeds_and_the_report_says_so(monkeypatch, workers):
+    monkeypatch.setattr(planning, "plan", slow_plan)
+    from closure_nlp.seeds import plan_seeds
+
+    spread = plan_seeds(hand(), seeds=6, workers=workers, budget=0.2).seeds
+    assert len(spread.runs) == workers  # those started at once; none after the budget
+    assert spread.requested == 6 and "of 6 (budget of 0.2 s spent)" in spread.line()
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "needle"),
+    [
+        ({"seeds": 0}, "seeds: expected an integer in"),
+        ({"seeds": 2.0}, "seeds: expected an integer in"),
+        ({"seeds": 2, "workers": 0}, "workers: expected an integer >= 1"),
+        ({"seeds": 2, "budget": -1.0}, "budget: expected a positive number"),
+        ({"seeds": 2, "budget": float("nan")}, "budget: expected a positive number"),
+        ({"seeds": 2, "seed": -1}, "seed: seeds -1..0 must lie in"),
+        ({"workers": 2}, "workers, budget: only with seeds"),
+    ],
+)
+def test_bad_seed_options_name_the_field(kwargs, needle):
+    with pytest.raises(ValueError, match=needle):
+        plan(hand(), **kwargs)
+
+
+@pytest.mark.slow  # two small plans in two processes
+def test_cli_plan_with_seeds_writes_the_spread(tmp_path, capsys):
+    path = tmp_path / "box.model.json"
+    save_model(box_model(10.0), path)
+    out = tmp_path / "run"
+    argv = ["plan", str(path), "--contacts", "4", "--mu", "0.4", "--seeds", "2", "--workers",
+            "2", "--starts", "1", "--alternatives", "0", "--out", str(out), "--json", "--quiet"]
+    assert cli.main(argv) == 0
+    data = json.loads(capsys.readouterr().out)
+    spread = data["seeds"]
+    assert [r["seed"] for r in spread["runs"]] == [0, 1] and spread["run"] == 2
+    assert data["placement"]["rho"] == spread["best_rho"]
+    assert (out / "seeds.png").stat().st_size > 0
+    summary = (out / "summary.md").read_text()
+    assert "| seed | rho | verdict |" in summary and "(chosen)" in summary
+    report = json.loads((out / "report.json").read_text())
+    assert report["seeds"]["runs"] == spread["runs"] and report["options"]["seeds"] == 2
