@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import sys
 import time
 import types
@@ -168,6 +169,10 @@ def serve(name: str) -> int:
     if name not in ADAPTERS:
         print(f"error: peer: expected one of {sorted(ADAPTERS)}, got {name!r}", file=sys.stderr)
         return 2
+    # A job started in the background by a shell (`cmd &`, nohup in a script, CI runners)
+    # inherits SIGINT ignored; Klampt's force_closure then aborts on every call (glibc
+    # "munmap_chunk(): invalid pointer"). The handler a terminal's Python has makes it work.
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     answers = os.fdopen(os.dup(1), "w")  # the protocol's channel
     os.dup2(2, 1)  # Klampt and Dex-Net print to stdout (C and Python): send that to stderr
     sys.stdout = sys.stderr

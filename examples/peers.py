@@ -42,6 +42,10 @@ METRICS = {
 }
 
 
+ENDED, TIMED_OUT = "ended", "timed out"  # what PeerWorker._read says instead of an answer
+EXIT_WAIT = 10.0  # s a worker that closed its output gets to exit (a core dump takes a while)
+
+
 def peer_python(name: str) -> Path | None:
     """The interpreter of a peer's environment, or None when it is not set up."""
     venv = PEERS[name][0]
@@ -74,28 +78,40 @@ class PeerWorker:
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self.log, env=env,
         )  # fmt: skip
         ready = self._read(max(self.timeout, 120.0))  # the first import can take a while
-        if not ready or ready.get("ready") != self.name:
+        if not isinstance(ready, dict) or ready.get("ready") != self.name:
             raise RuntimeError(f"peer {self.name}: the worker did not start: {ready!r}")
 
     def _read(self, timeout: float):
+        """The next answer (a dict), ``ENDED`` when the worker closed its output (it died, or is
+        dying), or ``TIMED_OUT``."""
         readable, _, _ = select.select([self.process.stdout], [], [], timeout)
         if not readable:
-            return None
+            return TIMED_OUT
         line = self.process.stdout.readline()
-        return json.loads(line) if line else None
+        return json.loads(line) if line else ENDED
 
     def ask(self, request: dict) -> dict:
         """The worker's answer, or ``{"crash": ...}`` / ``{"timeout": ...}`` for every metric."""
         if self.process is None or self.process.poll() is not None:
             self.start()
-        self.process.stdin.write((json.dumps(request) + "\n").encode())
-        self.process.stdin.flush()
+        try:
+            self.process.stdin.write((json.dumps(request) + "\n").encode())
+            self.process.stdin.flush()
+        except BrokenPipeError:  # it died between two requests
+            pass
         t0 = time.perf_counter()
         answer = self._read(self.timeout)
-        if answer is not None:
+        if isinstance(answer, dict):
             return answer
+        if answer is ENDED:  # an aborting process closes its pipes before it is reaped
+            try:
+                self.process.wait(timeout=EXIT_WAIT)
+            except subprocess.TimeoutExpired:
+                pass
         if self.process.poll() is None:
             self.close()
+            if answer is ENDED:
+                return {"crash": f"worker closed its output and did not exit in {EXIT_WAIT} s"}
             return {"timeout": f"no answer in {self.timeout:.0f} s"}
         status = self.process.returncode
         self.close()

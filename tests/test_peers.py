@@ -93,6 +93,52 @@ def test_worker_crash_is_reported_and_recovered(monkeypatch):
         w.close()
 
 
+ABORTING_WORKER = """
+import json, os, sys, time
+print(json.dumps({"ready": sys.argv[1]}), flush=True)
+sys.stdin.readline()
+os.close(1)  # glibc's abort: the pipes close first, the core dump takes its time
+time.sleep(1.0)
+os.abort()
+"""
+
+
+def test_an_abort_is_a_crash_not_a_timeout(monkeypatch, tmp_path):
+    """A worker whose output ends before the process is reaped (an abort writing its core) is a
+    crash: ending output and no output were both read as None, and 101 of 129 Klampt aborts
+    were reported as timeouts."""
+    script = tmp_path / "aborting_worker.py"
+    script.write_text(ABORTING_WORKER)
+    monkeypatch.setattr(peers, "WORKER", script)
+    monkeypatch.setattr(peers, "PEERS_DIR", tmp_path)
+    w = peers.PeerWorker("graspit", timeout=30.0)
+    try:
+        answer = w.ask({"positions": []})
+    finally:
+        w.close()
+    assert "crash" in answer and "timeout" not in answer, answer
+    assert [status for status, _ in w.crashes] == [-6]  # SIGABRT
+
+
+def test_klampt_answers_when_started_with_sigint_ignored():
+    """Jobs a shell starts in the background inherit SIGINT ignored, and Klampt's
+    force_closure aborted on every call there (munmap_chunk(): invalid pointer)."""
+    import signal
+
+    saved = signal.signal(signal.SIGINT, signal.SIG_IGN)  # the worker inherits it
+    try:
+        w = worker("klampt")
+        w.start()
+    finally:
+        signal.signal(signal.SIGINT, saved)
+    try:
+        answer = ask(w, CLOSURE)
+    finally:
+        w.close()
+    assert "crash" not in answer, answer
+    assert all(answer[metric]["verdict"] is True for metric in peers.PEERS["klampt"][1])
+
+
 def test_polyhedral_closure_and_cases():
     """The LP that tells linearisation from a bug, on the saved minimal cases."""
     assert peers.polyhedral_closure(compare_solvers.edge_wrenches(CLOSURE))
