@@ -220,7 +220,8 @@ def characterize_mesh(
     )
     if name is None:
         name = Path(mesh_or_path).stem if isinstance(mesh_or_path, (str, Path)) else "mesh"
-    drafts, curved = _characterize_mesh(mesh, options)
+    arrays = MeshArrays(mesh)
+    drafts, curved = _characterize_mesh(arrays, options)
     order = sorted(
         range(len(drafts)), key=lambda i: list(ElementKind).index(drafts[i].element.kind)
     )
@@ -230,7 +231,7 @@ def characterize_mesh(
         Element(d.element.kind, d.element.vertices, d.element.inward_normal, name=f"elements[{i}]")
         for i, d in enumerate(drafts)
     )
-    adjacency = _adjacency(mesh, drafts, curved)
+    adjacency = _adjacency(arrays, drafts, curved)
     model = Model(
         elements,
         adjacency,
@@ -328,6 +329,40 @@ def _reach(model: Model, start: int, gone: set[int]) -> set[int]:
     return out
 
 
+class MeshArrays:
+    """A mesh's arrays, each read from trimesh once and kept as a plain array.
+
+    trimesh checks its cache on every property access by hashing the mesh's arrays (O(F)), so
+    reading ``mesh.area_faces`` once per patch costs O(F x patches); this reads each property
+    on first use and keeps it (``mesh.vertices`` etc. as attributes, like the mesh's own).
+    """
+
+    def __init__(self, mesh):
+        self._mesh = mesh
+
+    @property
+    def pairs_of_faces(self) -> np.ndarray:
+        """(F, w) int: the rows of ``face_adjacency`` each face is in, padded with -1."""
+        if "_pairs_of_faces" not in self.__dict__:
+            adjacency = self.face_adjacency
+            ends = adjacency.ravel()
+            width = max(int(np.bincount(ends, minlength=1).max()), 1)
+            out = np.full((len(self.faces), width), -1, dtype=np.int64)
+            order = np.argsort(ends, kind="stable")
+            first = np.searchsorted(ends[order], ends[order], side="left")
+            slot = np.arange(len(ends)) - first  # 0, 1, 2... within each face's run
+            out[ends[order], slot] = order // 2
+            self._pairs_of_faces = out
+        return self._pairs_of_faces
+
+    def __getattr__(self, name: str):
+        value = getattr(self._mesh, name)
+        if isinstance(value, np.ndarray):
+            value = value.view(np.ndarray)
+        setattr(self, name, value)  # an instance attribute: not looked up here again
+        return value
+
+
 def _is_auto(value) -> bool:
     return isinstance(value, str) and value.strip().lower() == AUTO
 
@@ -416,7 +451,7 @@ def _characterize_region(mesh, faces, patches, curved, options) -> list[Draft]:
     groups = _groups(patches, faces)
     if len(groups) <= 2:
         return [d for g in groups for d in facets(mesh, g)]
-    areas = np.array([mesh.area_faces[g].sum() for g in groups])
+    areas = np.array([a.sum() for a in (mesh.area_faces[g] for g in groups)])
     big = areas >= options.facet_area_ratio * np.median(areas)
     drafts: list[Draft] = []
     for chosen, fallback in ((big, "facets"), (~big, "points")):
@@ -430,9 +465,19 @@ def _split(mesh, faces: np.ndarray, sharp: float) -> list[np.ndarray]:
     """Connected components (across smooth edges) of a set of faces."""
     if len(faces) == 0:
         return []
-    keep = np.isin(mesh.face_adjacency, faces).all(axis=1) & (mesh.face_adjacency_angles < sharp)
-    labels = _face_components(mesh, keep)[faces]
-    return [faces[labels == c] for c in np.unique(labels)]
+    # Only the adjacency pairs touching these faces (a (F,) lookup, not a scan of every pair):
+    # linear in the size of the set, however many sets the mesh is cut into.
+    pairs = np.unique(mesh.pairs_of_faces[faces].ravel())
+    pairs = pairs[pairs >= 0]
+    local = np.full(len(mesh.faces), -1, dtype=np.int64)
+    local[faces] = np.arange(len(faces))
+    ends = local[mesh.face_adjacency[pairs]]
+    ends = ends[(ends >= 0).all(axis=1) & (mesh.face_adjacency_angles[pairs] < sharp)]
+    k = len(faces)
+    graph = coo_matrix((np.ones(len(ends)), (ends[:, 0], ends[:, 1])), shape=(k, k))
+    labels = connected_components(graph, directed=False)[1]
+    components = [faces[g] for g in _groups(labels)]
+    return sorted(components, key=lambda c: int(c.min()))  # by their lowest face id
 
 
 def _curved(mesh, faces, patches, curved, options, fallback: str = "points") -> list[Draft]:
@@ -482,53 +527,78 @@ def _points(mesh, faces, region, spacing) -> list[Draft]:
 
 
 def _adjacency(mesh, drafts: list[Draft], curved: list) -> tuple[tuple[int, int], ...]:
-    """Neighbour pairs: a shared mesh vertex, or (unless both are facets) a mesh edge between."""
-    owners = _owners(mesh, drafts, curved)
-    facet = np.array([d.element.kind is ElementKind.FACET for d in drafts])
-    pairs: set[tuple[int, int]] = set()
-    for ids in owners:
-        for i in ids:
-            for j in ids:
-                if i < j:
-                    pairs.add((i, j))
-    for u, v in mesh.edges_unique.tolist():
-        for i in owners[u]:
-            for j in owners[v]:
-                if i != j and not (facet[i] and facet[j]):
-                    pairs.add((min(i, j), max(i, j)))
-    return tuple(sorted(pairs))
+    """Neighbour pairs: a shared mesh vertex, or (unless both are facets) a mesh edge between.
+
+    With A the (vertex x element) incidence of :func:`_owners` and M the mesh's edges, the
+    pairs are the nonzeros of A^T A and A^T M A: sparse products, linear in the mesh's size.
+    """
+    from scipy.sparse import csr_matrix
+
+    vertices, elements = _owners(mesh, drafts, curved)
+    n, m = len(mesh.vertices), len(drafts)
+    A = csr_matrix((np.ones(len(vertices)), (vertices, elements)), shape=(n, m))
+    e = np.asarray(mesh.edges_unique)
+    M = csr_matrix((np.ones(2 * len(e)), (e.ravel(), e[:, ::-1].ravel())), shape=(n, n))
+    facet = np.array([d.element.kind is ElementKind.FACET for d in drafts], dtype=bool)
+    shared = (A.T @ A).tocoo()
+    across = (A.T @ (M @ A)).tocoo()
+    keep = ~(facet[across.row] & facet[across.col])
+    i = np.concatenate([shared.row, across.row[keep]])
+    j = np.concatenate([shared.col, across.col[keep]])
+    pairs = np.unique(np.column_stack([i, j])[i < j], axis=0)
+    return tuple((int(a), int(b)) for a, b in pairs)
 
 
-def _owners(mesh, drafts: list[Draft], curved: list) -> list[set[int]]:
-    """Element ids standing for each mesh vertex.
+def _owners(mesh, drafts: list[Draft], curved: list) -> tuple[np.ndarray, np.ndarray]:
+    """Which element stands for which mesh vertex: (k,) vertex ids and (k,) element ids.
 
     A segment or a point also stands for the vertices of its curved patch nearest to it along
-    the mesh (those of dropped rulings or points), so thinning keeps neighbours connected.
+    the mesh (those of dropped rulings or points), so thinning keeps neighbours connected. Each
+    patch is searched on its own vertices only (local indices), so the cost is linear in the
+    mesh's size however many patches it has.
     """
     n = len(mesh.vertices)
-    owners: list[set[int]] = [set() for _ in range(n)]
+    owned = [(v, i) for i, d in enumerate(drafts) for v in d.owned]
+    vertices = [np.array([v for v, _ in owned], dtype=np.int64)]
+    elements = [np.array([i for _, i in owned], dtype=np.int64)]
+    by_region: dict[int, dict[int, int]] = {}
     for i, d in enumerate(drafts):
-        for v in d.owned:
-            owners[v].add(i)
-    edges, lengths = mesh.edges_unique, mesh.edges_unique_length
+        if d.region >= 0:
+            by_region.setdefault(d.region, {}).update({v: i for v in d.owned})
+    edges, lengths = np.asarray(mesh.edges_unique), np.asarray(mesh.edges_unique_length)
+    # Edges incident to each vertex (CSR), to find a patch's edges without scanning them all.
+    ends = edges.ravel()
+    order = np.argsort(ends, kind="stable")
+    start = np.searchsorted(ends[order], np.arange(n + 1))
+    local = np.full(n, -1, dtype=np.int64)
     for region, (faces, singular) in enumerate(curved):
-        source_owner = {v: i for i, d in enumerate(drafts) if d.region == region for v in d.owned}
+        source_owner = by_region.get(region)
         if not source_owner:
             continue
-        patch_vertices = np.unique(mesh.faces[faces])
-        inside = np.zeros(n, bool)
-        inside[patch_vertices] = True
-        sub = inside[edges].all(axis=1)
-        graph = coo_matrix((lengths[sub], (edges[sub, 0], edges[sub, 1])), shape=(n, n)).tocsr()
+        patch = np.unique(mesh.faces[faces])
+        local[patch] = np.arange(len(patch))
+        incident = np.concatenate([order[start[v] : start[v + 1]] for v in patch]) // 2
+        incident = np.unique(incident)
+        ends_local = local[edges[incident]]
+        sub = (ends_local >= 0).all(axis=1)
+        k = len(patch)
+        graph = coo_matrix(
+            (lengths[incident[sub]], (ends_local[sub, 0], ends_local[sub, 1])), shape=(k, k)
+        ).tocsr()
         sources = np.array(sorted(source_owner))
         _, _, nearest = dijkstra(
-            graph, directed=False, indices=sources, min_only=True, return_predecessors=True
+            graph, directed=False, indices=local[sources], min_only=True, return_predecessors=True
         )
-        skip = set(singular.tolist())
-        for v in patch_vertices.tolist():
-            if v not in source_owner and v not in skip and nearest[v] >= 0:
-                owners[v].add(source_owner[int(nearest[v])])
-    return owners
+        free = np.ones(k, dtype=bool)
+        free[local[sources]] = False
+        inside = local[singular]
+        free[inside[inside >= 0]] = False
+        free &= nearest >= 0
+        owner_of = np.array([source_owner[int(v)] for v in patch[nearest[free]]], dtype=np.int64)
+        vertices.append(patch[free])
+        elements.append(owner_of)
+        local[patch] = -1
+    return np.concatenate(vertices), np.concatenate(elements)
 
 
 __all__ = [

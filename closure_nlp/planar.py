@@ -22,11 +22,14 @@ def facets(mesh, faces: np.ndarray) -> list[Draft]:
         return []  # a patch of zero-area slivers
     normal /= length
     centre = (mesh.triangles_center[faces] * areas[:, None]).sum(0) / areas.sum()
-    verts = mesh.vertices
-    flat = verts - np.outer((verts - centre) @ normal, normal)  # every vertex onto the plane
+    # The patch's own vertices, numbered 0..k-1 here (the mesh's ids: ``ids``): the work is
+    # linear in the patch's size, not the mesh's.
+    ids, local = np.unique(mesh.faces[faces], return_inverse=True)
+    verts = mesh.vertices[ids]
+    flat = verts - np.outer((verts - centre) @ normal, normal)  # onto the plane
     frame = _plane_frame(normal)
     xy = (flat - centre) @ frame
-    triangles = _remove_interior_vertices(mesh.faces[faces], xy)
+    triangles = _remove_interior_vertices(local.reshape(-1, 3), xy)
     drafts = []
     for loop, owned in _convex_pieces(triangles, xy):
         loop = _drop_straight(loop, xy)
@@ -36,7 +39,7 @@ def facets(mesh, faces: np.ndarray) -> list[Draft]:
             element = Element(ElementKind.FACET, flat[loop], -normal)
         except ValueError:
             continue  # a sliver too thin to be a facet (boolean unions leave some)
-        drafts.append(Draft(element, owned, -1))
+        drafts.append(Draft(element, {int(ids[v]) for v in owned}, -1))
     return drafts
 
 
