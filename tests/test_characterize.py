@@ -585,3 +585,20 @@ def test_pybullet_meshes_characterize_into_models_the_commands_accept(name, tmp_
     code, _, err = run_cli(capsys, "eligibility", out, "--elements", "0,1,2,3", "--type", "pcwf")
     assert code == 0, err
     assert all(line.startswith("warning: ") for line in err.splitlines())
+
+
+@pytest.mark.parametrize("spacing", [0.01, 0.05, 0.3])
+def test_thinning_keeps_the_greedy_points(spacing):
+    """thin's ball-at-a-time search against the definition, by brute force: in order, a point
+    is kept unless a point kept before it lies closer than the spacing."""
+    from closure_nlp.drafts import thin
+
+    rng = np.random.default_rng(3)
+    points = rng.random((400, 3))
+    order = rng.permutation(len(points))
+    for given in (None, order):
+        kept = []
+        for i in range(len(points)) if given is None else given:
+            if all(np.linalg.norm(points[i] - points[j]) >= spacing for j in kept):
+                kept.append(int(i))
+        assert thin(points, spacing, given) == sorted(kept)
