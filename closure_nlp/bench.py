@@ -288,6 +288,60 @@ def bench_characterize(subdivisions=(5, 7, 8), noise: float = 0.0) -> dict:
     return {"work": "characterize an icosphere (default options)", "load": load, "runs": runs}
 
 
+def bench_model_size(subdivisions=(3, 4, 5), repeats: int = 3) -> dict:
+    """``eligibility`` and ``select`` (4 PCwF, seed 0) through the CLI on models of every facet
+    of an icosphere (1,280, 5,120 and 20,480 facets by default): medians of ``repeats`` runs in
+    this process, and each size's seconds per element against the smallest's (1.0: linear)."""
+    import contextlib
+    import io
+    import tempfile
+
+    import trimesh
+
+    from .cli import main as cli
+    from .elements import Element, Model, save_model
+
+    runs = []
+    with tempfile.TemporaryDirectory() as folder:
+        for sub in subdivisions:
+            mesh = trimesh.creation.icosphere(subdivisions=sub)
+            elements = tuple(
+                Element("facet", mesh.vertices[f], -mesh.face_normals[k], name=f"elements[{k}]")
+                for k, f in enumerate(mesh.faces)
+            )
+            pairs = tuple(sorted({tuple(sorted(p)) for p in mesh.face_adjacency.tolist()}))
+            path = Path(folder) / f"sphere{sub}.model.json"
+            mesh.export(Path(folder) / f"sphere{sub}.stl")
+            save_model(Model(elements, pairs, mesh=f"sphere{sub}.stl"), path)
+            row = {"elements": len(elements)}
+            for command, extra in (
+                ("eligibility", ["--elements", "0,1,2,3"]),
+                ("select", ["--contacts", "4", "--seed", "0"]),
+            ):
+                times = []
+                for _ in range(repeats):
+                    t = time.perf_counter()
+                    with contextlib.redirect_stdout(io.StringIO()):
+                        code = cli([command, str(path), "--type", "pcwf", "--json", *extra])
+                    times.append(time.perf_counter() - t)
+                    if code != 0:
+                        raise RuntimeError(f"{command} on {len(elements)} facets: exit {code}")
+                row[f"{command}_s"] = round(float(np.median(times)), 3)
+            runs.append(row)
+    for row in runs:
+        for command in ("eligibility", "select"):
+            per = row[f"{command}_s"] / row["elements"]
+            row[f"{command}_per_element_vs_smallest"] = round(
+                per / (runs[0][f"{command}_s"] / runs[0]["elements"]), 3
+            )
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
+    return {
+        "work": "eligibility and select (4 PCwF) via the CLI on icosphere facet models",
+        "load": load,
+        "runs": runs,
+    }
+
+
 # The former behaviour (full search for every neighbour, every neighbour-move trial to the full
 # budget, the default search in every exchange round, no check at a run's end): the baseline
 # that ``bench plan`` runs in the same process, on the same solvers, for its ratios; and the
@@ -378,6 +432,9 @@ def main(argv=None) -> int:
     p = sub.add_parser("characterize", help="seconds and peak memory of characterize")
     p.add_argument("--subdivisions", type=int, nargs="+", default=[5, 7, 8])
     p.add_argument("--noise", type=float, default=0.0, help="radial noise, x radius")
+    p = sub.add_parser("model-size", help="eligibility and select against the model's size")
+    p.add_argument("--subdivisions", type=int, nargs="+", default=[3, 4, 5])
+    p.add_argument("--repeats", type=int, default=3)
     p = sub.add_parser("plan", help="plan on the example models, against the former options")
     p.add_argument("--seeds", type=int, default=3)
     p.add_argument("--models", default=",".join(PAPER_EXAMPLES), help="e.g. lamp,cup")
@@ -390,6 +447,8 @@ def main(argv=None) -> int:
         report = bench_certify(args.cases, args.seed)
     elif args.what == "characterize":
         report = bench_characterize(args.subdivisions, args.noise)
+    elif args.what == "model-size":
+        report = bench_model_size(args.subdivisions, args.repeats)
     elif args.what == "plan":
         report = bench_plan(args.seeds, names=args.models.split(","))
     else:

@@ -297,6 +297,17 @@ def drop_outward(model: Model, mesh) -> tuple[Model, list[str]]:
     return without_elements(model, bad), lines
 
 
+def drop_outward_as_read(model: Model, base_dir) -> tuple[Model, list[str]]:
+    """:func:`drop_outward` against the model's mesh file (``model.mesh`` in ``base_dir``) as
+    every model command reads it (:func:`closure_nlp.model_mesh.read_model_mesh`: an STL holds
+    32-bit coordinates), so that they accept the model returned. No mesh: nothing is judged."""
+    from .model_mesh import read_model_mesh
+
+    placed = replace(model, base_dir=Path(base_dir))
+    kept, lines = drop_outward(placed, read_model_mesh(placed))
+    return replace(kept, base_dir=model.base_dir), lines
+
+
 def without_elements(model: Model, ids) -> Model:
     """``model`` without the elements ``ids``: the others renumbered in order, and the neighbours
     of a removed element made neighbours of each other (the iterative selection still moves
@@ -608,6 +619,7 @@ __all__ = [
     "characterize",
     "characterize_mesh",
     "drop_outward",
+    "drop_outward_as_read",
     "without_elements",
     "load_mesh",
     "repair_mesh",

@@ -645,13 +645,11 @@ def _add_characterize(sub, common) -> None:
 
 def _cmd_characterize(args) -> None:
     import os
-    from dataclasses import replace
     from pathlib import Path
 
-    from .characterize import characterize_mesh, drop_outward
+    from .characterize import characterize_mesh, drop_outward_as_read
     from .elements import save_model
     from .files import write_atomic
-    from .model_mesh import read_model_mesh
     from .scale import units_warning
 
     with _reading(args.out):
@@ -683,7 +681,7 @@ def _cmd_characterize(args) -> None:
             write_atomic(copy, found.mesh.export(file_type="stl"))
         # The model commands judge normals against the mesh file as they read it (an STL holds
         # 32-bit coordinates): judged here the same way, so they never refuse what is written.
-        model, more = drop_outward(model, read_model_mesh(replace(model, base_dir=out.parent)))
+        model, more = drop_outward_as_read(model, out.parent)
         dropped += more
         save_model(model, out)
     except OSError as exc:

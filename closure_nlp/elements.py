@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .contacts import as_reference_point, grasp_matrices, local_frame
+from .contacts import as_reference_point, cross, grasp_matrices, local_frame
 from .files import load_json, write_json
 from .tolerances import DEFAULT_TOLERANCES, Tolerances
 from .validation import as_points, as_unit_vector, as_vector, check_keys, parse_choice
@@ -207,7 +207,7 @@ def _check_facet(vertices, normal, name, tol) -> None:
             f"{name}: facet is not planar: a vertex is {deviation:.3g} off its plane "
             f"(allowed {tol:g} x size {size:.3g})"
         )
-    off = float(np.linalg.norm(np.cross(normal, plane)))
+    off = float(np.linalg.norm(cross(normal, plane)))
     if off > tol:
         raise ValueError(
             f"{name}.inward_normal: not perpendicular to the facet (|sin| = {off:.3g} > {tol:g})"

@@ -19,15 +19,18 @@ import csv
 import importlib
 import subprocess
 import sys
+import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import trimesh
 
-from closure_nlp.characterize import characterize_mesh
+from closure_nlp.characterize import characterize_mesh, drop_outward_as_read
 from closure_nlp.contacts import contact_specs
 from closure_nlp.eligibility import Eligibility
 from closure_nlp.errors import MethodError
+from closure_nlp.files import write_atomic
 from closure_nlp.planning import plan
 from closure_nlp.scale import resolve
 
@@ -43,6 +46,9 @@ MESHES = {
     "lego": "lego/lego.obj",
 }
 GRASPS = {"4 pcwf": (4, "pcwf"), "7 fpc": (7, "fpc")}
+# Convex decompositions whose hulls stay apart in places after their union: one rigid part by
+# choice (`characterize --merge-bodies`).
+MERGE_BODIES = {"teddy"}
 
 
 def pybullet_data_path() -> Path:
@@ -58,21 +64,31 @@ def pybullet_data_path() -> Path:
 def run_one(name: str, mesh, units: str, seed: int) -> list[dict]:
     t = time.perf_counter()
     try:
-        found = characterize_mesh(mesh, units=units, name=name)
+        found = characterize_mesh(
+            mesh, units=units, name=name, merge_bodies=name in MERGE_BODIES, mesh_ref="m.stl"
+        )
     except ValueError as exc:
         return [{"mesh": name, "units": units, "error": str(exc).split(": ", 1)[-1][:160]}]
+    # As `closure-nlp characterize` writes it: the elements the model commands refuse against
+    # the written mesh are dropped (plan and show would refuse the model otherwise).
+    with tempfile.TemporaryDirectory() as folder:
+        write_atomic(Path(folder) / "m.stl", found.mesh.export(file_type="stl"))
+        model, dropped = drop_outward_as_read(found.model, folder)
+    model = replace(model, mesh=None)
     seconds = time.perf_counter() - t
-    model = found.model
+    repairs = list(found.repairs) + [f"dropped {line.split(' (')[0]}" for line in found.dropped]
+    if dropped:
+        repairs.append(f"dropped {len(dropped)} element(s) whose normal points out of the mesh")
     scale = resolve(model)
     rows = []
     for grasp, (m, kind) in GRASPS.items():
         row = {
             "mesh": name,
             "units": units,
-            "radius": f"{found.radius:.4g}",
+            "radius": f"{model.radius:.4g}",
             "elements": "/".join(str(n) for n in model.counts().values()),
             "characterize_s": f"{seconds:.2f}",
-            "repairs": "; ".join(found.repairs),
+            "repairs": "; ".join(repairs),
             "grasp": grasp,
         }
         hand = Eligibility(model, contact_specs(m, type=kind, mu_s=scale.mu_s), scale.torque_scale)
