@@ -290,17 +290,24 @@ def bench_characterize(subdivisions=(5, 7, 8), noise: float = 0.0) -> dict:
 
 def bench_model_size(subdivisions=(3, 4, 5), repeats: int = 3) -> dict:
     """``eligibility`` and ``select`` (4 PCwF, seed 0) through the CLI on models of every facet
-    of an icosphere (1,280, 5,120 and 20,480 facets by default): medians of ``repeats`` runs in
-    this process, and each size's seconds per element against the smallest's (1.0: linear)."""
-    import contextlib
-    import io
+    of an icosphere (1,280, 5,120 and 20,480 facets by default), each run in a fresh process
+    (what a user's command costs, nothing kept from a former run): medians of ``repeats``, and
+    each size's seconds per element against the smallest's (1.0: linear)."""
+    import subprocess
     import tempfile
 
     import trimesh
 
-    from .cli import main as cli
     from .elements import Element, Model, save_model
 
+    code = (
+        "import contextlib, io, json, sys, time\n"
+        "t = time.perf_counter()\n"
+        "from closure_nlp.cli import main\n"
+        "with contextlib.redirect_stdout(io.StringIO()):\n"
+        "    code = main(sys.argv[1:])\n"
+        "print(json.dumps({'code': code, 'seconds': time.perf_counter() - t}))\n"
+    )
     runs = []
     with tempfile.TemporaryDirectory() as folder:
         for sub in subdivisions:
@@ -318,14 +325,19 @@ def bench_model_size(subdivisions=(3, 4, 5), repeats: int = 3) -> dict:
                 ("eligibility", ["--elements", "0,1,2,3"]),
                 ("select", ["--contacts", "4", "--seed", "0"]),
             ):
+                argv = [command, str(path), "--type", "pcwf", "--json", *extra]
                 times = []
                 for _ in range(repeats):
-                    t = time.perf_counter()
-                    with contextlib.redirect_stdout(io.StringIO()):
-                        code = cli([command, str(path), "--type", "pcwf", "--json", *extra])
-                    times.append(time.perf_counter() - t)
-                    if code != 0:
-                        raise RuntimeError(f"{command} on {len(elements)} facets: exit {code}")
+                    out = subprocess.run(
+                        [sys.executable, "-c", code, *argv],
+                        capture_output=True,
+                        text=True,
+                        check=True,
+                    )
+                    answer = json.loads(out.stdout.strip().splitlines()[-1])
+                    if answer["code"] != 0:
+                        raise RuntimeError(f"{command} on {len(elements)} facets: {out.stderr}")
+                    times.append(answer["seconds"])
                 row[f"{command}_s"] = round(float(np.median(times)), 3)
             runs.append(row)
     for row in runs:
