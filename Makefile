@@ -17,7 +17,7 @@ install: $(STAMP)
 # The whole method on the lamp (4 PCwF): heuristic, iterative selection, placement, report.
 demo: $(STAMP)
 	MPLBACKEND=Agg $(BIN)/closure-nlp plan models/lamp.model.json --contacts 4 --type pcwf \
-		--mu 0.2 --seed 1 --out out/lamp
+		--mu 0.2 --seed 1 --seeds 1 --out out/lamp
 
 test: $(STAMP)
 	MPLBACKEND=Agg $(BIN)/python -m pytest -q
