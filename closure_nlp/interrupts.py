@@ -63,3 +63,10 @@ def interruptible():
             signal.signal(signum, handler)
         if silenced:  # only what this block disabled: every solve passes here
             logging.disable(logging.NOTSET)  # an in-process caller gets its logging back
+
+
+def leave_to_parent() -> None:
+    """In a worker process: Ctrl-C (sent to the whole process group) is ignored, and
+    :func:`interruptible` does nothing; the parent stops the workers itself."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _active.on = True

@@ -24,6 +24,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .eligibility import Eligibility
+from .interrupts import leave_to_parent
 from .placement import PlacementOptions, Placer
 from .progress import Progress
 from .selection import SelectionOptions
@@ -287,6 +288,7 @@ _WORKER: dict = {}
 
 
 def _start_worker(eligibility, options, kwargs) -> None:
+    leave_to_parent()  # Ctrl-C ends the parent's wait, which then ends the workers
     _WORKER.update(
         eligibility=eligibility, placer=Placer(eligibility, options), memo={}, kwargs=kwargs
     )
@@ -337,3 +339,16 @@ def _in_processes(eligibility, options, kwargs, seed, seeds, workers, budget, t0
         pool.terminate()
         pool.join()
     return [done[i] for i in sorted(done)]
+
+
+__all__ = [
+    "DEFAULT_BUDGET",
+    "DEFAULT_SEEDS",
+    "SeedRun",
+    "SeedSpread",
+    "available_cores",
+    "best_index",
+    "check_seed_options",
+    "plan_seeds",
+    "rank",
+]
