@@ -425,6 +425,101 @@ def bench_plan(seeds: int = 3, models_dir=MODELS_DIR, names=None) -> dict:
     return report
 
 
+# The fixture study's 7-FPC groups (examples/studies/fixtures.toml: f_max 1, torque scale 1,
+# placement starts 2) and the best rho of its 20 seeds.
+FIXTURE_TARGETS = {
+    "pistol": ("models/pistol.model.json", -0.6494),
+    "stepped_shaft": ("examples/studies/models/stepped_shaft.model.json", -0.7125),
+}
+
+
+def _load() -> float:
+    import os
+
+    return float(os.getloadavg()[0])
+
+
+def _seed_entry(result, wall: float) -> dict:
+    spread = result.seeds.to_dict()
+    rhos = [r["rho"] for r in spread["runs"] if "rho" in r]
+    return {
+        "wall_s": wall,
+        "seeds_run": spread["run"],
+        "workers": spread["workers"],
+        "best_rho": spread["best_rho"],
+        "single_seed_median_rho": float(np.median(rhos)),
+        "worst_rho": spread["worst_rho"],
+        "force_closure": spread["force_closure"],
+        "marginal": spread["marginal"],
+        "failed": spread["failed"],
+        "memo_reuses": sum(len(r.get("reused", [])) for r in spread["runs"]),
+        "element_sets": len(spread["element_sets"]),
+        "rho_each": rhos,
+    }
+
+
+def bench_seeds(
+    seeds: int = 8,
+    root=MODELS_DIR.parent,
+    parts=("efficiency", "fixtures", "examples"),
+    efficiency_model: str = "lamp",
+) -> dict:
+    """Plans of several seeds. ``efficiency``: ``seeds`` seeds of one example one by one
+    (one process, one memo) and over the available cores, in the same run; the ratio of their
+    wall times, with the load before and after. ``fixtures``: the command line's default plan
+    (:data:`~closure_nlp.seeds.DEFAULT_SEEDS` seeds, :data:`~closure_nlp.seeds.DEFAULT_BUDGET`)
+    on the fixture study's pistol and stepped shaft 7-FPC groups, against the study's best of
+    20 seeds. ``examples``: best of ``seeds`` against the median single seed of the same runs,
+    on the three examples (the bench plan setting)."""
+    from .seeds import DEFAULT_BUDGET, DEFAULT_SEEDS, available_cores
+
+    root = Path(root)
+    report = {"benchmark": "seeds", "seeds": seeds, "cores": available_cores()}
+    if "efficiency" in parts:
+        eligibility = paper_eligibility(efficiency_model, root / "models")
+        entry = {"model": efficiency_model, "load_before": _load()}
+        for mode, workers in (("serial", 1), ("parallel", available_cores())):
+            t0 = time.perf_counter()
+            result = plan(eligibility, seed=0, seeds=seeds, workers=workers)
+            entry[mode] = _seed_entry(result, time.perf_counter() - t0)
+            entry[f"load_after_{mode}"] = _load()
+        entry["same_answer"] = entry["serial"]["rho_each"] == entry["parallel"]["rho_each"]
+        entry["speedup"] = entry["serial"]["wall_s"] / entry["parallel"]["wall_s"]
+        report["efficiency"] = entry
+    if "fixtures" in parts:
+        report["fixtures"] = {}
+        for name, (path, study_best) in FIXTURE_TARGETS.items():
+            model = load_model(root / path)
+            eligibility = Eligibility(model, contact_specs(7, type="fpc"), torque_scale=1.0)
+            load = _load()
+            t0 = time.perf_counter()
+            result = plan(
+                eligibility, seed=0, seeds=DEFAULT_SEEDS, budget=DEFAULT_BUDGET,
+                placement=PlacementOptions(starts=2),
+            )
+            entry = _seed_entry(result, time.perf_counter() - t0)
+            entry.update(
+                load_before=load, load_after=_load(), study_best_rho=study_best,
+                within_10_percent=bool(result.placement.rho <= 0.9 * study_best),
+                within_10_s=bool(entry["wall_s"] <= 10.0), budget_s=DEFAULT_BUDGET,
+            )
+            report["fixtures"][name] = entry
+    if "examples" in parts:
+        report["examples"] = {}
+        for name in PAPER_EXAMPLES:
+            if name == efficiency_model and "efficiency" in report:  # the same runs
+                report["examples"][name] = report["efficiency"]["parallel"]
+                continue
+            eligibility = paper_eligibility(name, root / "models")
+            load = _load()
+            t0 = time.perf_counter()
+            result = plan(eligibility, seed=0, seeds=seeds)
+            entry = _seed_entry(result, time.perf_counter() - t0)
+            entry.update(load_before=load, load_after=_load())
+            report["examples"][name] = entry
+    return report
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m closure_nlp.bench", description=__doc__)
     sub = parser.add_subparsers(dest="what", required=True)
@@ -450,8 +545,14 @@ def main(argv=None) -> int:
     p = sub.add_parser("plan", help="plan on the example models, against the former options")
     p.add_argument("--seeds", type=int, default=3)
     p.add_argument("--models", default=",".join(PAPER_EXAMPLES), help="e.g. lamp,cup")
+    p = sub.add_parser("seeds", help="plans of several seeds: efficiency, fixtures, examples")
+    p.add_argument("--seeds", type=int, default=8)
+    p.add_argument("--parts", default="efficiency,fixtures,examples")
+    p.add_argument("--model", default="lamp", help="the example of the efficiency part")
     args = parser.parse_args(argv)
-    if args.what == "rho":
+    if args.what == "seeds":
+        report = bench_seeds(args.seeds, parts=args.parts.split(","), efficiency_model=args.model)
+    elif args.what == "rho":
         report = bench_rho(args.cases, args.repeats, args.seed)
     elif args.what == "rho-hat":
         report = bench_rho_hat(args.cases, args.repeats, args.seed)
