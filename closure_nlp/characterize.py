@@ -423,24 +423,30 @@ def _planar_patches(mesh, flat: float) -> np.ndarray:
     graph = coo_matrix((np.ones(2 * len(pairs)), (pairs.ravel(), pairs[:, ::-1].ravel())), (n, n))
     graph = graph.tocsr()
     out = labels.copy()
-    done = ~spread
-    next_label = labels.max() + 1
-    cos_flat = np.cos(flat)
-    for seed in np.flatnonzero(spread)[np.argsort(-areas[spread], kind="stable")]:
+    next_label = int(labels.max()) + 1
+    cos_flat = float(np.cos(flat))
+    # Plain Python lists: this loop visits every face of the spread components once, and a
+    # numpy scalar operation costs ~1 us where a float's costs ~0.05 us.
+    indptr, indices = graph.indptr.tolist(), graph.indices.tolist()
+    nx, ny, nz = (normals[:, k].tolist() for k in range(3))
+    done = (~spread).tolist()
+    label = out.tolist()
+    for seed in np.flatnonzero(spread)[np.argsort(-areas[spread], kind="stable")].tolist():
         if done[seed]:
             continue
         done[seed] = True
-        out[seed] = next_label
+        label[seed] = next_label
+        sx, sy, sz = nx[seed], ny[seed], nz[seed]
         stack = [seed]
         while stack:
             f = stack.pop()
-            for g in graph.indices[graph.indptr[f] : graph.indptr[f + 1]]:
-                if not done[g] and normals[g] @ normals[seed] >= cos_flat:
+            for g in indices[indptr[f] : indptr[f + 1]]:
+                if not done[g] and nx[g] * sx + ny[g] * sy + nz[g] * sz >= cos_flat:
                     done[g] = True
-                    out[g] = next_label
+                    label[g] = next_label
                     stack.append(g)
         next_label += 1
-    return out
+    return np.asarray(label, dtype=out.dtype)
 
 
 def _face_components(mesh, keep: np.ndarray) -> np.ndarray:
