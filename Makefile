@@ -19,11 +19,12 @@ demo: $(STAMP)
 	MPLBACKEND=Agg $(BIN)/closure-nlp plan models/lamp.model.json --contacts 4 --type pcwf \
 		--mu 0.2 --seed 1 --seeds 1 --out out/lamp
 
+# Over every core (pytest-xdist); each worker builds its solvers once and reuses them.
 test: $(STAMP)
-	MPLBACKEND=Agg $(BIN)/python -m pytest -q
+	MPLBACKEND=Agg $(BIN)/python -m pytest -q -n auto
 
 test-fast: $(STAMP)
-	MPLBACKEND=Agg $(BIN)/python -m pytest -q -m "not slow"
+	MPLBACKEND=Agg $(BIN)/python -m pytest -q -n auto -m "not slow"
 
 lint: $(STAMP)
 	$(BIN)/ruff check closure_nlp tests examples models

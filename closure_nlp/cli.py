@@ -20,7 +20,7 @@ import sys
 
 from . import _cli_startup, _quiet_interrupt  # noqa: F401 - first: Ctrl-C while importing
 from .contact_count import require_closure_count
-from .contacts import contact_specs
+from .contacts import SOFT_FINGERS, contact_specs
 from .elements import load_model
 from .eligibility import Eligibility
 from .errors import MethodError
@@ -32,6 +32,7 @@ from .files import (
     write_json,
 )
 from .interrupts import interruptible
+from .numbers import bracket, certain, lengths
 from .placement import PlacementOptions, Placer
 from .planning import load_contacts, plan, write_report
 from .progress import progress_line
@@ -78,7 +79,7 @@ def _emit(args, payload: dict, text: str) -> None:
     scale = getattr(args, "scale", None)
     if scale is not None:  # a model command: the torque scale, mu_s and point it used
         payload = {**payload, **scale.to_dict()}
-        text = f"{args.model}: {scale.text()}\n{text}"
+        text = f"{args.model}: {scale.text(getattr(args, 'soft_fingers', True))}\n{text}"
     _check_finite(payload, str(payload.get("file", getattr(args, "model", ""))))
     if args.json:
         print(json.dumps(payload, allow_nan=False))
@@ -121,8 +122,9 @@ def _cmd_rho(args) -> None:
         _emit(
             args,
             payload,
-            f"{path}: rho = {result.rho:.9g} ({_verdict(result, result.force_closure)}); "
-            f"weakest direction u* = [{direction}]" + _bounds_text(result, "rho", 9),
+            f"{path}: rho = {certain(result.rho, result.bounds)} "
+            f"({_verdict(result, result.force_closure)}); "
+            f"weakest direction u* = [{direction}]" + _bounds_text(result, "rho"),
         )
 
 
@@ -133,12 +135,13 @@ def _verdict(result, positive: bool, yes="force closure", no="not force closure"
     return yes if positive else no
 
 
-def _bounds_text(result, name: str, digits: int) -> str:
-    """``; certified lo <= name <= hi``, and the width when the bracket did not converge."""
+def _bounds_text(result, name: str) -> str:
+    """``; certified lo <= name <= hi`` (one digit more than the value, numbers.bracket), and
+    the width when the bracket did not converge."""
     if getattr(result, "bounds", None) is None:
         return ""
     lo, hi = result.bounds
-    text = f"; certified {lo:.{digits}g} <= {name} <= {hi:.{digits}g}"
+    text = "; certified {} <= {name} <= {}".format(*bracket(result.bounds), name=name)
     if not result.converged:
         text += f" (not converged: width {hi - lo:.2g})"
     return text
@@ -224,6 +227,7 @@ def _eligibility(args, m: int, field: str = "--contacts"):
     for line in scale_warnings(scale, [s.type.value for s in specs]):
         sys.stderr.write(f"warning: {args.model}: {line}\n")
     args.scale = scale
+    args.soft_fingers = any(s.type in SOFT_FINGERS for s in specs)  # mu_s plays a part
     return Eligibility(model, specs, scale.torque_scale)
 
 
@@ -312,8 +316,9 @@ def _cmd_eligibility(args) -> None:
     _emit(
         args,
         result.to_dict(),
-        f"{args.model}: elements {_join(result.elements)}: rho_hat = {result.rho_hat:.9g} "
-        f"({verdict})" + _bounds_text(result, "rho_hat", 9),
+        f"{args.model}: elements {_join(result.elements)}: "
+        f"rho_hat = {certain(result.rho_hat, result.bounds)} ({verdict})"
+        + _bounds_text(result, "rho_hat"),
     )
 
 
@@ -347,7 +352,8 @@ def _cmd_select(args) -> None:
         args,
         {"algorithm": args.algorithm, **result.to_dict()},
         f"{args.model}: {args.algorithm}: elements {_join(result.elements)}: "
-        f"rho_hat = {result.rho_hat:.9g} ({verdict}){_bounds_text(result, 'rho_hat', 6)}; "
+        f"rho_hat = {certain(result.rho_hat, result.bounds)} ({verdict})"
+        f"{_bounds_text(result, 'rho_hat')}; "
         f"{result.evaluations} evaluations in {result.seconds:.2f} s",
     )
     if not result.eligible:
@@ -376,15 +382,15 @@ def _placement_options(args, seeded: bool) -> PlacementOptions:
         raise ValueError(f"--{exc}") from None
 
 
-def _placement_text(result) -> str:
+def _placement_text(result, model) -> str:
     verdict = _verdict(result, result.force_closure)
-    bounds = _bounds_text(result, "rho", 6)
+    bounds = _bounds_text(result, "rho")
     lines = [
-        f"rho = {result.rho:.9g} ({verdict}){bounds}; centroids gave {result.start_rho:.6g}; "
-        f"{result.seconds:.2f} s"
+        f"rho = {certain(result.rho, result.bounds)} ({verdict}){bounds}; "
+        f"centroids gave {certain(result.start_rho)}; {result.seconds:.2f} s"
     ]
     for i, c in enumerate(result.contacts):
-        pos = " ".join(f"{x:.4f}" for x in c.position)
+        pos = lengths(c.position, model)  # to the model's accuracy (numbers.model_accuracy)
         lines.append(f"  contact {i}: element {c.element} at [{pos}]")
     return "\n".join(lines)
 
@@ -404,7 +410,7 @@ def _cmd_place(args) -> None:
         result = Placer(eligibility, options)(ids, progress=progress)
     finally:
         close()
-    payload, text = result.to_dict(), f"{args.model}: {_placement_text(result)}"
+    payload, text = result.to_dict(), f"{args.model}: {_placement_text(result, eligibility.model)}"
     if args.out:
         _check_finite(payload, args.model)  # before anything is written
         model = eligibility.model
@@ -459,6 +465,9 @@ def _add_plan(sub, common) -> None:
     p.add_argument(
         "--out", metavar="DIR", help="write report.json, contacts.json, pictures and summary.md"
     )
+    p.add_argument(
+        "--up", choices=["x", "y", "z"], help="model axis drawn upwards (default: the model's)"
+    )
     _add_contact_options(p)
     p.set_defaults(run=_cmd_plan)
 
@@ -503,21 +512,23 @@ def _cmd_plan(args) -> None:
             **args.scale.to_dict(),  # mu_s, torque scale, reference point: the values used
             "placement": vars(placement_options),
             "alternatives": args.alternatives,
+            "up": args.up or eligibility.model.up,
         }
         with staged_folder(args.out) as staged:  # all files of this run, or none
             written = write_report(eligibility.model, result, staged, options)
         payload["out"] = {name: os.path.join(args.out, name) for name in written}
     h, it = result.heuristic, result.iterative
     text = (
-        f"{args.model}: heuristic {_join(h.elements)} rho_hat = {h.rho_hat:.6g} "
-        f"({h.seconds:.2f} s); iterative {_join(it.elements)} rho_hat = {it.rho_hat:.6g} "
+        f"{args.model}: heuristic {_join(h.elements)} rho_hat = {certain(h.rho_hat, h.bounds)} "
+        f"({h.seconds:.2f} s); iterative {_join(it.elements)} "
+        f"rho_hat = {certain(it.rho_hat, it.bounds)} "
         f"({it.seconds:.2f} s)\n"
         + "".join(
             f"placement on {_join(a.elements)} ({a.source}): rho = {a.rho:.6g}"
             f"{' (force closure)' if a.force_closure else ''} ({a.seconds:.2f} s)\n"
             for a in result.attempts[1:]
         )
-        + f"{_placement_text(result.placement)}\n"
+        + f"{_placement_text(result.placement, eligibility.model)}\n"
         + ("" if result.seeds is None else result.seeds.line() + "\n")
         + f"total {result.seconds:.2f} s"
         + (f"; report in {args.out}" if args.out else "")
@@ -765,6 +776,18 @@ def _contact_elements(path: str) -> list[int]:
     return [i for i in ids if isinstance(i, int) and not isinstance(i, bool)]
 
 
+def _show_title(model, contacts) -> str | None:
+    """``name: N contacts, rho = ... (verdict)`` when contacts are drawn (their certified rho,
+    as ``closure-nlp rho`` gives it); None: the model's name and counts."""
+    if contacts is None or not contacts.contacts:
+        return None
+    result = rho(contacts)
+    return (
+        f"{model.name}: {len(contacts.contacts)} contacts, rho = "
+        f"{certain(result.rho, result.bounds)} ({_verdict(result, result.force_closure)})"
+    )
+
+
 def _cmd_show(args) -> None:
     from pathlib import Path
 
@@ -796,16 +819,9 @@ def _cmd_show(args) -> None:
             f"unsupported file type {suffix or args.out!r} "
             "(use .png, .svg, .pdf, .jpg, .glb or .html)",
         )
-    options = (
-        {}
-        if suffix in SCENE_SUFFIXES
-        else {
-            "view": (args.elev, args.azim),
-            "show_mesh": not args.no_mesh,
-            "up": args.up,
-            "ids": args.ids,
-        }
-    )
+    options = {"up": args.up, "title": _show_title(model, contacts)}
+    if suffix not in SCENE_SUFFIXES:
+        options.update(view=(args.elev, args.azim), show_mesh=not args.no_mesh, ids=args.ids)
     try:
         out = save_view(model, args.out, contacts, highlight=highlight, marked=marked, **options)
     except OSError as exc:

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from .contacts import ContactSpec, ContactType
+from .contacts import SOFT_FINGERS, ContactSpec, ContactType
 
 WRENCH_SPACE = 6  # force and torque in 3-D
 NAMES = {
@@ -33,7 +33,7 @@ def wrench_dimensions(spec: ContactSpec) -> int:
     if spec.type is ContactType.FPC:
         return 1
     friction = 2 if spec.mu > 0 else 0
-    spin = 1 if spec.type in (ContactType.SFCL, ContactType.SFCE) and spec.mu_s > 0 else 0
+    spin = 1 if spec.type in SOFT_FINGERS and spec.mu_s > 0 else 0
     return 1 + friction + spin
 
 

@@ -49,6 +49,9 @@ class ContactType(str, Enum):
         return parse_choice(cls, value, field, "contact type")
 
 
+SOFT_FINGERS = frozenset({ContactType.SFCL, ContactType.SFCE})  # the types mu_s acts on
+
+
 def friction_pieces(kind: ContactType, mu: float, mu_s: float) -> np.ndarray:
     """Weights of the friction term of the support function (eqs 29-32).
 

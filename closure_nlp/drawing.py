@@ -411,13 +411,24 @@ def save_figure(fig, path, dpi: int = 130) -> Path:
 
 
 def build_scene(
-    model: Model, contacts=None, *, highlight: Sequence[int] = (), marked: Sequence[int] = ()
+    model: Model,
+    contacts=None,
+    *,
+    highlight: Sequence[int] = (),
+    marked: Sequence[int] = (),
+    up: str | None = None,
 ):
-    """A ``trimesh.Scene`` of the model: mesh, facets, segments (thin rods), points, contacts."""
+    """A ``trimesh.Scene`` of the model: mesh, facets, segments (thin rods), points, contacts.
+
+    The scene is turned so that the model's ``up`` axis (default: the model's) is the viewer's
+    up (three.js: +y), as in the pictures, and its camera looks from the side where most
+    contacts face it (:func:`scene_view`), framing the model and the contacts.
+    """
     import trimesh
 
     chosen = {model.check_id(i, "highlight") for i in highlight}
     bad = {model.check_id(i, "marked") for i in marked}
+    turn = _scene_turn(model.up if up is None else up)
     scene = trimesh.Scene()
     size = model_extent(model)
     from .model_mesh import read_model_mesh
@@ -437,14 +448,69 @@ def build_scene(
         part.visual.face_colors = [*colour.astype(int).tolist(), 255]
         scene.add_geometry(part, geom_name=f"element_{i}")
     pos, nrm = contact_arrays(contacts)
+    radius = 0.02 * size
     for k, (p, n) in enumerate(zip(pos, nrm)):
-        ball = trimesh.creation.icosphere(2, radius=0.02 * size)
-        ball.apply_translation(p)
+        ball = trimesh.creation.icosphere(2, radius=radius)
+        ball.apply_translation(p - radius * n)  # above the surface: n points into the part
         arrow = trimesh.creation.cylinder(radius=0.005 * size, segment=[p - 0.15 * size * n, p])
         for name, part in (("contact", ball), ("normal", arrow)):
             part.visual.face_colors = [192, 57, 43, 255]
             scene.add_geometry(part, geom_name=f"{name}_{k}")
+    rotation = np.eye(4)
+    rotation[:3, :3] = turn
+    for name in list(scene.geometry):
+        scene.geometry[name].apply_transform(rotation)
+    scene.camera.fov = (45.0, 45.0)
+    scene.camera_transform = scene_view(scene.bounds, pos @ turn.T, nrm @ turn.T)
     return scene
+
+
+def _scene_turn(up: str) -> np.ndarray:
+    """(3, 3) rotation from model coordinates to the viewer's (three.js: y up), the axes as in
+    the pictures (:data:`UP_AXES`: drawn x, y, then up)."""
+    if up not in UP_AXES:
+        raise ValueError(f"up: expected x, y or z, got {up!r}")
+    a, b, c = UP_AXES[up]
+    eye = np.eye(3)
+    return np.array([eye[a], eye[c], -eye[b]])  # drawn (x, y, up) -> viewer (x, up, -y)
+
+
+def _direction(elev: float, azim: float) -> np.ndarray:
+    """Unit direction to the eye for matplotlib's (elev, azim), in the viewer's frame."""
+    e, a = np.radians(elev), np.radians(azim)
+    x, y, z = np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)
+    return np.array([x, z, -y])
+
+
+def scene_view(bounds: np.ndarray, positions: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """(4, 4) camera transform (looking down its -z, y up) at the scene's centre, from the
+    direction of the pictures' default view unless another shows more contacts from outside.
+
+    A contact is seen when its outward normal (``-normals``) points towards the eye; among the
+    views (elevations 22, 45, 10, 60 degrees, azimuths every 30 degrees) the one that sees the
+    most contacts wins, the default first on a tie, then the one that sees them most squarely.
+    """
+    centre = bounds.mean(axis=0)
+    radius = 0.5 * float(np.linalg.norm(bounds[1] - bounds[0])) or 1.0
+    views = [(22.0, -58.0)] + [
+        (e, a) for e in (22.0, 45.0, 10.0, 60.0) for a in range(-180, 180, 30)
+    ]
+    best, best_key = None, None
+    for elev, azim in views:
+        d = _direction(elev, azim)
+        facing = -np.asarray(normals, dtype=float).reshape(-1, 3) @ d
+        key = (int(np.sum(facing > 0.05)), float(np.sum(np.clip(facing, 0, None))))
+        if best_key is None or key[0] > best_key[0]:
+            best, best_key = d, key
+    distance = 1.15 * radius / np.sin(np.radians(22.5))  # the sphere fills the 45 degree view
+    z = best
+    x = np.cross([0.0, 1.0, 0.0], z)
+    x = x / np.linalg.norm(x) if np.linalg.norm(x) > 1e-9 else np.array([1.0, 0.0, 0.0])
+    y = np.cross(z, x)
+    transform = np.eye(4)
+    transform[:3, :3] = np.column_stack([x, y, z])
+    transform[:3, 3] = centre + distance * z
+    return transform
 
 
 def _element_mesh(element, size: float, chosen: bool = False):
@@ -466,21 +532,74 @@ def _element_mesh(element, size: float, chosen: bool = False):
 
 
 def export_scene(
-    model: Model, contacts, path, *, highlight: Sequence[int] = (), marked: Sequence[int] = ()
+    model: Model,
+    contacts,
+    path,
+    *,
+    highlight: Sequence[int] = (),
+    marked: Sequence[int] = (),
+    up: str | None = None,
+    title: str | None = None,
 ) -> Path:
-    """Write an interactive scene, atomically: ``.glb`` (binary glTF) or ``.html`` (three.js)."""
+    """Write an interactive scene, atomically: ``.glb`` (binary glTF) or ``.html`` (three.js,
+    with ``title`` (default: the model's name and counts) and a legend above the view)."""
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in SCENE_SUFFIXES:
         raise ValueError(f"out: unsupported scene type {suffix or path.name!r} (use .glb or .html)")
-    scene = build_scene(model, contacts, highlight=highlight, marked=marked)
+    scene = build_scene(model, contacts, highlight=highlight, marked=marked, up=up)
     if suffix == ".glb":
         data = scene.export(file_type="glb")
     else:
         from trimesh.viewer.notebook import scene_to_html
 
-        data = scene_to_html(scene)
+        title = title if title is not None else f"{model.name}: {counts_text(model)}"
+        legend = _legend_entries(model, contacts, highlight, marked, "mesh" in scene.geometry)
+        data = _with_overlay(scene_to_html(scene), title, legend)
     return write_atomic(path, data)
+
+
+def _legend_entries(model: Model, contacts, highlight, marked, mesh: bool) -> list[tuple]:
+    """``(label, css colour)`` of what the scene shows, as the pictures' legend names it."""
+    kinds = {e.kind for e in model.elements}
+    def hexed(colour) -> str:
+        return "#" + "".join(f"{int(round(255 * v)):02x}" for v in colour)
+
+    entries = [("mesh", "#c8c8c8")] if mesh else []
+    for kind, label, colour in (
+        (ElementKind.FACET, "facets", FACET_COLOUR),
+        (ElementKind.SEGMENT, "segments", SEGMENT_COLOUR),
+        (ElementKind.POINT, "points", POINT_COLOUR),
+    ):
+        if kind in kinds:
+            entries.append((label, hexed(colour)))
+    if len(highlight):
+        entries.append(("chosen elements", hexed(HIGHLIGHT_COLOUR)))
+    if len(marked):
+        entries.append(("refused elements", hexed(MARKED_COLOUR)))
+    if len(contact_arrays(contacts)[0]):
+        entries.append(("contacts (rod: inward normal)", CONTACT_COLOUR))
+    return entries
+
+
+def _with_overlay(page: str, title: str, legend: list[tuple]) -> str:
+    """The viewer's page with ``title`` (also the tab's) and the legend drawn over the view."""
+    from html import escape
+
+    rows = "".join(
+        f'<div><span style="display:inline-block;width:11px;height:11px;margin-right:5px;'
+        f'background:{colour}"></span>{escape(label)}</div>'
+        for label, colour in legend
+    )
+    overlay = (
+        '<div id="title" style="position:absolute;z-index:1;top:8px;width:100%;'
+        f'text-align:center;font:16px sans-serif">{escape(title)}</div>'
+        '<div id="legend" style="position:absolute;z-index:1;top:36px;left:10px;'
+        "font:12px sans-serif;background:rgba(255,255,255,0.85);padding:6px;"
+        f'border:1px solid #bbb">{rows}</div>'
+    )
+    page = page.replace("<title>trimesh: threejs viewer</title>", f"<title>{escape(title)}</title>")
+    return page.replace('<div id="container"></div>', overlay + '<div id="container"></div>', 1)
 
 
 def save_view(
@@ -495,12 +614,16 @@ def save_view(
     """Picture or interactive scene, chosen by the suffix of ``path``."""
     suffix = Path(path).suffix.lower()
     if suffix in SCENE_SUFFIXES:
-        return export_scene(model, contacts, path, highlight=highlight, marked=marked)
+        scene_options = {k: options[k] for k in ("up", "title") if k in options}
+        return export_scene(
+            model, contacts, path, highlight=highlight, marked=marked, **scene_options
+        )
     return render_model(model, path, contacts, highlight=highlight, marked=marked, **options)
 
 
 __all__ = [
     "build_scene",
+    "scene_view",
     "counts_text",
     "draw_contacts",
     "draw_model",

@@ -25,9 +25,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .contacts import ContactSet, contact_set_from_dict
+from .contacts import SOFT_FINGERS, ContactSet, contact_set_from_dict
 from .eligibility import Eligibility
 from .files import load_json, write_atomic, write_json
+from .numbers import certain, lengths
 from .placement import PlacementOptions, PlacementResult, Placer
 from .progress import Progress
 from .selection import (
@@ -352,39 +353,45 @@ def summary_markdown(model, result: PlanResult, options: dict) -> str:
         "",
         "| step | elements | value | seconds | evaluations |",
         "|---|---|---|---|---|",
-        f"| heuristic | {_ids(h.elements)} | rho_hat = {h.rho_hat:.4f} | {h.seconds:.2f} "
+        f"| heuristic | {_ids(h.elements)} | rho_hat = {certain(h.rho_hat, h.bounds)} "
+        f"| {h.seconds:.2f} "
         f"| {h.evaluations} |",
-        f"| iterative | {_ids(it.elements)} | rho_hat = {it.rho_hat:.4f} | {it.seconds:.2f} "
+        f"| iterative | {_ids(it.elements)} | rho_hat = {certain(it.rho_hat, it.bounds)} "
+        f"| {it.seconds:.2f} "
         f"| {it.evaluations} |",
-        f"| placement | {_ids(pl.elements)} | rho = {pl.rho:.4f} | {pl.seconds:.2f} "
+        f"| placement | {_ids(pl.elements)} | rho = {certain(pl.rho, pl.bounds)} "
+        f"| {pl.seconds:.2f} "
         f"| {pl.rounds} rounds |",
         "",
-        f"Result: rho = {pl.rho:.6g} ({verdict}); contacts at the element centroids had "
-        f"rho = {pl.start_rho:.6g}. Total {result.seconds:.2f} s.",
+        f"Result: rho = {certain(pl.rho, pl.bounds)} ({verdict}); contacts at the element "
+        f"centroids had rho = {certain(pl.start_rho)}. Total {result.seconds:.2f} s.",
         "",
     ]
     if "torque_scale" in options and "reference_point" in options:  # the CLI's scale (scale.py)
         unit = f" {options.get('units')}" if options.get("units") else ""
         point = ", ".join(f"{x:.6g}" for x in options["reference_point"])
         auto = " (auto: 1 / the part's radius)" if options.get("torque_scale_auto") else ""
+        soft = {t.type for t in result.placement.contact_set.contacts} & SOFT_FINGERS
+        mu_s = options.get("mu_s")
+        mu_s = ",".join(f"{v:.6g}" for v in (mu_s if isinstance(mu_s, list) else [mu_s]))
         rows += [
-            f"Torques about [{point}]{unit}; torque scale {options['torque_scale']:.6g}{auto}; "
-            f"mu_s {options.get('mu_s')}{unit}.",
+            f"Torques about [{point}]{unit}; torque scale {options['torque_scale']:.6g}{auto}"
+            + (f"; mu_s {mu_s}{unit}." if soft and options.get("mu_s") is not None else "."),
             "",
         ]
     for i, c in enumerate(pl.contacts):
-        pos = ", ".join(f"{x:.3f}" for x in c.position)
+        pos = lengths(c.position, model, ", ")
         rows.append(f"- contact {i}: element {c.element}, position ({pos})")
     for a in result.attempts[1:]:
         verdict = "force closure" if a.force_closure else "not force closure"
         rows.append(
-            f"- also placed on {_ids(a.elements)} ({a.source}, rho_hat = {a.rho_hat:.4f}): "
-            f"rho = {a.rho:.4f} ({verdict})"
+            f"- also placed on {_ids(a.elements)} ({a.source}, rho_hat = {certain(a.rho_hat)}): "
+            f"rho = {certain(a.rho)} ({verdict})"
         )
     for mv in pl.moves:
         rows.append(
             f"- contact {mv.contact} moved from element {mv.source} to its neighbour "
-            f"{mv.target}: rho {mv.rho_before:.4f} -> {mv.rho_after:.4f}"
+            f"{mv.target}: rho {certain(mv.rho_before)} -> {certain(mv.rho_after)}"
         )
     if result.seeds is not None:
         rows += ["", *_seeds_markdown(result.seeds)]
@@ -445,15 +452,16 @@ def write_report(model, result: PlanResult, out_dir, options: dict) -> dict:
     }
     json.dumps(report, allow_nan=False)  # refuse NaN before anything is written
     with PLOT_LOCK:
-        paths.update(_figures(model, result, out))
+        paths.update(_figures(model, result, out, options.get("up")))
     paths["summary.md"] = write_atomic(out / "summary.md", summary_markdown(model, result, options))
     paths["contacts.json"] = write_json(out / "contacts.json", contacts)
     paths["report.json"] = write_json(out / "report.json", report)
     return {name: str(p) for name, p in paths.items()}
 
 
-def _figures(model, result: PlanResult, out: Path) -> dict:
-    """``placement.png`` (the paper's Fig. 1) and ``history.png`` (its Fig. 3)."""
+def _figures(model, result: PlanResult, out: Path, up: str | None = None) -> dict:
+    """``placement.png`` (the paper's Fig. 1, ``up`` the model axis drawn upwards; default:
+    the model's) and ``history.png`` (its Fig. 3)."""
     from .drawing import draw_contacts, draw_model, model_extent, pyplot, save_figure
 
     paths = {}
@@ -474,7 +482,8 @@ def _figures(model, result: PlanResult, out: Path) -> dict:
         contact_sizes=25.0,
         contact_colour="tab:blue",
         contact_label="start: element centroids",
-        title=f"{model.name}: rho = {result.placement.rho:.4f}",
+        title=f"{model.name}: rho = {certain(result.placement.rho, result.placement.bounds)}",
+        up=up,
     )
     draw_contacts(ax, final, sizes=140.0, scale=model_extent(model), label="placed contacts")
     paths["placement.png"] = save_figure(fig, out / "placement.png")

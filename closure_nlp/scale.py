@@ -73,7 +73,8 @@ class ModelScale:
             "mu_s_auto": self.mu_s_auto,
         }
 
-    def text(self) -> str:
+    def text(self, soft_fingers: bool = True) -> str:
+        """One line; mu_s only where it plays a part (``soft_fingers``: some contact is one)."""
         unit = f" {self.units}" if self.units else ""
         point = ", ".join(f"{x:.6g}" for x in self.reference_point)
         ts = f"torque scale {self.torque_scale:.6g}"
@@ -83,7 +84,7 @@ class ModelScale:
         ms = "mu_s " + ",".join(f"{v:.6g}" for v in mu_s) + unit
         if self.mu_s_auto:
             ms += f" (auto: {MU_S_FRACTION:g} x radius)"
-        return f"torques about [{point}]{unit}; {ts}; {ms}"
+        return f"torques about [{point}]{unit}; {ts}" + (f"; {ms}" if soft_fingers else "")
 
 
 def resolve(model: Model, torque_scale=AUTO, mu_s=AUTO) -> ModelScale:

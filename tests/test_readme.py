@@ -72,6 +72,11 @@ def test_command_prints_what_the_readme_shows(index, monkeypatch, tmp_path, caps
     assert main(argv) == 0
     printed = capsys.readouterr().out
     assert _normal(printed, out_dir) == _normal(expected)
+    if out_dir is not None:  # the summary: no float noise, no mu_s for point contacts
+        summary = (out_dir / "summary.md").read_text()
+        value = re.search(r"\brho = (\S+) \(force closure\)", expected).group(1)
+        assert f"rho = {value} (force closure)" in summary
+        assert "mu_s" not in summary and not re.search(r"\d{9}", summary)
 
 
 @pytest.mark.parametrize("index", _slow_if_plan(SNIPPETS, lambda s: f"snippet{SNIPPETS.index(s)}"))
