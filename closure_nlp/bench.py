@@ -30,6 +30,16 @@ from .selection import SelectionOptions, heuristic, iterative
 from .wrenches import WrenchSlots
 
 
+def _timed(times_ms: list, repeats: int, call):
+    """``call()`` ``repeats`` times, each one's milliseconds appended to ``times_ms``; the last
+    value."""
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        value = call()
+        times_ms.append(1e3 * (time.perf_counter() - t0))
+    return value
+
+
 def paper_baseline(slots: WrenchSlots) -> float:
     """``min p(u)`` over the sphere by SLSQP from ``+-e_k``: the paper's approach."""
     best = np.inf
@@ -73,13 +83,8 @@ def bench_rho(cases: int = 30, repeats: int = 3, seed: int = 0) -> dict:
         minimizer(sets[0])  # build and warm the solver once: we measure reuse
         ours_ms, base_ms, ours_v, base_v, best_v = [], [], [], [], []
         for slots in sets:
-            for _ in range(repeats):
-                t0 = time.perf_counter()
-                found = minimizer(slots)
-                ours_ms.append(1e3 * (time.perf_counter() - t0))
-            t0 = time.perf_counter()
-            base = paper_baseline(slots)
-            base_ms.append(1e3 * (time.perf_counter() - t0))
+            found = _timed(ours_ms, repeats, lambda s=slots: minimizer(s))
+            base = _timed(base_ms, 1, lambda s=slots: paper_baseline(s))
             ours_v.append(found.value)
             base_v.append(base)
             best_v.append(min(found.value, base, thorough(slots).value))
@@ -199,13 +204,8 @@ def bench_rho_hat(cases: int = 20, repeats: int = 3, seed: int = 0, models_dir=M
     eligibility(sets[0])
     ours_ms, base_ms, errors = [], [], []
     for elements in sets:
-        for _ in range(repeats):
-            t0 = time.perf_counter()
-            found = eligibility(elements)
-            ours_ms.append(1e3 * (time.perf_counter() - t0))
-        t0 = time.perf_counter()
-        base = paper_baseline(eligibility.slots(elements))
-        base_ms.append(1e3 * (time.perf_counter() - t0))
+        found = _timed(ours_ms, repeats, lambda e=elements: eligibility(e))
+        base = _timed(base_ms, 1, lambda e=elements: paper_baseline(eligibility.slots(e)))
         errors.append(-found.rho_hat - base)  # > 0: the baseline found a lower value
     return {
         "benchmark": "rho_hat",

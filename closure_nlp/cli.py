@@ -189,23 +189,30 @@ def _budget(text: str) -> float:
 _starts = _bounded_int(1, MAX_STARTS, "the number of start weights")
 
 
+# (flag, default, help) of the contact options every command on a MODEL takes.
+CONTACT_OPTIONS = (
+    ("--type", "pcwf", "fpc, pcwf, sfcl or sfce (default pcwf)"),
+    ("--mu", "0.2", "Coulomb friction coefficient (default 0.2)"),
+    (
+        "--mu-s",
+        "auto",
+        "spin coefficient of soft fingers, a length in the model's units "
+        "(default auto: 0.01 x the part's radius about its reference point)",
+    ),
+    ("--f-max", "1", "normal-force bound f^U (default 1)"),
+    (
+        "--torque-scale",
+        "auto",
+        "factor on every torque row (default auto: 1 / the part's radius, so that rho "
+        "does not depend on the model's unit)",
+    ),
+)
+
+
 def _add_contact_options(parser) -> None:
     g = parser.add_argument_group("contact options (one value, or a comma list of one per contact)")
-    g.add_argument("--type", default="pcwf", help="fpc, pcwf, sfcl or sfce (default pcwf)")
-    g.add_argument("--mu", default="0.2", help="Coulomb friction coefficient (default 0.2)")
-    g.add_argument(
-        "--mu-s",
-        default="auto",
-        help="spin coefficient of soft fingers, a length in the model's units "
-        "(default auto: 0.01 x the part's radius about its reference point)",
-    )
-    g.add_argument("--f-max", default="1", help="normal-force bound f^U (default 1)")
-    g.add_argument(
-        "--torque-scale",
-        default="auto",
-        help="factor on every torque row (default auto: 1 / the part's radius, so that rho "
-        "does not depend on the model's unit)",
-    )
+    for flag, default, text in CONTACT_OPTIONS:
+        g.add_argument(flag, default=default, help=text)
     _add_mesh_option(parser)
 
 
@@ -217,8 +224,9 @@ def _add_mesh_option(parser) -> None:
     )
 
 
-def _eligibility(args, m: int, field: str = "--contacts"):
-    """The model of ``args.model`` with ``m`` contacts of the requested specs."""
+def _eligibility(args, m: int, field: str = "--contacts", closure: bool = False):
+    """The model of ``args.model`` with ``m`` contacts of the requested specs (with
+    ``closure``: only when such contacts can ever hold a 3-D part, else exit 2)."""
     with _reading(args.model):
         as_count(m, field, MAX_ELEMENT_CONTACTS, "contacts")  # the limit, before any work
     model = _load_model(args)
@@ -228,6 +236,9 @@ def _eligibility(args, m: int, field: str = "--contacts"):
         sys.stderr.write(f"warning: {args.model}: {line}\n")
     args.scale = scale
     args.soft_fingers = any(s.type in SOFT_FINGERS for s in specs)  # mu_s plays a part
+    if closure:
+        with _reading(args.model):
+            require_closure_count(specs, field)
     return Eligibility(model, specs, scale.torque_scale)
 
 
@@ -334,9 +345,8 @@ def _add_select(sub, common) -> None:
 
 
 def _cmd_select(args) -> None:
-    eligibility = _eligibility(args, args.contacts)
+    eligibility = _eligibility(args, args.contacts, closure=True)
     with _reading(args.model):
-        require_closure_count(eligibility.specs, "--contacts")
         start = _ids(args.start, "--start") if args.start else None
         if start is not None:
             eligibility.check_elements(start, "--start", partial=True)
@@ -362,11 +372,16 @@ def _cmd_select(args) -> None:
         )
 
 
+def _add_placement_options(p) -> None:
+    """The placement's options, as ``place`` and ``plan`` share them."""
+    p.add_argument("--starts", type=_starts, default=4, help="placement start weights (default 4)")
+
+
 def _add_place(sub, common) -> None:
     p = sub.add_parser("place", parents=[common], help="optimal contacts on given elements")
     p.add_argument("model", metavar="MODEL", help="*.model.json")
     p.add_argument("--elements", required=True, help="element ids, one per contact: I,J,...")
-    p.add_argument("--starts", type=_starts, default=4, help="start weights tried (default 4)")
+    _add_placement_options(p)
     p.add_argument("--seed", type=_seed, default=0, help="random start weights after the first")
     p.add_argument("--out", metavar="FILE", help="write the placed contacts as a contact-set file")
     _add_contact_options(p)
@@ -380,6 +395,18 @@ def _placement_options(args, seeded: bool) -> PlacementOptions:
         return PlacementOptions(starts=args.starts, **({"seed": args.seed} if seeded else {}))
     except ValueError as exc:
         raise ValueError(f"--{exc}") from None
+
+
+def _placement_setup(args, seeded: bool, check_out):
+    """``(options, progress, close)`` of a command that places contacts, its ``--out`` checked
+    by ``check_out`` before any work."""
+    with _reading(args.model):
+        options = _placement_options(args, seeded)
+    if args.out:
+        with _reading(args.out):
+            check_out(args.out)
+    progress, close = _progress(args, options.starts)
+    return options, progress, close
 
 
 def _placement_text(result, model) -> str:
@@ -401,11 +428,7 @@ def _cmd_place(args) -> None:
     with _reading(args.model):
         ids = eligibility.check_elements(ids, "--elements")
         require_closure_count(eligibility.specs, "--elements")
-        options = _placement_options(args, seeded=True)
-    if args.out:
-        with _reading(args.out):
-            check_output_file(args.out)
-    progress, close = _progress(args, options.starts)
+    options, progress, close = _placement_setup(args, True, check_output_file)
     try:
         result = Placer(eligibility, options)(ids, progress=progress)
     finally:
@@ -454,7 +477,7 @@ def _add_plan(sub, common) -> None:
         metavar="K",
         help="processes the seeds run on (default: one per core)",
     )
-    p.add_argument("--starts", type=_starts, default=4, help="placement start weights (default 4)")
+    _add_placement_options(p)
     p.add_argument(
         "--alternatives",
         type=int,
@@ -473,14 +496,8 @@ def _add_plan(sub, common) -> None:
 
 
 def _cmd_plan(args) -> None:
-    eligibility = _eligibility(args, args.contacts)
-    with _reading(args.model):
-        require_closure_count(eligibility.specs, "--contacts")
-        placement_options = _placement_options(args, seeded=False)
-    if args.out:
-        with _reading(args.out):
-            check_output_dir(args.out)
-    progress, close = _progress(args, placement_options.starts)
+    eligibility = _eligibility(args, args.contacts, closure=True)
+    placement_options, progress, close = _placement_setup(args, False, check_output_dir)
     try:
         if args.seed + args.seeds - 1 > MAX_SEED:
             raise InputError(
@@ -654,6 +671,19 @@ def _add_characterize(sub, common) -> None:
     p.set_defaults(run=_cmd_characterize)
 
 
+# The flags of ``characterize`` passed to :func:`characterize_mesh` under their own names.
+CHARACTERIZE_FLAGS = (
+    "segment_spacing",
+    "point_spacing",
+    "sharp_angle",
+    "name",
+    "units",
+    "reference_point",
+    "up",
+    "merge_bodies",
+)
+
+
 def _cmd_characterize(args) -> None:
     import os
     from pathlib import Path
@@ -672,16 +702,7 @@ def _cmd_characterize(args) -> None:
         mesh_ref = copy.name
     try:
         found = characterize_mesh(
-            args.mesh,
-            segment_spacing=args.segment_spacing,
-            point_spacing=args.point_spacing,
-            sharp_angle=args.sharp_angle,
-            name=args.name,
-            units=args.units,
-            mesh_ref=mesh_ref,
-            reference_point=args.reference_point,
-            up=args.up,
-            merge_bodies=args.merge_bodies,
+            args.mesh, mesh_ref=mesh_ref, **{k: getattr(args, k) for k in CHARACTERIZE_FLAGS}
         )
     except ValueError as exc:
         text, prefix = str(exc), f"{args.mesh}: "

@@ -21,6 +21,8 @@ from .tolerances import DEFAULT_TOLERANCES, Tolerances
 from .validation import as_points, as_unit_vector, as_vector, check_keys, parse_choice
 
 
+# The same shape as contacts.ContactType by choice: each string enum names its own field and
+# kind in parse errors; parse_choice holds the logic they share.
 class ElementKind(str, Enum):
     FACET = "facet"
     SEGMENT = "segment"

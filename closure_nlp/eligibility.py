@@ -67,13 +67,18 @@ class EligibilityResult:
     converged: bool = True
 
     def to_dict(self) -> dict:
-        return {
-            "elements": list(self.elements),
-            "rho_hat": self.rho_hat,
-            "eligible": self.eligible,
-            "direction": self.direction.tolist(),
-            **certificate_keys(self),
-        }
+        return element_set_keys(self)
+
+
+def element_set_keys(result) -> dict:
+    """The JSON keys of a rho_hat result (:class:`EligibilityResult`, a selection's result)."""
+    return {
+        "elements": list(result.elements),
+        "rho_hat": result.rho_hat,
+        "eligible": result.eligible,
+        "direction": result.direction.tolist(),
+        **certificate_keys(result),
+    }
 
 
 class Eligibility:
@@ -208,4 +213,4 @@ def rho_hat(
     return Eligibility(model, specs, torque_scale, minimizer)(elements)
 
 
-__all__ = ["Eligibility", "EligibilityResult", "padded_rows", "rho_hat"]
+__all__ = ["Eligibility", "EligibilityResult", "element_set_keys", "padded_rows", "rho_hat"]

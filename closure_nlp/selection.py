@@ -15,10 +15,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .contact_count import require_closure_count
-from .eligibility import Eligibility, EligibilityResult
+from .eligibility import Eligibility, EligibilityResult, element_set_keys
 from .errors import MethodError
 from .progress import Progress
-from .quality import SearchOptions, certificate_keys, signed_distance
+from .quality import SearchOptions, signed_distance
 
 # The light search that ranks the iterative algorithm's neighbours: few samples, one IPOPT run.
 SCREEN_SEARCH = SearchOptions(samples=16, smoothing=(), ipopt_starts=1, element_ipopt_starts=1)
@@ -122,11 +122,7 @@ class SelectionResult:
 
     def to_dict(self) -> dict:
         return {
-            "elements": list(self.elements),
-            "rho_hat": self.rho_hat,
-            "eligible": self.eligible,
-            **certificate_keys(self),
-            "direction": self.direction.tolist(),
+            **element_set_keys(self),
             "history": [{"iteration": k, "rho_hat": v} for k, v in self.history],
             "evaluations": self.evaluations,
             "screened": self.screened,
@@ -197,20 +193,26 @@ def heuristic(
         if found.eligible:
             break
     found, history = best
-    found = eligibility.certify(found)
-    history[-1] = (history[-1][0], found.rho_hat)
+    return _certified_result(eligibility, found, history, evaluations0, t0, rounds=round_)
+
+
+def _certified_result(eligibility, best, history, evaluations0, t0, **extra) -> SelectionResult:
+    """The result of a selection run that ended on ``best``: certified (its history's last
+    value too), with the run's evaluations and seconds; ``extra``: the algorithm's own fields."""
+    best = eligibility.certify(best)
+    history[-1] = (history[-1][0], best.rho_hat)
     return SelectionResult(
-        found.elements,
-        found.rho_hat,
-        found.eligible,
-        found.direction,
+        best.elements,
+        best.rho_hat,
+        best.eligible,
+        best.direction,
         tuple(history),
         eligibility.evaluations - evaluations0,
         time.perf_counter() - t0,
-        round_,
-        bounds=found.bounds,
-        marginal=found.marginal,
-        converged=found.converged,
+        bounds=best.bounds,
+        marginal=best.marginal,
+        converged=best.converged,
+        **extra,
     )
 
 
@@ -324,23 +326,16 @@ def iterative(
         for key, (value, _, elements, stopped) in screened.items()
         if key not in seen and value < 0 and stopped is not None
     )
-    best = eligibility.certify(best)
-    history[-1] = (history[-1][0], best.rho_hat)
-    return SelectionResult(
-        best.elements,
-        best.rho_hat,
-        best.eligible,
-        best.direction,
-        tuple(history),
-        eligibility.evaluations - evaluations0,
-        time.perf_counter() - t0,
+    return _certified_result(
+        eligibility,
+        best,
+        history,
+        evaluations0,
+        t0,
         eligible_sets=tuple((elements, value) for value, elements in others),
         candidate_sets=tuple((elements, value) for value, elements in unproven),
         screened=len(screened),
         unranked_sets=unranked,
-        bounds=best.bounds,
-        marginal=best.marginal,
-        converged=best.converged,
     )
 
 

@@ -109,6 +109,18 @@ def revolved(profile, sections: int) -> trimesh.Trimesh:
     return mesh
 
 
+def _model(name: str, elements, adjacency, description: str) -> Model:
+    """An example model in mm, its mesh ``NAME.stl`` beside it."""
+    return Model(
+        tuple(elements),
+        tuple(sorted(adjacency)),
+        name=name,
+        units="mm",
+        mesh=f"{name}.stl",
+        description=description,
+    )
+
+
 def adjacency_by_shared_vertices(elements, minimum: int = 1, tol: float = 1e-6) -> set:
     """Pairs of elements with at least ``minimum`` vertices in common (by coordinates)."""
     keys = [{tuple(np.round(v / tol).astype(np.int64)) for v in e.vertices} for e in elements]
@@ -184,16 +196,11 @@ def lamp(radius: float = 60.0) -> tuple[trimesh.Trimesh, Model]:
     points = np.vstack([table, star, girdle_main, girdle_half, low, culet])
     mesh = trimesh.convex.convex_hull(points)
     adjacency = adjacency_by_shared_vertices(elements, minimum=1)
-    model = Model(
-        tuple(elements),
-        tuple(sorted(adjacency)),
-        name="lamp",
-        units="mm",
-        mesh="lamp.stl",
-        description="Diamond-shaped lamp (round brilliant cut, no girdle band): 57 convex "
-        "facets, 33 on the crown and 24 on the pavilion. Neighbours share a vertex.",
+    description = (
+        "Diamond-shaped lamp (round brilliant cut, no girdle band): 57 convex "
+        "facets, 33 on the crown and 24 on the pavilion. Neighbours share a vertex."
     )
-    return mesh, model
+    return mesh, _model("lamp", elements, adjacency, description)
 
 
 # --- cup -------------------------------------------------------------------------------------
@@ -243,16 +250,11 @@ def cup() -> tuple[trimesh.Trimesh, Model]:
         elements.append(Element(POINT, [top], [0.0, 0.0, -1.0], "lip"))
 
     adjacency = _cup_adjacency(seg_angles, lip_angles)
-    model = Model(
-        tuple(elements),
-        tuple(sorted(adjacency)),
-        name="cup",
-        units="mm",
-        mesh="cup.stl",
-        description="Mug on an octagonal foot: 9 facets (foot bottom and sides), 16 line "
-        "segments on the cylindrical wall, 224 points (192 on the handle, 32 on the lip).",
+    description = (
+        "Mug on an octagonal foot: 9 facets (foot bottom and sides), 16 line "
+        "segments on the cylindrical wall, 224 points (192 on the handle, 32 on the lip)."
     )
-    return mesh, model
+    return mesh, _model("cup", elements, adjacency, description)
 
 
 def _cup_body(p) -> tuple[trimesh.Trimesh, float]:
@@ -371,17 +373,12 @@ def pistol() -> tuple[trimesh.Trimesh, Model]:
         elements.append(Element(SEGMENT, [start, end], normal, "grip"))
 
     adjacency = _pistol_adjacency(elements, len(barrel), len(grip))
-    model = Model(
-        tuple(elements),
-        tuple(sorted(adjacency)),
-        name="pistol",
-        units="mm",
-        mesh="pistol.stl",
-        description="Pistol: receiver block, round barrel and raked elliptic grip. 7 facets "
+    description = (
+        "Pistol: receiver block, round barrel and raked elliptic grip. 7 facets "
         "(receiver top, sides, back and bottom, muzzle, grip butt) and 42 line segments (18 "
-        "on the barrel, 24 on the grip).",
+        "on the barrel, 24 on the grip)."
     )
-    return mesh, model
+    return mesh, _model("pistol", elements, adjacency, description)
 
 
 def _barrel_normals(count: int) -> np.ndarray:
