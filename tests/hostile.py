@@ -1,8 +1,8 @@
-"""The corpus of hostile and extreme inputs (issue 15), generated, not stored.
+"""The corpus of hostile and extreme inputs, generated, not stored.
 
 Each :class:`Case` writes its files into a folder and runs one command through the in-process CLI
 entry ``closure_nlp.cli.main`` (or one API call); :func:`outcome` sorts what happened into the
-issue's table: a clear error, an answer, a traceback (an internal error or an exception escaping),
+outcomes: a clear error, an answer, a traceback (an internal error or an exception escaping),
 a NaN (a non-finite number printed), a hang. ``tests/test_hostile.py`` runs every case in
 ``make test``; ``python -m tests.hostile`` prints the table.
 
@@ -846,7 +846,7 @@ def corpus() -> list[Case]:
 
 
 def table(results) -> str:
-    """The issue's table: per group, inputs tried and how each ended."""
+    """The table of outcomes: per group, inputs tried and how each ended."""
     groups: dict[str, dict[str, int]] = {}
     for case, outcome in results:
         row = groups.setdefault(case.group, {})

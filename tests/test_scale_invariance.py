@@ -1,5 +1,5 @@
 """Verdicts do not depend on the length of a normal, on f_max or on torque_scale, over the whole
-range the input accepts (issue 15, property tests).
+range the input accepts (property tests).
 
 A normal's length is removed on input (exactly, without overflow). Scaling every f_max by c
 scales the wrench set, so rho scales by c and the verdict stays; torque_scale maps the set by

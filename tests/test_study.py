@@ -300,7 +300,7 @@ def test_serial_run_matches_plan(tiny, serial_rows):
     assert abs(row.rho - result.placement.rho) <= 1e-9
     assert abs(row.iterative_rho_hat - result.iterative.rho_hat) <= 1e-9
     assert row.rho < 0 and row.force_closure
-    # The certified brackets travel with the values (issue 12: bounds on every study row).
+    # The certified brackets travel with the values (bounds on every study row).
     assert (row.rho_lo, row.rho_hi) == pytest.approx(result.placement.bounds, abs=1e-9)
     assert row.rho_lo <= row.rho <= row.rho_hi < 0
     assert row.converged and not row.marginal
