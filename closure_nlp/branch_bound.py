@@ -44,6 +44,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .validation import is_whole
 from .wrenches import WrenchSlots
 
 MAX_POLISH = 8  # local solves per branch and bound: each a few ms; the first ones do the work
@@ -110,8 +111,9 @@ class BranchBoundOptions:
         for name in (*names, "fw_steps"):
             value = getattr(self, name)
             least = 0 if name == "initial_splits" else 1
-            if isinstance(value, bool) or not isinstance(value, int) or value < least:
+            if not is_whole(value) or value < least:
                 raise ValueError(f"options.{name}: must be an integer >= {least}, got {value!r}")
+            object.__setattr__(self, name, int(value))
 
 
 @dataclass(frozen=True, eq=False)

@@ -30,7 +30,7 @@ from .branch_bound import BranchBoundOptions, sphere_minimum
 from .nearest_point import min_norm_point, nearest_point_bounds
 from .sphere_search import descend, sphere_samples
 from .tolerances import DEFAULT_TOLERANCES, Tolerances
-from .validation import as_unit_vector
+from .validation import as_unit_vector, is_whole
 from .wrenches import WrenchSlots, as_slots
 
 # Torque rows this many times larger or smaller than force rows: verdicts on a whitened copy.
@@ -62,8 +62,9 @@ class CertifyOptions:
                 f"{type(self.branch_bound).__name__}"
             )
         value = self.max_iter
-        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        if not is_whole(value) or value < 1:
             raise ValueError(f"options.max_iter: must be an integer >= 1, got {value!r}")
+        object.__setattr__(self, "max_iter", int(value))
 
 
 @dataclass(frozen=True)

@@ -41,7 +41,7 @@ from .scale import is_auto, scale_warnings
 from .scale import resolve as resolve_scale
 from .seeds import DEFAULT_BUDGET, DEFAULT_SEEDS, MAX_PLAN_SEEDS
 from .selection import run_selection
-from .validation import MAX_ELEMENT_CONTACTS, MAX_SEED, as_count, as_torque_scale
+from .validation import MAX_ELEMENT_CONTACTS, MAX_SEED, as_count, as_torque_scale, ascii_number
 
 _quiet_interrupt.restore()
 
@@ -149,7 +149,8 @@ def _bounds_text(result, name: str) -> str:
 
 def _values(text: str, flag: str, count: int, convert):
     """One value, or a comma list of ``count`` values (one per contact)."""
-    parts = [p.strip() for p in str(text).split(",")]
+    # ASCII spaces only: "fpc\u00a0" (a no-break space) is no contact type.
+    parts = [p.strip(" \t") for p in str(text).split(",")]
     if len(parts) not in (1, count):
         raise ValueError(f"{flag}: expected 1 or {count} values (one per contact), got {text!r}")
     try:
@@ -159,12 +160,26 @@ def _values(text: str, flag: str, count: int, convert):
     return values[0] if len(values) == 1 else values
 
 
+def _int(text: str) -> int:
+    """``int(text)`` of ASCII digits only (Python also reads "４８" as 48)."""
+    return ascii_number(text, "", int)
+
+
+def _float(text: str) -> float:
+    """``float(text)`` of ASCII text only."""
+    return ascii_number(text, "", float)
+
+
+_int.__name__ = "integer"  # argparse says "invalid integer value: ..."
+_float.__name__ = "number"
+
+
 def _bounded_int(low: int, high: int, what: str):
     """argparse type: an integer in [low, high] (the limit named in the message)."""
 
     def convert(text: str) -> int:
         try:
-            value = int(text)
+            value = _int(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
         if not low <= value <= high:
@@ -180,7 +195,7 @@ _seed = _bounded_int(0, MAX_SEED, "a seed")
 def _budget(text: str) -> float:
     """argparse type: a positive, finite number of seconds."""
     try:
-        value = float(text)
+        value = _float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a number of seconds, got {text!r}") from None
     if not (math.isfinite(value) and value > 0):
@@ -278,18 +293,18 @@ def _specs(args, m: int, model):
     torque_scale = args.torque_scale
     if not is_auto(torque_scale):
         torque_scale = as_torque_scale(
-            _values(torque_scale, "--torque-scale", 1, float), "--torque-scale"
+            _values(torque_scale, "--torque-scale", 1, _float), "--torque-scale"
         )
-    mu_s = args.mu_s if is_auto(args.mu_s) else _values(args.mu_s, "--mu-s", m, float)
+    mu_s = args.mu_s if is_auto(args.mu_s) else _values(args.mu_s, "--mu-s", m, _float)
     types = _values(args.type, "--type", m, str)
     scale = resolve_scale(model, torque_scale, mu_s)
     try:
         specs = contact_specs(
             m,
             type=types,
-            mu=_values(args.mu, "--mu", m, float),
+            mu=_values(args.mu, "--mu", m, _float),
             mu_s=list(scale.mu_s) if isinstance(scale.mu_s, tuple) else scale.mu_s,
-            f_max=_values(args.f_max, "--f-max", m, float),
+            f_max=_values(args.f_max, "--f-max", m, _float),
         )
     except ValueError as exc:
         raise ValueError(f"contact options: {exc}") from None
@@ -298,7 +313,7 @@ def _specs(args, m: int, model):
 
 def _ids(text: str, flag: str) -> list[int]:
     try:
-        return [int(p) for p in text.split(",")]
+        return [_int(p) for p in text.split(",")]
     except ValueError:
         raise InputError(flag, f"expected comma-separated element ids, got {text!r}") from None
 
@@ -336,7 +351,7 @@ def _cmd_eligibility(args) -> None:
 def _add_select(sub, common) -> None:
     p = sub.add_parser("select", parents=[common], help="select eligible elements")
     p.add_argument("model", metavar="MODEL", help="*.model.json")
-    p.add_argument("--contacts", type=int, required=True, metavar="M", help="number of contacts")
+    p.add_argument("--contacts", type=_int, required=True, metavar="M", help="number of contacts")
     p.add_argument("--algorithm", choices=["heuristic", "iterative"], default="heuristic")
     p.add_argument("--start", help="start elements I,J,... (heuristic: its i0 < M start ids)")
     p.add_argument("--seed", type=_seed, default=0, help="random start of the heuristic")
@@ -453,7 +468,7 @@ def _cmd_place(args) -> None:
 def _add_plan(sub, common) -> None:
     p = sub.add_parser("plan", parents=[common], help="heuristic, iterative and placement")
     p.add_argument("model", metavar="MODEL", help="*.model.json")
-    p.add_argument("--contacts", type=int, required=True, metavar="M", help="number of contacts")
+    p.add_argument("--contacts", type=_int, required=True, metavar="M", help="number of contacts")
     p.add_argument(
         "--seed", type=_seed, default=0, help="random start of the heuristic (the first seed)"
     )
@@ -480,7 +495,7 @@ def _add_plan(sub, common) -> None:
     _add_placement_options(p)
     p.add_argument(
         "--alternatives",
-        type=int,
+        type=_int,
         default=4,
         metavar="N",
         help="further element sets placed when placement fails (default 4)",
@@ -597,7 +612,7 @@ COMMANDS: list = [_add_rho, _add_eligibility, _add_select, _add_place, _add_plan
 def _length(text: str) -> float:
     """argparse type: a finite number >= 0."""
     try:
-        value = float(text)
+        value = _float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
     if not (value >= 0 and value != float("inf")):
@@ -614,7 +629,7 @@ def _point3(text: str) -> list[float]:
     """argparse type: ``x,y,z``."""
     parts = text.split(",")
     try:
-        values = [float(p) for p in parts]
+        values = [_float(p) for p in parts]
     except ValueError:
         values = []
     if len(values) != 3 or not all(abs(v) < float("inf") for v in values):
@@ -749,7 +764,7 @@ def _cmd_characterize(args) -> None:
 def _angle(text: str) -> float:
     """argparse type: a finite number of degrees (``nan`` would draw an empty picture)."""
     try:
-        value = float(text)
+        value = _float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
     if not abs(value) <= 360.0:
@@ -824,7 +839,7 @@ def _cmd_show(args) -> None:
         highlight = _contact_elements(args.contacts)
     if args.highlight:
         try:
-            highlight = [int(part) for part in args.highlight.split(",")]
+            highlight = [_int(part) for part in args.highlight.split(",")]
         except ValueError:
             message = f"expected element ids I,J,..., got {args.highlight!r}"
             raise InputError("--highlight", message) from None
@@ -874,7 +889,7 @@ def _study_count(least: int):
 
     def convert(text: str) -> int:
         try:
-            value = int(text)
+            value = _int(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
         if value < least:

@@ -27,6 +27,7 @@ from .validation import (
     as_numbers,
     as_torque_scale,
     as_unit_vector,
+    as_units,
     check_keys,
     parse_choice,
 )
@@ -324,6 +325,8 @@ FILE_KEYS = {
 def contact_set_from_dict(data) -> ContactSet:
     """Build a :class:`ContactSet` from the contact-set file layout of INTERFACE.md."""
     check_keys(data, "file", FILE_KEYS, required={"contacts"})
+    if "units" in data:
+        as_units(data["units"])
     defaults = data.get("defaults", {})
     check_keys(defaults, "defaults", DEFAULT_KEYS)
     entries = data["contacts"]

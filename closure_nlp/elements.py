@@ -18,7 +18,15 @@ import numpy as np
 from .contacts import as_reference_point, cross, grasp_matrices, local_frame
 from .files import load_json, write_json
 from .tolerances import DEFAULT_TOLERANCES, Tolerances
-from .validation import as_points, as_unit_vector, as_vector, check_keys, parse_choice
+from .validation import (
+    as_points,
+    as_unit_vector,
+    as_units,
+    as_vector,
+    check_keys,
+    is_whole,
+    parse_choice,
+)
 
 
 # The same shape as contacts.ContactType by choice: each string enum names its own field and
@@ -244,7 +252,6 @@ MODEL_KEYS = {
     "source",
     "up",
 }
-UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}  # metres per unit
 ELEMENT_KEYS = {"kind", "vertices", "inward_normal", "label"}
 
 
@@ -260,8 +267,8 @@ class Model:
         Undirected neighbour pairs, kept as given.
     name : str
     units : str
-        Length unit of every coordinate: ``m``, ``cm``, ``mm``, ``in`` (others are kept as text,
-        without the scale checks), or ``""`` (not said).
+        Length unit of every coordinate: ``m``, ``cm``, ``mm``, ``in``, or ``""`` (not said);
+        any other is refused.
     mesh : str or None
         Path of a mesh for drawing, relative to ``base_dir``.
     base_dir : Path or None
@@ -296,6 +303,7 @@ class Model:
                 raise TypeError(f"elements[{i}]: expected an Element, got {type(e).__name__}")
         if self.up not in ("x", "y", "z"):
             raise ValueError(f"up: expected x, y or z, got {self.up!r}")
+        as_units(self.units)
         point = as_reference_point(self.reference_point, "reference_point")
         object.__setattr__(self, "reference_point", point)
         elements = tuple(_about(e, point) for e in elements)
@@ -320,7 +328,7 @@ class Model:
 
     def check_id(self, element_id, field: str) -> int:
         """``element_id`` as an int, or a ``ValueError`` naming ``field`` if it is not an id."""
-        if isinstance(element_id, bool) or not isinstance(element_id, (int, np.integer)):
+        if not is_whole(element_id):
             raise TypeError(f"{field}: expected an element id, got {element_id!r}")
         if not 0 <= element_id < len(self.elements):
             raise ValueError(
@@ -407,7 +415,7 @@ def _as_pair(pair, field: str, count: int) -> tuple[int, int]:
         raise ValueError(f"{field}: expected a pair of element ids, got {pair!r}")
     ids = []
     for v in pair:
-        if isinstance(v, bool) or not isinstance(v, (int, np.integer)):
+        if not is_whole(v):
             raise TypeError(f"{field}: expected a pair of element ids, got {pair!r}")
         if not 0 <= v < count:
             raise ValueError(f"{field}: element id {v} out of range 0..{count - 1}")

@@ -29,7 +29,7 @@ from .quality import (
 )
 from .scale import AUTO, auto_torque_scale
 from .solver_cache import PerThread
-from .validation import as_torque_scale
+from .validation import as_flag, as_id_list, as_torque_scale
 from .wrenches import WrenchSlots, padded_rows
 
 
@@ -134,8 +134,7 @@ class Eligibility:
 
     def check_elements(self, elements, field: str = "elements", partial: bool = False):
         """Validate a list of ``m`` element ids (``1..m`` of them when ``partial``)."""
-        if isinstance(elements, (str, bytes)) or not hasattr(elements, "__len__"):
-            raise TypeError(f"{field}: expected a list of element ids, got {elements!r}")
+        elements = as_id_list(elements, field)
         if not (1 <= len(elements) <= self.m if partial else len(elements) == self.m):
             wanted = f"1 to {self.m}" if partial else f"{self.m}"
             raise ValueError(
@@ -165,8 +164,7 @@ class Eligibility:
         without, it is the search's value alone (for comparisons inside search loops; certify
         what is reported with :meth:`certify`).
         """
-        if not isinstance(certify, bool):
-            raise TypeError(f"certify: expected a bool, got {type(certify).__name__}")
+        certify = as_flag(certify, "certify")
         elements = self.check_elements(elements, partial=partial)
         slots = self.slots(elements)
         self._counts.get()["evaluations"] += 1

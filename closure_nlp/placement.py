@@ -33,6 +33,7 @@ from .quality import SearchOptions, certificate_keys, rho, search_rho
 from .selection import SCREEN_SEARCH
 from .solver_cache import PerThread, cached
 from .sphere_search import sphere_samples
+from .validation import as_flag, is_whole
 from .wrenches import WrenchSlots, pad_rows
 
 DIRECTION_BUCKETS = (16, 32, 64, 128, 256)
@@ -162,8 +163,9 @@ class PlacementOptions:
         ):
             value = getattr(self, name)
             least = 1 if name in ("max_rounds", "starts") else 0
-            if isinstance(value, bool) or not isinstance(value, int) or value < least:
+            if not is_whole(value) or value < least:
                 raise ValueError(f"{name}: expected an integer >= {least}, got {value!r}")
+            object.__setattr__(self, name, int(value))  # a numpy integer stored as an int
         if not (isinstance(self.subset_margin, (int, float)) and self.subset_margin >= 0):
             raise ValueError(f"subset_margin: expected a number >= 0, got {self.subset_margin!r}")
         for name in ("gap", "ipopt_tol"):
@@ -171,8 +173,7 @@ class PlacementOptions:
             if not isinstance(value, (int, float)) or not value > 0:
                 raise ValueError(f"{name}: expected a positive number, got {value!r}")
         for name in ("certify", "screen", "share_directions", "round_search", "validate"):
-            if not isinstance(getattr(self, name), bool):
-                raise TypeError(f"{name}: expected a bool, got {getattr(self, name)!r}")
+            object.__setattr__(self, name, as_flag(getattr(self, name), name))
 
 
 @dataclass(frozen=True)

@@ -40,6 +40,7 @@ from .selection import (
     light_rho_hat,
 )
 from .solver_cache import cached
+from .validation import is_whole
 
 if TYPE_CHECKING:
     from .seeds import SeedSpread
@@ -152,8 +153,9 @@ def plan(
     :attr:`PlanResult.reused` names the steps taken from it, whose results keep the seconds
     their computation took; :attr:`PlanResult.seconds` is this plan's own time.
     """
-    if isinstance(alternatives, bool) or not isinstance(alternatives, int) or alternatives < 0:
+    if not is_whole(alternatives) or alternatives < 0:
         raise ValueError(f"alternatives: expected an integer >= 0, got {alternatives!r}")
+    alternatives = int(alternatives)
     if not (memo is None or isinstance(memo, dict)):
         raise TypeError(f"memo: expected a dict or None, got {type(memo).__name__}")
     if seeds is not None:

@@ -30,7 +30,7 @@ from .interrupts import interruptible
 from .solver_cache import PerThread, cached
 from .sphere_search import descend, smoothed_descent, sphere_samples
 from .tolerances import DEFAULT_TOLERANCES, Tolerances
-from .validation import as_unit_vector
+from .validation import as_flag, as_unit_vector, is_whole
 from .wrenches import WrenchSlots, as_slots, padded_rows, piece_square
 
 
@@ -88,8 +88,9 @@ class SearchOptions:
         for name in (*may_be_zero, *counts):
             value = getattr(self, name)
             least = 0 if name in may_be_zero else 1
-            if isinstance(value, bool) or not isinstance(value, int) or value < least:
+            if not is_whole(value) or value < least:
                 raise ValueError(f"search.{name}: must be an integer >= {least}, got {value!r}")
+            object.__setattr__(self, name, int(value))
         taus = self.smoothing
         if not isinstance(taus, tuple) or not all(
             isinstance(t, (int, float)) and not isinstance(t, bool) and t > 0 for t in taus
@@ -534,8 +535,7 @@ def rho(
     """
     if not isinstance(contact_set, ContactSet):
         raise TypeError(f"contact_set: expected a ContactSet, got {type(contact_set).__name__}")
-    if not isinstance(certify, bool):
-        raise TypeError(f"certify: expected a bool, got {type(certify).__name__}")
+    certify = as_flag(certify, "certify")
     minimizer = minimizer or _DEFAULT_MINIMIZER
     slots = WrenchSlots.from_contacts(contact_set)
     return certified_search(minimizer, slots, warm_start)

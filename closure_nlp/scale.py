@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .elements import UNITS, Model
-from .validation import as_torque_scale
+from .elements import Model
+from .validation import UNITS, as_torque_scale
 
 AUTO = "auto"
 MU_S_FRACTION = 0.01  # default spin coefficient of a model's soft fingers: 1% of its radius

@@ -19,6 +19,7 @@ from .eligibility import Eligibility, EligibilityResult, element_set_keys
 from .errors import MethodError
 from .progress import Progress
 from .quality import SearchOptions, signed_distance
+from .validation import as_flag, as_id_list, is_whole
 
 # The light search that ranks the iterative algorithm's neighbours: few samples, one IPOPT run.
 SCREEN_SEARCH = SearchOptions(samples=16, smoothing=(), ipopt_starts=1, element_ipopt_starts=1)
@@ -55,12 +56,12 @@ class SelectionOptions:
     def __post_init__(self) -> None:
         for name, low in (("initial", 1), ("restarts", 1), ("max_iterations", 1)):
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < low:
+            if not is_whole(value) or value < low:
                 raise ValueError(f"{name}: expected an integer >= {low}, got {value!r}")
+            object.__setattr__(self, name, int(value))
         if not (isinstance(self.descent, (int, float)) and self.descent >= 0):
             raise ValueError(f"descent: expected a number >= 0, got {self.descent!r}")
-        if not isinstance(self.screen, bool):
-            raise TypeError(f"screen: expected a bool, got {self.screen!r}")
+        object.__setattr__(self, "screen", as_flag(self.screen, "screen"))
 
 
 @dataclass(frozen=True)
@@ -372,8 +373,7 @@ def _multiset(eligibility: Eligibility, elements) -> tuple:
 
 
 def _check_start(eligibility: Eligibility, start) -> tuple[int, ...]:
-    if isinstance(start, (str, bytes)) or not hasattr(start, "__len__"):
-        raise TypeError(f"start: expected a list of element ids, got {start!r}")
+    start = as_id_list(start, "start")
     if not 1 <= len(start) <= eligibility.m:
         raise ValueError(f"start: expected 1 to {eligibility.m} element ids, got {len(start)}")
     return tuple(eligibility.model.check_id(e, f"start[{k}]") for k, e in enumerate(start))

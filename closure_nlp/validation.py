@@ -68,9 +68,11 @@ def _short(value, limit: int = 60) -> str:
 
 
 def _as_float_array(value, field: str, depth: int) -> np.ndarray:
+    """A copy of ``value`` as floats: what is validated is never the caller's buffer, which the
+    caller may reuse or change afterwards."""
     _check_numbers(value, field, depth)
     try:
-        return np.asarray(value, dtype=float)
+        return np.array(value, dtype=float, copy=True)
     except OverflowError:  # an integer beyond the float range, e.g. 10**400 in a JSON file
         raise ValueError(f"{field}: a number is too large for a float") from None
     except (TypeError, ValueError):  # ragged nesting
@@ -91,7 +93,7 @@ def as_vector(value, field: str, length: int, *, limit: float | None = None) -> 
     if arr.shape != (length,):
         raise ValueError(f"{field}: expected {length} numbers, got {_short(value)}")
     _check_finite(arr, field, limit)
-    return arr
+    return _read_only(arr)
 
 
 def as_numbers(value, field: str) -> np.ndarray:
@@ -100,12 +102,53 @@ def as_numbers(value, field: str) -> np.ndarray:
     if arr.ndim != 1:
         raise ValueError(f"{field}: expected a list of numbers, got {_short(value)}")
     _check_finite(arr, field, None)
-    return arr
+    return _read_only(arr)
+
+
+def is_whole(value) -> bool:
+    """A whole number, Python's or numpy's, that is not a boolean."""
+    return isinstance(value, (numbers.Integral, np.integer)) and not isinstance(
+        value, (bool, np.bool_)
+    )
+
+
+def as_whole(value, field: str, least: int | None = None) -> int:
+    """A whole number (``int`` or a numpy integer; not a boolean), ``>= least`` if given."""
+    if not is_whole(value):
+        raise TypeError(f"{field}: expected a whole number, got {_short(value)}")
+    if least is not None and value < least:
+        raise ValueError(f"{field}: must be >= {least}, got {value}")
+    return int(value)
+
+
+def as_flag(value, field: str) -> bool:
+    """A boolean: ``True``/``False`` or a numpy boolean (never a number or a string)."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{field}: expected True or False, got {_short(value)}")
+    return bool(value)
+
+
+def as_id_list(value, field: str) -> list:
+    """Element ids in the order given (one per contact): a list, a tuple or a 1-d array; a set
+    (no order), a mapping, text or an iterator is refused. The ids are checked by the caller."""
+    if isinstance(value, np.ndarray):
+        if value.ndim != 1:
+            raise TypeError(f"{field}: expected a list of element ids, got an array of shape "
+                            f"{value.shape}")
+        return value.tolist() if value.dtype.kind in "iu" else list(value)
+    if isinstance(value, (set, frozenset)):
+        raise TypeError(
+            f"{field}: expected a list of element ids in contact order, got a "
+            f"{type(value).__name__} (no order)"
+        )
+    if not isinstance(value, (list, tuple, range)):
+        raise TypeError(f"{field}: expected a list of element ids, got {_short(value)}")
+    return list(value)
 
 
 def as_element_id(value, field: str) -> int:
     """An element id: a whole number >= 0 (whether the model has it is checked with the model)."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral):
+    if not is_whole(value):
         raise TypeError(f"{field}: expected an element id, got {_short(value)}")
     if value < 0:
         raise ValueError(f"{field}: an element id is >= 0, got {value}")
@@ -118,7 +161,7 @@ def as_points(value, field: str) -> np.ndarray:
     if arr.ndim != 2 or arr.shape[1] != 3 or len(arr) == 0:
         raise ValueError(f"{field}: expected a list of [x, y, z] points, got shape {arr.shape}")
     _check_finite(arr, field, MAX_COORDINATE)
-    return arr
+    return _read_only(arr)
 
 
 def as_coordinates(value, field: str) -> np.ndarray:
@@ -149,7 +192,13 @@ def as_unit_vector(value, field: str, length: int = 3) -> np.ndarray:
         raise ValueError(f"{field}: zero vector {_short(value)} has no direction")
     if not 1e-150 < largest < 1e150:  # the squares would under/overflow: scale them first
         arr = arr / largest
-    return arr / np.linalg.norm(arr)
+    return _read_only(arr / np.linalg.norm(arr))
+
+
+def _read_only(arr: np.ndarray) -> np.ndarray:
+    """``arr`` (a copy the validation made) frozen: objects that keep it stay as validated."""
+    arr.flags.writeable = False
+    return arr
 
 
 def as_number(
@@ -217,7 +266,7 @@ def as_mu_s(value, field: str) -> float:
 
 def as_count(value, field: str, limit: int, what: str = "items") -> int:
     """A whole number in [1, limit]; the message names the limit."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (numbers.Integral)):
+    if not is_whole(value):
         raise TypeError(f"{field}: expected a whole number, got {_short(value)}")
     if not 1 <= value <= limit:
         raise ValueError(f"{field}: {value} {what} is outside the limit 1..{limit}")
@@ -239,13 +288,39 @@ def check_keys(mapping: dict, field: str, allowed: set[str], required: set[str] 
 
 
 def parse_choice(cls, value, field: str, what: str):
-    """A member of the string enum ``cls`` from its value (case and spaces ignored)."""
+    """A member of the string enum ``cls`` from its value, compared exactly but for the case of
+    ASCII letters: stray spaces (a no-break space included) or look-alike letters are refused."""
     if isinstance(value, cls):
         return value
-    if isinstance(value, str):
+    if isinstance(value, str) and value.isascii():
         try:
-            return cls(value.strip().lower())
+            return cls(value.lower())
         except ValueError:
             pass
     names = ", ".join(member.value for member in cls)
     raise ValueError(f"{field}: unknown {what} {_short(value)} (expected one of {names})")
+
+
+# Length units a model or contact-set file may name (metres per unit); "" when not said. A closed
+# list: an unknown unit ("km", "mm ") would silently skip the scale checks of the known ones.
+UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}
+
+
+def as_units(value, field: str = "units") -> str:
+    """``value`` if it is one of ``UNITS`` or ``""``, compared exactly."""
+    if not isinstance(value, str):
+        raise TypeError(f"{field}: expected text, got {_short(value)}")
+    if value != "" and value not in UNITS:
+        raise ValueError(
+            f"{field}: unknown unit {_short(value)} (expected one of {', '.join(UNITS)}, "
+            'or "" when not said)'
+        )
+    return value
+
+
+def ascii_number(text: str, field: str, convert=float):
+    """A number written in ASCII (``int`` or ``float`` of ``text``): Python also reads
+    full-width or other Unicode digits (``"４８"`` as 48), which no file format here allows."""
+    if not (isinstance(text, str) and text.isascii()):
+        raise ValueError(f"{field}: not a number in {_short(text)} (ASCII digits only)")
+    return convert(text)

@@ -22,7 +22,7 @@ def box_model(half: float = 1.0) -> Model:
             normal[axis] = -sign
             elements.append(Element("facet", corners, normal, name=f"elements[{len(elements)}]"))
     adjacency = [(i, j) for i in range(6) for j in range(i + 1, 6) if i // 2 != j // 2]
-    return Model(tuple(elements), tuple(adjacency), "box", "unit")
+    return Model(tuple(elements), tuple(adjacency), "box", "")
 
 
 def corner_model(half: float = 1.0) -> Model:
@@ -30,7 +30,7 @@ def corner_model(half: float = 1.0) -> Model:
     on it is force closure or eligible, whatever their number, since none pushes along -x."""
     box = box_model(half)
     elements = tuple(box.elements[i] for i in (0, 2, 4))
-    return Model(elements, ((0, 1), (0, 2), (1, 2)), "corner", "unit")
+    return Model(elements, ((0, 1), (0, 2), (1, 2)), "corner", "")
 
 
 def random_element(rng, kind: str, radius: float = 1.0) -> Element:
