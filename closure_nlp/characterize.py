@@ -33,13 +33,14 @@ from scipy.sparse.csgraph import connected_components, dijkstra
 
 from .contacts import as_reference_point
 from .drafts import Draft, thin
-from .elements import UNITS, Element, ElementKind, Model, part_size
+from .elements import Element, ElementKind, Model, part_size
 from .meshes import load_mesh, repair_mesh
 from .model_mesh import outward_elements
 from .planar import facets
 from .rulings import rulings, segments
 from .scale import part_radius
 from .tolerances import DEFAULT_TOLERANCES
+from .validation import UNITS
 
 
 @dataclass(frozen=True)

@@ -27,6 +27,7 @@ from .errors import MethodError
 from .files import (
     check_output_dir,
     check_output_file,
+    escape,
     non_finite_key,
     staged_folder,
     write_json,
@@ -56,6 +57,46 @@ class InputError(ValueError):
         super().__init__(f"{source}: {message}")
 
 
+class OutputFault(RuntimeError):
+    """The system refused the output (a full disk, a closed or full stdout, an encoding that
+    cannot show a name): exit 1, like any fault of the environment, never a bug."""
+
+    def __init__(self, source: str, message: str):
+        super().__init__(f"{source}: {message}")
+
+
+def _print(line: str) -> None:
+    """``line`` on stdout; a failure of stdout is an :class:`OutputFault` (exit 1)."""
+    try:
+        sys.stdout.write(line + "\n")
+    except UnicodeEncodeError as exc:
+        shown = exc.object[max(exc.start - 20, 0) : exc.end + 20]
+        raise OutputFault(
+            "stdout",
+            f"cannot print {shown!r} in the output's encoding {exc.encoding}: set "
+            "PYTHONIOENCODING=utf-8 (or use --json)",
+        ) from None
+    except BrokenPipeError:
+        raise
+    except OSError as exc:  # a full device (/dev/full), an I/O error
+        raise OutputFault("stdout", f"cannot write: {exc.strerror or exc}") from None
+
+
+def _flush_stdout() -> None:
+    """Push out what is buffered: a full device fails here, after the last line."""
+    try:
+        sys.stdout.flush()
+    except BrokenPipeError:
+        raise
+    except OSError as exc:
+        raise OutputFault("stdout", f"cannot write: {exc.strerror or exc}") from None
+
+
+def _shown(name) -> str:
+    """A name (a path) as messages show it: control characters escaped, one line."""
+    return escape(str(name))
+
+
 @contextlib.contextmanager
 def _reading(source: str):
     """Checks of a command's inputs, before any work: ``ValueError``/``TypeError`` raised in
@@ -79,12 +120,9 @@ def _emit(args, payload: dict, text: str) -> None:
     scale = getattr(args, "scale", None)
     if scale is not None:  # a model command: the torque scale, mu_s and point it used
         payload = {**payload, **scale.to_dict()}
-        text = f"{args.model}: {scale.text(getattr(args, 'soft_fingers', True))}\n{text}"
+        text = f"{_shown(args.model)}: {scale.text(getattr(args, 'soft_fingers', True))}\n{text}"
     _check_finite(payload, str(payload.get("file", getattr(args, "model", ""))))
-    if args.json:
-        print(json.dumps(payload, allow_nan=False))
-    else:
-        print(text)
+    _print(json.dumps(payload, allow_nan=False) if args.json else text)
 
 
 # --- commands -------------------------------------------------------------------------------
@@ -122,7 +160,7 @@ def _cmd_rho(args) -> None:
         _emit(
             args,
             payload,
-            f"{path}: rho = {certain(result.rho, result.bounds)} "
+            f"{_shown(path)}: rho = {certain(result.rho, result.bounds)} "
             f"({_verdict(result, result.force_closure)}); "
             f"weakest direction u* = [{direction}]" + _bounds_text(result, "rho"),
         )
@@ -248,7 +286,7 @@ def _eligibility(args, m: int, field: str = "--contacts", closure: bool = False)
     with _reading(args.model):
         specs, scale = _specs(args, m, model)
     for line in scale_warnings(scale, [s.type.value for s in specs]):
-        sys.stderr.write(f"warning: {args.model}: {line}\n")
+        sys.stderr.write(f"warning: {_shown(args.model)}: {line}\n")
     args.scale = scale
     args.soft_fingers = any(s.type in SOFT_FINGERS for s in specs)  # mu_s plays a part
     if closure:
@@ -342,7 +380,7 @@ def _cmd_eligibility(args) -> None:
     _emit(
         args,
         result.to_dict(),
-        f"{args.model}: elements {_join(result.elements)}: "
+        f"{_shown(args.model)}: elements {_join(result.elements)}: "
         f"rho_hat = {certain(result.rho_hat, result.bounds)} ({verdict})"
         + _bounds_text(result, "rho_hat"),
     )
@@ -376,7 +414,7 @@ def _cmd_select(args) -> None:
     _emit(
         args,
         {"algorithm": args.algorithm, **result.to_dict()},
-        f"{args.model}: {args.algorithm}: elements {_join(result.elements)}: "
+        f"{_shown(args.model)}: {args.algorithm}: elements {_join(result.elements)}: "
         f"rho_hat = {certain(result.rho_hat, result.bounds)} ({verdict})"
         f"{_bounds_text(result, 'rho_hat')}; "
         f"{result.evaluations} evaluations in {result.seconds:.2f} s",
@@ -448,16 +486,17 @@ def _cmd_place(args) -> None:
         result = Placer(eligibility, options)(ids, progress=progress)
     finally:
         close()
-    payload, text = result.to_dict(), f"{args.model}: {_placement_text(result, eligibility.model)}"
+    placed = _placement_text(result, eligibility.model)
+    payload, text = result.to_dict(), f"{_shown(args.model)}: {placed}"
     if args.out:
         _check_finite(payload, args.model)  # before anything is written
         model = eligibility.model
         try:
             write_json(args.out, result.contact_file(model.name, model.units))
         except OSError as exc:
-            raise InputError(args.out, f"cannot write: {exc.strerror or exc}") from None
+            raise OutputFault(args.out, f"cannot write: {exc.strerror or exc}") from None
         payload["out"] = {"contacts": str(args.out)}
-        text += f"\ncontacts in {args.out}"
+        text += f"\ncontacts in {_shown(args.out)}"
     _emit(args, payload, text)
     if not result.force_closure:
         raise MethodError(
@@ -551,7 +590,8 @@ def _cmd_plan(args) -> None:
         payload["out"] = {name: os.path.join(args.out, name) for name in written}
     h, it = result.heuristic, result.iterative
     text = (
-        f"{args.model}: heuristic {_join(h.elements)} rho_hat = {certain(h.rho_hat, h.bounds)} "
+        f"{_shown(args.model)}: heuristic {_join(h.elements)} "
+        f"rho_hat = {certain(h.rho_hat, h.bounds)} "
         f"({h.seconds:.2f} s); iterative {_join(it.elements)} "
         f"rho_hat = {certain(it.rho_hat, it.bounds)} "
         f"({it.seconds:.2f} s)\n"
@@ -563,7 +603,7 @@ def _cmd_plan(args) -> None:
         + f"{_placement_text(result.placement, eligibility.model)}\n"
         + ("" if result.seeds is None else result.seeds.line() + "\n")
         + f"total {result.seconds:.2f} s"
-        + (f"; report in {args.out}" if args.out else "")
+        + (f"; report in {_shown(args.out)}" if args.out else "")
     )
     _emit(args, payload, text)
     if not result.force_closure:
@@ -732,12 +772,12 @@ def _cmd_characterize(args) -> None:
         dropped += more
         save_model(model, out)
     except OSError as exc:
-        raise InputError(args.out, f"cannot write: {exc.strerror or exc}") from None
+        raise OutputFault(args.out, f"cannot write: {exc.strerror or exc}") from None
     for line in dropped:
-        sys.stderr.write(f"warning: {args.mesh}: dropped {line}\n")
+        sys.stderr.write(f"warning: {_shown(args.mesh)}: dropped {line}\n")
     warning = units_warning(model.radius, model.units)
     if warning:
-        sys.stderr.write(f"warning: {args.mesh}: {warning}\n")
+        sys.stderr.write(f"warning: {_shown(args.mesh)}: {warning}\n")
     counts = model.counts()
     summary = ", ".join(f"{n} {kind}s" for kind, n in counts.items())
     payload = {
@@ -756,8 +796,8 @@ def _cmd_characterize(args) -> None:
     _emit(
         args,
         payload,
-        f"{args.mesh}: {found.text()}\n{args.mesh}: {summary}, {len(model.adjacency)} "
-        f"neighbour pairs -> {out}",
+        f"{_shown(args.mesh)}: {found.text()}\n{_shown(args.mesh)}: {summary}, "
+        f"{len(model.adjacency)} neighbour pairs -> {_shown(out)}",
     )
 
 
@@ -861,7 +901,7 @@ def _cmd_show(args) -> None:
     try:
         out = save_view(model, args.out, contacts, highlight=highlight, marked=marked, **options)
     except OSError as exc:
-        raise InputError(args.out, f"cannot write: {exc.strerror or exc}") from None
+        raise OutputFault(args.out, f"cannot write: {exc.strerror or exc}") from None
     point = ", ".join(f"{x:.6g}" for x in model.reference_point)
     _emit(
         args,
@@ -872,7 +912,7 @@ def _cmd_show(args) -> None:
             "reference_point": model.reference_point.tolist(),
             "marked": marked,
         },
-        f"{args.model}: drawn to {out} (torques about [{point}]"
+        f"{_shown(args.model)}: drawn to {_shown(out)} (torques about [{point}]"
         + (f" {model.units}" if model.units else "")
         + ", marked x)",
     )
@@ -899,6 +939,16 @@ def _study_count(least: int):
     return convert
 
 
+def _scheduler_address(text: str) -> str:
+    """argparse type: a Dask scheduler address (exit 2 when malformed, before any work)."""
+    from .study import check_scheduler_address
+
+    try:
+        return check_scheduler_address(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc).removeprefix("scheduler: ")) from None
+
+
 def _add_study(sub, common) -> None:
     p = sub.add_parser(
         "study", parents=[common], help="a grid of plans (models x contacts x seeds) on Dask"
@@ -907,7 +957,12 @@ def _add_study(sub, common) -> None:
     p.add_argument(
         "--out", required=True, metavar="DIR", help="results/, summary.md/.csv, results.csv, plots"
     )
-    p.add_argument("--scheduler", metavar="ADDRESS", help="join this Dask scheduler")
+    p.add_argument(
+        "--scheduler",
+        type=_scheduler_address,
+        metavar="ADDRESS",
+        help="join this Dask scheduler (tcp://HOST:PORT)",
+    )
     p.add_argument(
         "--workers",
         type=_bounded_int(1, MAX_WORKERS, "the number of local workers"),
@@ -955,17 +1010,15 @@ def _cmd_study(args) -> None:
             retry_failed=args.retry_failed,
             progress=None if quiet else progress,
         )
-    except OSError as exc:
-        raise InputError(args.out, f"cannot write: {exc.strerror or exc}") from None
     finally:
         if bar is not None:
             bar.close()
     payload = {"file": args.study, **result.to_dict()}
     text = (
-        f"{args.study}: {result.total} tasks: {result.run} run ({result.failed} failed), "
+        f"{_shown(args.study)}: {result.total} tasks: {result.run} run ({result.failed} failed), "
         f"{result.skipped} done before, {result.remaining} remaining; {result.seconds:.1f} s on "
         f"{result.workers} worker(s), {result.tasks_per_second:.3f} tasks/s\n"
-        f"summary in {result.paths['summary.md']}"
+        f"summary in {_shown(result.paths['summary.md'])}"
     )
     _emit(args, payload, text)
     if result.failed:
@@ -981,39 +1034,63 @@ COMMANDS.append(_add_study)
 def main(argv: list[str] | None = None) -> int:
     """Run one command; returns the exit status (module docstring) and never raises."""
     try:
+        if sys.stdout is None:  # started with stdout closed: an answer would be lost
+            raise OutputFault("stdout", "closed: nothing could be printed")
         args = build_parser().parse_args(argv)
         with _one_line_warnings(), interruptible():
             args.run(args)
+        _flush_stdout()  # a full device fails here: the answer is not out, exit 1
     except SystemExit as exc:  # argparse: --help (0) or a bad flag (2, its line already printed)
         return exc.code if isinstance(exc.code, int) else 2
     except KeyboardInterrupt:
         sys.stderr.write("interrupted: stopped by Ctrl-C; finished output is kept\n")
         return 130
     except InputError as exc:
-        sys.stderr.write(f"error: {exc}\n")
+        _error(exc)
         return 2
-    except MethodError as exc:
-        sys.stderr.write(f"error: {exc}\n")
+    except (MethodError, OutputFault) as exc:
+        _error(exc)
+        if isinstance(exc, OutputFault) and str(exc).startswith("stdout"):
+            _drop_stdout()
         return 1
     except MemoryError:
         sys.stderr.write("error: out of memory: the input is too large for this machine\n")
         return 1
     except BrokenPipeError:  # stdout closed early (``| head``): nothing more to say
-        with contextlib.suppress(OSError):
-            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        _drop_stdout()
+        return 1
+    except OSError as exc:  # the system said no: a full disk, a lost scheduler
+        text = exc.strerror or str(exc)
+        _error(f"{exc.filename}: {text}" if exc.filename is not None else text)
         return 1
     except Exception as exc:  # a bug: said as one, never dressed as bad input
         if os.environ.get("CLOSURE_NLP_TRACEBACK"):
             import traceback
 
             traceback.print_exc()
-        text = " ".join(str(exc).split())[:300]
+        text = escape(" ".join(str(exc).split())[:300])
         sys.stderr.write(
             f"internal error: {type(exc).__name__}: {text} (a bug in closure_nlp, not in the "
             "input; CLOSURE_NLP_TRACEBACK=1 shows where)\n"
         )
         return 3
     return 0
+
+
+def _error(exc) -> None:
+    """The one ``error:`` line, control characters of names escaped."""
+    with contextlib.suppress(OSError, ValueError):
+        sys.stderr.write(f"error: {escape(str(exc))}\n")
+
+
+def _drop_stdout() -> None:
+    """Point stdout at the null device: the interpreter's last flush must not fail again
+    (it would print "Exception ignored" and change the exit status)."""
+    with contextlib.suppress(OSError, ValueError, AttributeError):
+        fd = sys.stdout.fileno()
+        null = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(null, fd)
+        os.close(null)
 
 
 @contextlib.contextmanager
@@ -1028,7 +1105,7 @@ def _one_line_warnings():
         text = " ".join(str(message).split())
         if text not in seen:  # the same warning from two places is still one line
             seen.add(text)
-            sys.stderr.write(f"warning: {text}\n")
+            sys.stderr.write(f"warning: {escape(text)}\n")
 
     warnings.showwarning = show
     try:

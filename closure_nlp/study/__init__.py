@@ -66,7 +66,13 @@ from .grid import (
     task_groups,
 )
 from .plots import plot_study
-from .running import StudyProgress, StudyRun, local_cluster, run_study
+from .running import (
+    StudyProgress,
+    StudyRun,
+    check_scheduler_address,
+    local_cluster,
+    run_study,
+)
 from .store import ROW_COLUMNS, read_results, write_row
 from .summary import SUMMARY_COLUMNS, summarize, summary_markdown, write_outputs
 from .tasks import TASK_VERSION, Runner, Task, clear_cache, error_row, run_task, task_row
@@ -84,6 +90,7 @@ __all__ = [
     "StudyRun",
     "TASK_VERSION",
     "Task",
+    "check_scheduler_address",
     "clear_cache",
     "error_row",
     "group_keys",

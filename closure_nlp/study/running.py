@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import logging
 import os
+import re
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -11,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..files import write_json
+from ..files import escape, write_json
 from .grid import Study, _integer
 from .store import read_results, write_row
 from .summary import summarize, write_outputs
@@ -132,6 +133,8 @@ def run_study(
         _integer(limit, "limit", 0, "an integer")
     if workers is not None:
         _integer(workers, "workers", 1, "an integer")
+    if scheduler is not None:
+        scheduler = check_scheduler_address(scheduler)
     if sum(x is not None for x in (client, scheduler)) + bool(serial) > 1:
         raise ValueError("scheduler: give at most one of client, scheduler and serial")
     if workers is not None and (client is not None or scheduler):
@@ -198,6 +201,32 @@ def _plain(value):
     return value
 
 
+CONNECT_SECONDS = 20  # to reach a scheduler before giving up
+_PROTOCOLS = ("tcp", "tls", "ws", "wss", "ucx")
+_ADDRESS = re.compile(
+    r"(?:(?P<protocol>[a-z]+)://)?(?P<host>\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9._-]+):(?P<port>[0-9]{1,5})"
+)
+
+
+def check_scheduler_address(address) -> str:
+    """A Dask scheduler address ``[PROTOCOL://]HOST:PORT`` (as the scheduler prints it), or a
+    ``ValueError`` naming what is wrong; whether it answers is found when joining it."""
+    if not isinstance(address, str):
+        raise TypeError(f"scheduler: expected an address tcp://HOST:PORT, got {address!r}")
+    match = _ADDRESS.fullmatch(address) if address.isascii() else None
+    if match is None or not 1 <= int(match["port"]) <= 65535:
+        raise ValueError(
+            f"scheduler: expected an address tcp://HOST:PORT (a port in 1..65535), got "
+            f"{escape(repr(address))[:80]}"
+        )
+    if match["protocol"] is not None and match["protocol"] not in _PROTOCOLS:
+        raise ValueError(
+            f"scheduler: unknown protocol {match['protocol']!r} (expected one of "
+            f"{', '.join(_PROTOCOLS)})"
+        )
+    return address
+
+
 def _run_dask(tasks: Sequence[Task], texts, record, runner, client, scheduler, workers) -> int:
     """Submit every task, record rows as they complete; returns the number of workers.
 
@@ -212,9 +241,10 @@ def _run_dask(tasks: Sequence[Task], texts, record, runner, client, scheduler, w
     if client is None:
         if scheduler:
             try:
-                client = own_client = Client(scheduler)
-            except OSError as exc:
-                raise ValueError(f"scheduler: cannot connect to {scheduler!r}: {exc}") from None
+                client = own_client = Client(scheduler, timeout=CONNECT_SECONDS)
+            except (OSError, TimeoutError) as exc:  # unreachable: the network, not the input
+                detail = " ".join(str(exc).split())[:200] or type(exc).__name__
+                raise ConnectionError(f"scheduler {scheduler}: cannot connect: {detail}") from None
         else:
             cluster = local_cluster(workers)
             client = own_client = Client(cluster)
