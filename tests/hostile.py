@@ -7,7 +7,11 @@ a NaN (a non-finite number printed), a hang. ``tests/test_hostile.py`` runs ever
 ``make test``; ``python -m tests.hostile`` prints the table.
 
 Expectations: ``"error"`` (exit 2 naming the file or flag, or ValueError/TypeError naming the
-field) or ``"answer"`` (exit 0 or 1 with every number finite; the API: a finite result).
+field) or ``"answer"`` (exit 0 or 1 with every number finite; the API: a finite result). A case
+may also say its exit status (``code``) and a piece of its one ``error:`` line (``message``; for
+the API, of the exception's text). Cases that need a process of their own (special files that
+would block the test run, stdout on a full device or closed, an output encoding, a file-size
+limit) return a :class:`Process` and run as a child of this one, with a time limit.
 """
 
 from __future__ import annotations
@@ -18,6 +22,10 @@ import json
 import math
 import os
 import re
+import resource
+import socket
+import subprocess
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -34,14 +42,30 @@ HANG_SECONDS = 60.0
 
 
 @dataclass(frozen=True)
+class Process:
+    """A command line run in a child process: ``stdout`` is ``"pipe"``, ``"full"`` (/dev/full)
+    or ``"closed"``; ``env`` is added to the environment; ``file_size`` limits the size of any
+    file it writes (a full disk, without one)."""
+
+    argv: list
+    stdout: str = "pipe"
+    env: dict | None = None
+    file_size: int | None = None
+
+
+@dataclass(frozen=True)
 class Case:
-    """One hostile input: ``make(folder)`` writes files and returns the CLI argv, or (group
-    ``api``) a callable whose return value is checked for finite numbers."""
+    """One hostile input: ``make(folder)`` writes files and returns the CLI argv, a
+    :class:`Process`, or (group ``api``) a callable whose return value is checked for finite
+    numbers. ``code`` and ``message``, when given, are the exit status and a piece of the
+    ``error:`` line (or of the exception) it must end with."""
 
     group: str
     name: str
-    make: Callable[[Path], list | Callable]
+    make: Callable[[Path], list | Callable | Process]
     expect: str
+    code: int | None = None
+    message: str | None = None
 
     @property
     def id(self) -> str:
@@ -56,6 +80,16 @@ class Outcome:
     kind: str  # "error", "answer", "traceback", "nan", "hang"
     detail: str
     seconds: float
+    code: int | None = None  # the exit status (None for the API)
+
+
+def as_expected(case: Case, outcome: Outcome) -> bool:
+    """The kind, and the exit status and message when the case gives them."""
+    if outcome.kind != case.expect:
+        return False
+    if case.code is not None and outcome.code != case.code:
+        return False
+    return case.message is None or case.message in outcome.detail
 
 
 def _numbers(value):
@@ -78,10 +112,10 @@ def run_case(case: Case, folder: Path) -> Outcome:
 
     folder.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    if case.group == "api":
+    made = case.make(folder)
+    if callable(made):  # an API call
         try:
-            call = case.make(folder)
-            value = call()
+            value = made()
         except (ValueError, TypeError, OSError) as exc:  # OSError: the file system said no
             return Outcome("error", f"{type(exc).__name__}: {exc}", time.perf_counter() - t0)
         except Exception as exc:  # noqa: BLE001 - the corpus counts these
@@ -91,7 +125,9 @@ def run_case(case: Case, folder: Path) -> Outcome:
         if not all(math.isfinite(x) for x in values):
             return Outcome("nan", repr(value), seconds)
         return Outcome("answer", repr(value)[:200], seconds)
-    argv = [str(a) for a in case.make(folder)]
+    if isinstance(made, Process):
+        return _run_process(made, folder, t0)
+    argv = [str(a) for a in made]
     out, err = io.StringIO(), io.StringIO()
     cwd = os.getcwd()
     os.chdir(folder)
@@ -106,9 +142,44 @@ def run_case(case: Case, folder: Path) -> Outcome:
                 return Outcome("traceback", f"{type(exc).__name__}: {exc}", seconds)
     finally:
         os.chdir(cwd)
-    seconds = time.perf_counter() - t0
-    stdout, stderr = out.getvalue(), err.getvalue()
+    return _classify(argv, code, out.getvalue(), err.getvalue(), time.perf_counter() - t0)
+
+
+def _run_process(made: Process, folder: Path, t0: float) -> Outcome:
+    argv = [str(a) for a in made.argv]
+    stdout = {"pipe": subprocess.PIPE, "full": None, "closed": subprocess.DEVNULL}[made.stdout]
+    full = open("/dev/full", "w") if made.stdout == "full" else None  # noqa: SIM115
+
+    def prepare():
+        if made.stdout == "closed":
+            os.close(1)
+        if made.file_size is not None:
+            resource.setrlimit(resource.RLIMIT_FSIZE, (made.file_size, made.file_size))
+
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "MPLBACKEND": "Agg", **(made.env or {})}
+    try:
+        proc = subprocess.run(
+            [sys.executable, "-m", "closure_nlp.cli", *argv],
+            stdout=full or stdout, stderr=subprocess.PIPE, cwd=folder, env=env,
+            timeout=HANG_SECONDS, preexec_fn=prepare, text=True, errors="replace",
+        )
+    except subprocess.TimeoutExpired:
+        return Outcome("hang", f"no end in {HANG_SECONDS:g} s", time.perf_counter() - t0)
+    finally:
+        if full is not None:
+            full.close()
+    code = proc.returncode if proc.returncode >= 0 else 128 - proc.returncode
+    return _classify(argv, code, proc.stdout or "", proc.stderr, time.perf_counter() - t0)
+
+
+def _classify(argv: list, code, stdout: str, stderr: str, seconds: float) -> Outcome:
+    """What a command's exit status and output say: a clear error, an answer, a traceback..."""
     detail = f"exit {code}: {stderr.strip()[:300]}"
+    outcome = _kind(argv, code, stdout, stderr, seconds, detail)
+    return Outcome(outcome.kind, outcome.detail, seconds, code)
+
+
+def _kind(argv, code, stdout, stderr, seconds, detail) -> Outcome:
     if seconds > HANG_SECONDS:
         return Outcome("hang", detail, seconds)
     if "Traceback" in stderr or code == 3 or code not in (0, 1, 2):
@@ -121,6 +192,8 @@ def run_case(case: Case, folder: Path) -> Outcome:
     if code != 2 and (_NAN_TEXT.search(stdout) or _NAN_TEXT.search(stderr)):
         return Outcome("nan", stdout[:300] + stderr[:300], seconds)
     lines = [x for x in stderr.splitlines() if not x.startswith("warning: ")]
+    if any(not x.isprintable() for x in lines):  # a raw control character reached the terminal
+        return Outcome("traceback", detail, seconds)
     if code == 2:
         ok = len(lines) == 1 and lines[0].startswith("error: ") and stdout == ""
         return Outcome("error" if ok else "traceback", detail, seconds)
@@ -832,6 +905,248 @@ def _mesh_scale_cases() -> list[Case]:
     return cases
 
 
+# --- the file system, the environment, strict reading -----------------------------------------
+
+FIFO = "is a FIFO (named pipe), not a regular file"
+CHAR_DEVICE = "is a character device, not a regular file"
+
+
+def _fifo(folder: Path, name: str) -> Path:
+    path = folder / name
+    os.mkfifo(path)
+    return path
+
+
+def _sparse(folder: Path, name: str, size: int = 2 * 2**30) -> Path:
+    path = folder / name
+    with path.open("wb") as handle:
+        handle.truncate(size)
+    return path
+
+
+def _special_input_cases() -> list[Case]:
+    """Inputs that are not regular files, or too large: refused at once, naming them (each runs
+    in a child process, so that one that blocks is a hang, not a stuck corpus)."""
+    cases = []
+    model_path = LAMP
+
+    def commands(path: Path, folder: Path) -> dict:
+        return {
+            "rho": ["rho", path],
+            "eligibility": ["eligibility", path, "--elements", "0,1,2,3"],
+            "study": ["study", path, "--out", folder / "out", "--limit", "0"],
+            "show --contacts": ["show", model_path, "--contacts", path, "--out", folder / "x.png"],
+            "characterize": ["characterize", path, "--out", folder / "o.model.json"],
+        }
+
+    sources = {
+        "fifo": (lambda f, n: _fifo(f, n), FIFO),
+        "dev_zero": (lambda f, n: Path("/dev/zero"), CHAR_DEVICE),
+        "dev_urandom": (lambda f, n: Path("/dev/urandom"), CHAR_DEVICE),
+        "sparse_2GiB": (lambda f, n: _sparse(f, n), "file of 2 GiB is over the 256 MiB limit"),
+        "folder": (lambda f, n: f, "is a folder, not a regular file"),
+    }
+    names = {"rho": "c.contacts.json", "eligibility": "m.model.json", "study": "s.toml",
+             "show --contacts": "c.contacts.json", "characterize": "m.stl"}
+    for command, filename in names.items():
+        for label, (make_path, needle) in sources.items():
+            if command == "characterize" and label == "sparse_2GiB":
+                needle = needle.replace("256 MiB", "1 GiB")
+
+            def make(folder, command=command, filename=filename, make_path=make_path):
+                path = make_path(folder, filename)
+                return Process(commands(path, folder)[command])
+
+            cases.append(Case("special files", f"{command} {label}", make, ERROR, 2, needle))
+
+    def symlink(folder):
+        (folder / "c.contacts.json").symlink_to(ROOT / "examples" / "box_7fpc.contacts.json")
+        return ["rho", folder / "c.contacts.json", "--json"]
+
+    cases.append(Case("special files", "rho symlink to a file", symlink, ANSWER, 0))
+
+    def mesh_fifo(folder):  # a model whose mesh is a FIFO: the mesh only serves pictures
+        _fifo(folder, "part.stl")
+        data = _with(_box_model(), ("mesh",), "part.stl")
+        path = _write(folder, "m.model.json", data)
+        return Process(["eligibility", path, "--elements", "0,1,2,3", "--json"])
+
+    cases.append(Case("special files", "model's mesh is a FIFO", mesh_fifo, ANSWER, 0))
+
+    def study_model_fifo(folder):
+        _fifo(folder, "fifo.model.json")
+        path = _write(folder, "s.toml", 'models = ["fifo.model.json"]\ncontacts = 4\n')
+        return Process(["study", path, "--out", folder / "out", "--limit", "0"])
+
+    cases.append(Case("special files", "study of a FIFO model", study_model_fifo, ERROR, 2, FIFO))
+    return cases
+
+
+def _special_outputs(folder: Path) -> dict:
+    """A FIFO, a socket and a copy of /dev/null (a device node: root may make one; else the
+    system's own stands in) to write onto."""
+    fifo = _fifo(folder, "out.fifo")
+    sock = folder / "out.sock"
+    server = socket.socket(socket.AF_UNIX)
+    server.bind(str(sock))
+    server.close()  # the socket file stays
+    null = folder / "null"
+    try:
+        os.mknod(null, 0o666 | 0o020000, os.makedev(1, 3))
+    except PermissionError:
+        null = Path("/dev/null")
+    return {"fifo": (fifo, "a FIFO"), "socket": (sock, "a socket"),
+            "device": (null, "a character device")}
+
+
+def _output_cases() -> list[Case]:
+    """Outputs onto special files are refused (exit 2), never replaced by a regular file."""
+    cases = []
+    box = _box_model()
+    for kind in ("fifo", "socket", "device"):
+        for command in ("place", "show", "characterize", "plan"):
+            def make(folder, kind=kind, command=command):
+                out, _ = _special_outputs(folder)[kind]
+                model = _write(folder, "m.model.json", box)
+                return {
+                    "place": ["place", model, "--elements", "0,1,2,3", "--out", out],
+                    "show": ["show", model, "--out", out],
+                    "characterize": ["characterize", CUP_MESH, "--out", out],
+                    "plan": ["plan", model, "--contacts", "4", "--out", out],
+                }[command]
+
+            words = dict(fifo="a FIFO", socket="a socket", device="a character device")[kind]
+            needle = "exists and is not a folder" if command == "plan" else f"exists and is {words}"
+            cases.append(Case("outputs", f"{command} --out {kind}", make, ERROR, 2, needle))
+    return cases
+
+
+def _environment_cases() -> list[Case]:
+    """Faults of the environment: exit 1 and one error line (never 3, never a lost answer);
+    a malformed scheduler address is bad input (2); names shown escaped."""
+    cases = []
+    box_contacts = ROOT / "examples" / "box_7fpc.contacts.json"
+    cases.append(Case("environment", "stdout /dev/full",
+                      lambda f: Process(["rho", box_contacts], stdout="full"),
+                      ANSWER, 1, "error: stdout: cannot write: No space left on device"))
+    cases.append(Case("environment", "stdout closed",
+                      lambda f: Process(["rho", box_contacts], stdout="closed"),
+                      ANSWER, 1, "error: stdout: closed"))
+
+    def copy(folder, name):
+        path = folder / name
+        path.write_bytes(box_contacts.read_bytes())
+        return path
+
+    cases.append(Case("environment", "non-ASCII name, PYTHONIOENCODING=ascii",
+                      lambda f: Process(["rho", copy(f, "caf\u00e9.contacts.json")],
+                                        env={"PYTHONIOENCODING": "ascii"}),
+                      ANSWER, 1, "error: stdout: cannot print"))
+    cases.append(Case("environment", "non-ASCII name, ascii, --json",
+                      lambda f: Process(["rho", copy(f, "caf\u00e9.contacts.json"), "--json"],
+                                        env={"PYTHONIOENCODING": "ascii"}), ANSWER, 0))
+    cases.append(Case("environment", "characterize onto a full disk",
+                      lambda f: Process(["characterize", CUP_MESH, "--out", f / "c.model.json"],
+                                        file_size=2000),
+                      ANSWER, 1, "cannot write: File too large"))
+    study = f'models = ["{LAMP.as_posix()}"]\ncontacts = 4\n'
+    for address in ("garbage", "tcp://host", "tcp://host:0", "ftp://host:1", "host:\uff18"):
+        cases.append(Case(
+            "environment", f"--scheduler {address}",
+            lambda f, a=address: ["study", _write(f, "s.toml", study), "--out", f / "out",
+                                  "--scheduler", a], ERROR, 2, "--scheduler: "))
+    for label, name, shown in [("newline", "a\nb.json", "a\\nb.json"),
+                               ("escape", "x\x1b[2J.json", "x\\x1b[2J.json"),
+                               ("bell", "x\x07.json", "x\\x07.json")]:
+        cases.append(Case("environment", f"missing file with a {label} in its name",
+                          lambda f, n=name: ["rho", f / n], ERROR, 2, shown))
+        cases.append(Case("environment", f"answer for a file with a {label} in its name",
+                          lambda f, n=name: Process(["rho", copy(f, n)]), ANSWER, 0))
+    return cases
+
+
+def _strict_cases() -> list[Case]:
+    """Closed lists compared exactly, duplicate keys, ASCII digits, ordered ids, numpy
+    scalars, and API objects that keep copies of what they validated."""
+    cases = []
+    box = _box_model()
+
+    def contacts_case(name, content, expect, code, message):
+        cases.append(Case("strict", name,
+                          lambda f, c=content: ["rho", _write(f, "c.contacts.json", c)],
+                          expect, code, message))
+
+    for label, value in [("nbsp", "fpc\u00a0"), ("space", "fpc "), ("tab", "\tfpc"),
+                         ("fullwidth", "\uff46\uff50\uff43"), ("zero_width", "fp\u200bc")]:
+        contacts_case(f"type {label}", _with(PAIR, ("contacts", 0, "type"), value), ERROR, 2,
+                      "contacts[0].type: unknown contact type")
+    for units in ("km", "mm ", "MM", "\u00b5m"):
+        contacts_case(f"contacts units {units!r}", {**PAIR, "units": units}, ERROR, 2,
+                      "units: unknown unit")
+        cases.append(Case("strict", f"model units {units!r}", lambda f, u=units: [
+            "eligibility", _write(f, "m.model.json", {**box, "units": u}), "--elements",
+            "0,1,2,3"], ERROR, 2, "units: unknown unit"))
+    text = json.dumps(PAIR)
+    contacts_case("duplicate 'contacts'", text[:-1] + ', "contacts": []}', ERROR, 2,
+                  "duplicate key 'contacts'")
+    contacts_case("duplicate nested 'type'", text.replace('"type": "sfce"',
+                                                          '"type": "sfce", "type": "fpc"', 1),
+                  ERROR, 2, "duplicate key 'type'")
+    cases.append(Case("strict", "duplicate model key", lambda f: [
+        "eligibility", _write(f, "m.model.json", json.dumps(box)[:-1] + ', "name": "x"}'),
+        "--elements", "0,1,2,3"], ERROR, 2, "duplicate key 'name'"))
+    for flag, value in [("--elements", "\uff14\uff18,1,2,3"), ("--elements", "0,1,2,\u0663"),
+                        ("--mu", "\uff10.5"), ("--f-max", "\uff11"), ("--type", "fpc\u00a0")]:
+        args = ["--elements", "0,1,2,3"] if flag != "--elements" else []
+        cases.append(Case("strict", f"eligibility {flag}={value!r}", lambda f, fl=flag, v=value,
+                          a=args: ["eligibility", _write(f, "m.model.json", box), *a, fl, v],
+                          ERROR, 2, None))
+    cases.append(Case("strict", "plan --contacts \uff14", lambda f: [
+        "plan", _write(f, "m.model.json", box), "--contacts", "\uff14"], ERROR, 2, None))
+
+    from closure_nlp.contacts import Contact, ContactSet, contact_set_from_dict, contact_specs
+    from closure_nlp.elements import model_from_dict
+    from closure_nlp.eligibility import Eligibility
+    from closure_nlp.placement import PlacementOptions
+    from closure_nlp.quality import rho
+    from closure_nlp.selection import heuristic
+
+    model = model_from_dict(box)
+    specs = contact_specs(4)
+
+    def api(name, call, expect, message=None):
+        cases.append(Case("strict", name, lambda folder, call=call: call, expect, None, message))
+
+    api("Eligibility(set of ids)", lambda: Eligibility(model, specs)({0, 1, 2, 3}).rho_hat,
+        ERROR, "(no order)")
+    api("heuristic(start=set)", lambda: heuristic(Eligibility(model, specs), start={0}).rho_hat,
+        ERROR, "(no order)")
+    api("Eligibility(certify=np.bool_)", lambda: Eligibility(model, specs)(
+        [0, 1, 2, 3], certify=np.bool_(True)).rho_hat, ANSWER)
+    api("Eligibility(numpy ids)", lambda: Eligibility(model, contact_specs(np.int64(4)))(
+        np.array([0, 1, 2, 3])).rho_hat, ANSWER)
+    api("PlacementOptions(numpy scalars)", lambda: PlacementOptions(
+        starts=np.int64(2), certify=np.bool_(False)).starts, ANSWER)
+    api("rho(certify=np.bool_)", lambda: rho(contact_set_from_dict(BOX),
+                                             certify=np.bool_(True)).rho, ANSWER)
+
+    def reused_buffer():
+        """Every contact built from one buffer, then the buffer filled with NaN."""
+        position, normal, made = np.empty(3), np.empty(3), []
+        for entry in BOX["contacts"]:
+            position[:], normal[:] = entry["position"], entry["inward_normal"]
+            made.append(Contact(position, normal, "fpc"))
+        position[:], normal[:] = np.nan, np.nan
+        value = rho(ContactSet(tuple(made))).rho
+        expected = rho(contact_set_from_dict(BOX)).rho
+        if abs(value - expected) > 1e-9 * max(1.0, abs(expected)):
+            raise RuntimeError(f"rho {value} of the reused buffer, {expected} of the file")
+        return value
+
+    api("Contact(reused buffer, then NaN)", reused_buffer, ANSWER)
+    return cases
+
+
 def corpus() -> list[Case]:
     """Every case, in group order."""
     return [
@@ -842,6 +1157,10 @@ def corpus() -> list[Case]:
         *_study_cases(),
         *_flag_cases(),
         *_api_cases(),
+        *_special_input_cases(),
+        *_output_cases(),
+        *_environment_cases(),
+        *_strict_cases(),
     ]
 
 
@@ -857,9 +1176,7 @@ def table(results) -> str:
     ]
     for group, row in groups.items():
         tried = sum(row.values())
-        expected = sum(
-            1 for c, o in results if c.group == group and o.kind == c.expect
-        )
+        expected = sum(1 for c, o in results if c.group == group and as_expected(c, o))
         lines.append(
             f"| {group} | {tried} | {row.get('error', 0)} | {row.get('answer', 0)} | "
             f"{row.get('traceback', 0)} | {row.get('nan', 0)} | {row.get('hang', 0)} | "
@@ -868,17 +1185,42 @@ def table(results) -> str:
     return "\n".join(lines)
 
 
-def main() -> None:
+def listing(results) -> str:
+    """Each case by group: the input, what it must end with (kind, exit status, message) and
+    what it did."""
+    lines, group = [], None
+    for case, outcome in results:
+        if case.group != group:
+            group = case.group
+            lines.append(f"\n## {group}")
+        wanted = case.expect + (f", exit {case.code}" if case.code is not None else "")
+        if case.message:
+            wanted += f", {case.message!r}"
+        got = outcome.kind + (f", exit {outcome.code}" if outcome.code is not None else "")
+        mark = "ok" if as_expected(case, outcome) else "UNEXPECTED"
+        lines.append(f"- {mark}: {case.name!r}: expected {wanted}; got {got}")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> None:
+    """``python -m tests.hostile [--list] [GROUP...]``: the table by group (and with ``--list``
+    every case); groups name the ones to run (default all)."""
     import tempfile
 
+    args = sys.argv[1:] if argv is None else argv
+    groups = [a for a in args if not a.startswith("--")]
     results = []
     with tempfile.TemporaryDirectory() as tmp:
         for k, case in enumerate(corpus()):
+            if groups and case.group not in groups:
+                continue
             outcome = run_case(case, Path(tmp) / f"case{k}")
             results.append((case, outcome))
-            if outcome.kind != case.expect:
-                print(f"UNEXPECTED {case.id}: expected {case.expect}, got {outcome.kind}: "
-                      f"{outcome.detail[:300]}", flush=True)
+            if not as_expected(case, outcome):
+                print(f"UNEXPECTED {case.id}: expected {case.expect} {case.code} "
+                      f"{case.message!r}, got {outcome.kind}: {outcome.detail[:300]}", flush=True)
+    if "--list" in args:
+        print(listing(results))
     print(table(results))
     slow = sorted(results, key=lambda r: -r[1].seconds)[:5]
     print("slowest:", ", ".join(f"{c.id} {o.seconds:.1f} s" for c, o in slow))

@@ -3,7 +3,7 @@ answer; none in a traceback, a NaN or a hang."""
 
 import pytest
 
-from .hostile import corpus, run_case
+from .hostile import as_expected, corpus, run_case
 
 CASES = corpus()
 
@@ -11,4 +11,4 @@ CASES = corpus()
 @pytest.mark.parametrize("case", CASES, ids=[c.id for c in CASES])
 def test_hostile_input(case, tmp_path):
     outcome = run_case(case, tmp_path / "case")
-    assert outcome.kind == case.expect, outcome.detail
+    assert as_expected(case, outcome), (case.expect, case.code, case.message, outcome.detail)

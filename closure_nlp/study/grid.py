@@ -262,7 +262,7 @@ def _models(value, base_dir: Path) -> tuple[ModelRef, ...]:
             files = sorted(path.glob(f"*{MODEL_SUFFIX}"))
             if not files:
                 raise ValueError(f"{where}: no *{MODEL_SUFFIX} file in folder {entry!r}")
-        elif path.is_file():
+        elif path.exists():  # a file: read_input refuses a FIFO or a device, naming it
             files = [path]
         else:
             raise ValueError(f"{where}: model {entry!r} not found (no such file or folder)")
