@@ -26,6 +26,7 @@ from ..validation import (
     as_mu_s,
     as_torque_scale,
     check_keys,
+    is_whole,
 )
 from .tasks import Task
 
@@ -214,9 +215,9 @@ def _axis(data: dict, key: str, default, convert) -> tuple:
 
 
 def _integer(value, where: str, least: int, what: str) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or value < least:
+    if not is_whole(value) or value < least:
         raise ValueError(f"{where}: expected {what} >= {least}, got {value!r}")
-    return value
+    return int(value)
 
 
 def _count(value, where: str) -> int:
