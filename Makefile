@@ -21,7 +21,7 @@ demo: $(STAMP)
 
 # Over every core (pytest-xdist); each worker builds its solvers once and reuses them.
 test: $(STAMP)
-	MPLBACKEND=Agg $(BIN)/python -m pytest -q -n auto
+	MPLBACKEND=Agg $(BIN)/python -m pytest -q -n auto --durations=15
 
 test-fast: $(STAMP)
 	MPLBACKEND=Agg $(BIN)/python -m pytest -q -n auto -m "not slow"
