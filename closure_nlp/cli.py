@@ -36,6 +36,7 @@ from .files import (
 from .interrupts import interruptible
 from .numbers import bracket, certain, lengths
 from .placement import PlacementOptions, Placer
+from .placement_bound import gap_text
 from .planning import load_contacts, plan, write_report
 from .progress import progress_line
 from .quality import rho
@@ -240,6 +241,8 @@ def _budget(text: str) -> float:
     if not (math.isfinite(value) and value > 0):
         raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text}")
     return value
+
+
 _starts = _bounded_int(1, MAX_STARTS, "the number of start weights")
 
 
@@ -261,6 +264,56 @@ CONTACT_OPTIONS = (
         "does not depend on the model's unit)",
     ),
 )
+
+
+def _bounded_float(low: float, high: float, what: str):
+    """argparse type: a finite number in [low, high) (the limit named in the message)."""
+
+    def convert(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+        if not low <= value < high:
+            raise argparse.ArgumentTypeError(f"{what} must be in [{low:g}, {high:g}), got {text}")
+        return value
+
+    return convert
+
+
+_gap = _bounded_float(0.0, 1.0, "the gap")
+_budget = _bounded_float(0.0, float("inf"), "the time budget")
+
+
+def _add_bound_options(parser) -> None:
+    g = parser.add_argument_group("certified ceiling on the placement")
+    g.add_argument(
+        "--gap",
+        type=_gap,
+        default=0.02,
+        metavar="G",
+        help="search for better contacts until the certified gap to the best placement on the "
+        "elements is at most G (default 0.02)",
+    )
+    g.add_argument(
+        "--bound-cells",
+        type=_bounded_int(1, 10**6, "the number of cells"),
+        default=40,
+        metavar="N",
+        help="cells of that search's branch and bound at most (default 40: the same answer on "
+        "any machine)",
+    )
+    g.add_argument(
+        "--time-budget",
+        type=_budget,
+        default=None,
+        metavar="SECONDS",
+        help="seconds that search may take at most (default: no limit in seconds); the gap "
+        "reached is reported either way",
+    )
+    g.add_argument(
+        "--no-bound", action="store_true", help="skip the ceiling (the exchange method alone)"
+    )
 
 
 def _add_contact_options(parser) -> None:
@@ -438,6 +491,7 @@ def _add_place(sub, common) -> None:
     _add_placement_options(p)
     p.add_argument("--seed", type=_seed, default=0, help="random start weights after the first")
     p.add_argument("--out", metavar="FILE", help="write the placed contacts as a contact-set file")
+    _add_bound_options(p)
     _add_contact_options(p)
     p.set_defaults(run=_cmd_place)
 
@@ -445,8 +499,16 @@ def _add_place(sub, common) -> None:
 def _placement_options(args, seeded: bool) -> PlacementOptions:
     """``--starts`` (and ``--seed`` when it seeds the placement, as in ``place``; in ``plan`` it
     seeds the heuristic only, like the API's ``plan(seed=...)``: one seed, one answer)."""
+    bound = {
+        "bound": not args.no_bound,
+        "target_gap": args.gap,
+        "bound_cells": args.bound_cells,
+        "time_budget": args.time_budget,
+    }
     try:
-        return PlacementOptions(starts=args.starts, **({"seed": args.seed} if seeded else {}))
+        return PlacementOptions(
+            starts=args.starts, **bound, **({"seed": args.seed} if seeded else {})
+        )
     except ValueError as exc:
         raise ValueError(f"--{exc}") from None
 
@@ -470,6 +532,8 @@ def _placement_text(result, model) -> str:
         f"rho = {certain(result.rho, result.bounds)} ({verdict}){bounds}; "
         f"centroids gave {certain(result.start_rho)}; {result.seconds:.2f} s"
     ]
+    if result.capacity_bound is not None:
+        lines.append(f"  {gap_text(result)}")
     for i, c in enumerate(result.contacts):
         pos = lengths(c.position, model)  # to the model's accuracy (numbers.model_accuracy)
         lines.append(f"  contact {i}: element {c.element} at [{pos}]")
@@ -546,6 +610,8 @@ def _add_plan(sub, common) -> None:
     p.add_argument(
         "--up", choices=["x", "y", "z"], help="model axis drawn upwards (default: the model's)"
     )
+
+    _add_bound_options(p)
     _add_contact_options(p)
     p.set_defaults(run=_cmd_plan)
 

@@ -131,6 +131,19 @@ class PlacementOptions:
         search's misses. Measured in one process on the three examples, 5 seeds each: the final
         certified rho better on 13 of 15 and equal on 2 (pistol median -0.393 -> -0.445),
         placement 1.2-1.5x slower (README, "Selecting elements and placing contacts").
+    bound : bool
+        After the exchange method, compute the certified ceiling on every placement on the
+        elements searched (:func:`closure_nlp.placement_bound.capacity_bound`) and search for
+        better placements until ``target_gap`` or ``time_budget`` (default on; the result is
+        never worse than the exchange method's).
+    target_gap : float
+        Relative gap ``(ceiling - capacity) / ceiling`` at which that search stops (0.02).
+    bound_cells : int
+        Cells the branch and bound of that search may bound (40): a budget that gives the same
+        answer on any machine.
+    time_budget : float or None
+        Seconds that search may take besides (None, the default: no limit in seconds). When a
+        budget ends first, the gap reached is reported as such.
     """
 
     gap: float = 1e-6
@@ -149,6 +162,10 @@ class PlacementOptions:
     move_rounds: int = 8
     round_search: bool = True
     validate: bool = True
+    bound: bool = True
+    target_gap: float = 0.02
+    bound_cells: int = 40
+    time_budget: float | None = None
 
     def __post_init__(self) -> None:
         for name in (
@@ -160,9 +177,10 @@ class PlacementOptions:
             "seed",
             "probe_rounds",
             "move_rounds",
+            "bound_cells",
         ):
             value = getattr(self, name)
-            least = 1 if name in ("max_rounds", "starts") else 0
+            least = 1 if name in ("max_rounds", "starts", "bound_cells") else 0
             if not is_whole(value) or value < least:
                 raise ValueError(f"{name}: expected an integer >= {least}, got {value!r}")
             object.__setattr__(self, name, int(value))  # a numpy integer stored as an int
@@ -172,7 +190,18 @@ class PlacementOptions:
             value = getattr(self, name)
             if not isinstance(value, (int, float)) or not value > 0:
                 raise ValueError(f"{name}: expected a positive number, got {value!r}")
-        for name in ("certify", "screen", "share_directions", "round_search", "validate"):
+        if isinstance(self.target_gap, bool) or not (
+            isinstance(self.target_gap, (int, float)) and 0 <= self.target_gap < 1
+        ):
+            raise ValueError(f"target_gap: expected a number in [0, 1), got {self.target_gap!r}")
+        budget = self.time_budget
+        if budget is not None and (
+            isinstance(budget, bool)
+            or not isinstance(budget, (int, float))
+            or not 0 <= budget < np.inf
+        ):
+            raise ValueError(f"time_budget: expected seconds >= 0 or None, got {budget!r}")
+        for name in ("certify", "screen", "share_directions", "round_search", "validate", "bound"):
             object.__setattr__(self, name, as_flag(getattr(self, name), name))
 
 
@@ -235,6 +264,23 @@ class PlacementResult:
         Certified ``lo <= rho <= hi`` of the placed contacts.
     marginal, converged : bool
         As in :class:`~closure_nlp.quality.RhoResult`.
+    capacity_bound : float or None
+        Certified ceiling: no placement on the elements searched (``bound_elements``) has
+        ``-rho`` above it (None without the bound).
+    gap : float or None
+        ``(capacity_bound - capacity) / capacity_bound`` with ``capacity = -hi`` (the certified
+        capacity of these contacts), when they are force closure; None otherwise.
+    gap_reached : bool or None
+        The gap target was met (False: the time budget ended first).
+    bound_elements : tuple of tuple of int
+        The element ids each contact could sit on in the bound.
+    bound_nodes : int
+        Cells of the branch and bound.
+    bound_seconds : float
+        The bound's part of ``seconds``.
+    exchange_rho : float or None
+        The exchange method's own certified rho, before the bound's search (equal to ``rho``
+        unless that search found better contacts).
     """
 
     contacts: tuple[PlacedContact, ...]
@@ -250,6 +296,13 @@ class PlacementResult:
     bounds: tuple[float, float] | None = None
     marginal: bool = False
     converged: bool = True
+    capacity_bound: float | None = None
+    gap: float | None = None
+    gap_reached: bool | None = None
+    bound_elements: tuple[tuple[int, ...], ...] = ()
+    bound_nodes: int = 0
+    bound_seconds: float = 0.0
+    exchange_rho: float | None = None
 
     @property
     def elements(self) -> tuple[int, ...]:
@@ -267,6 +320,24 @@ class PlacementResult:
             "moves": [vars(m) for m in self.moves],
             "seconds": self.seconds,
             **certificate_keys(self),
+            **self.bound_keys(),
+        }
+
+    def bound_keys(self) -> dict:
+        """The JSON keys of the certified ceiling (none when it was not computed)."""
+        if self.capacity_bound is None:
+            return {}
+        return {
+            "capacity_bound": self.capacity_bound,
+            "gap": self.gap,
+            "gap_reached": self.gap_reached,
+            "bound_elements": [list(ids) for ids in self.bound_elements],
+            "bound_nodes": self.bound_nodes,
+            "exchange_rho": self.exchange_rho,
+            "timing": {
+                "exchange": self.seconds - self.bound_seconds,
+                "bound": self.bound_seconds,
+            },
         }
 
     def contact_file(self, name: str = "", units: str = "") -> dict:
@@ -714,7 +785,7 @@ class Placer:
         )
         if progress:
             progress("certification", 1, final.rho)
-        return PlacementResult(
+        result = PlacementResult(
             placed,
             contact_set,
             final.rho,
@@ -729,6 +800,11 @@ class Placer:
             final.marginal,
             final.converged,
         )
+        if not self.options.bound:
+            return result
+        from .placement_bound import bounded
+
+        return bounded(self, start_elements, result, t0, progress)
 
     def _validated(self, slots: WrenchSlots, found):
         """``found`` (a round search's result on ``slots``), or the weaker answer of the

@@ -60,7 +60,7 @@ from __future__ import annotations
 
 import heapq
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.optimize import linprog
@@ -87,8 +87,8 @@ class BoundOptions:
     gap : float
         Stop when ``(ceiling - capacity) / ceiling <= gap`` (relative, >= 0).
     time_budget : float
-        Seconds the branch and bound may run (the root bound is always computed); when it ends
-        first, the gap reached is reported as such.
+        Seconds the branch and bound may run (``inf``: no limit; the root LP is always solved);
+        when it ends first, the gap reached is reported as such.
     root_cuts : int
         Cutting-plane rounds at the root cell.
     cell_cuts : int
@@ -97,7 +97,7 @@ class BoundOptions:
         A round adds directions only while the descent finds ``g(u; lam*)`` below the LP value by
         more than this fraction of it.
     max_nodes : int
-        Cells bounded at most.
+        Cells bounded at most (a budget independent of the machine's speed).
     polish_every : int
         Every that many cells, the exchange method is started at the best open cell's LP
         placement (0: never).
@@ -116,7 +116,7 @@ class BoundOptions:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not value >= 0:
                 raise ValueError(f"{name}: expected a number >= 0, got {value!r}")
-            if not np.isfinite(value):
+            if not np.isfinite(value) and name != "time_budget":
                 raise ValueError(f"{name}: expected a finite number, got {value!r}")
         for name in ("root_cuts", "cell_cuts", "max_nodes", "polish_every"):
             value = getattr(self, name)
@@ -250,7 +250,7 @@ class CapacityBound:
 def relative_gap(ceiling: float, capacity: float) -> float | None:
     """``(ceiling - capacity) / ceiling`` for a force-closure placement (``capacity > 0``), else
     None."""
-    if not capacity > 0.0:
+    if not capacity > 0.0 or not ceiling > 0.0:
         return None
     return max(0.0, (ceiling - capacity) / ceiling)
 
@@ -279,15 +279,16 @@ class CellLP:
             counts.append(len(G))
         return WrenchSlots.build(slots), positions, counts
 
-    def bound(self, cell, rounds: int, tolerance: float) -> CellBound:
-        """The cell's certified LP bound after at most ``rounds`` cutting-plane rounds."""
+    def bound(self, cell, rounds: int, tolerance: float, deadline: float = np.inf) -> CellBound:
+        """The cell's certified LP bound after at most ``rounds`` cutting-plane rounds (none
+        begun after ``deadline``, a :func:`time.perf_counter` value)."""
         slots, _, counts = self.rows(cell)
         owner = np.repeat(np.arange(len(counts)), counts)
         U = self.directions
         A = np.maximum(slots.row_values(U), 0.0)
         for k in range(rounds + 1):
             result = _solve_lp(A, owner, U)
-            if k == rounds:
+            if k == rounds or time.perf_counter() > deadline:
                 break
             new = self._cuts(slots, result, owner)
             lowest = g_values(slots, result.lam, new)
@@ -451,23 +452,26 @@ def capacity_bound(
     lp = CellLP(eligibility)
     # A ceiling this close to zero (the certificate's relative accuracy) shows that no
     # placement in the domain is force closure beyond numerical accuracy.
-    zero = eligibility.minimizer.tolerances.certify * tolerance_unit(
-        eligibility.slots(elements)
-    )
+    zero = eligibility.minimizer.tolerances.certify * tolerance_unit(eligibility.slots(elements))
     if incumbent is not None and getattr(incumbent, "direction", None) is not None:
         lp.directions = np.vstack([lp.directions, incumbent.direction[None]])
 
     best = incumbent
     best_value = _capacity(incumbent)
     root_cell = tuple(sum((element_pieces(eligibility, e) for e in ids), []) for ids in domain)
-    root = lp.bound(root_cell, options.root_cuts, options.cut_tolerance)
+    deadline = t0 + options.time_budget
+    root = lp.bound(root_cell, options.root_cuts, options.cut_tolerance, deadline)
     heap = [_Cell(root_cell, root, 0)]
     closed = -np.inf  # the largest bound of a closed cell
     nodes, polishes, history = 1, 0, [(0.0, root.value, best_value)]
     polisher = Placer(
         eligibility,
         PlacementOptions(
-            starts=1, extra_starts=0, neighbour_moves=0, max_rounds=placer.options.max_rounds
+            starts=1,
+            extra_starts=0,
+            neighbour_moves=0,
+            max_rounds=placer.options.max_rounds,
+            bound=False,
         ),
         placer._problems,
     )
@@ -495,7 +499,10 @@ def capacity_bound(
     while heap and not done():
         if time.perf_counter() - t0 > options.time_budget or nodes >= options.max_nodes:
             break
-        if options.polish_every and (nodes - 1) % options.polish_every == 0:
+        # an exchange run takes seconds: none started in the last quarter of the budget
+        late = time.perf_counter() - t0 > 0.75 * options.time_budget
+        late |= nodes > 0.75 * options.max_nodes
+        if options.polish_every and (nodes - 1) % options.polish_every == 0 and not late:
             try_placement(heap[0])
             if done():
                 break
@@ -508,7 +515,9 @@ def capacity_bound(
             closed = max(closed, cell.bound.value)
             continue
         for pieces in split:
-            bound = lp.bound(pieces, options.cell_cuts, options.cut_tolerance)
+            bound = lp.bound(pieces, options.cell_cuts, options.cut_tolerance, deadline)
+            if bound.value > cell.bound.value:  # the parent's bound holds for its parts too
+                bound = replace(bound, value=cell.bound.value)
             nodes += 1
             child = _Cell(pieces, bound, cell.depth + 1)
             if bound.value <= best_value:
@@ -537,6 +546,59 @@ def capacity_bound(
         polishes,
         tuple(history),
     )
+
+
+def bounded(placer, elements, result, t0: float, progress=None):
+    """``result`` (the exchange method's placement on ``elements``, started at ``t0``) with the
+    certified ceiling of :func:`capacity_bound` under the placer's options, and replaced by a
+    better placement the bound's search found (certified; never a worse one)."""
+    options = placer.options
+    budget = np.inf if options.time_budget is None else float(options.time_budget)
+    found = capacity_bound(
+        placer,
+        elements,
+        result,
+        BoundOptions(gap=options.target_gap, time_budget=budget, max_nodes=options.bound_cells),
+        progress=progress,
+    )
+    chosen = result
+    if found.placement is not None and _capacity(found.placement) > _capacity(result):
+        better = found.placement
+        chosen = replace(
+            better,
+            start_rho=result.start_rho,
+            rounds=result.rounds + better.rounds,
+            moves=(),
+        )
+    return replace(
+        chosen,
+        capacity_bound=found.value,
+        gap=found.gap,
+        gap_reached=found.reached,
+        bound_elements=found.domain,
+        bound_nodes=found.nodes,
+        bound_seconds=found.seconds,
+        exchange_rho=result.rho,
+        seconds=time.perf_counter() - t0,
+    )
+
+
+def gap_text(result) -> str:
+    """The ceiling in words, e.g. ``within 1.3% of the best placement on these elements``."""
+    if result.capacity_bound is None:
+        return ""
+    where = "these elements"
+    if any(len(ids) > 1 for ids in result.bound_elements):
+        where += " and their neighbours"
+    ceiling = f"certified ceiling {result.capacity_bound:.6g}, {result.bound_nodes} cells"
+    if result.gap is None:
+        if result.gap_reached:
+            return f"no placement on {where} is force closure ({ceiling})"
+        return f"no placement on {where} holds more than {result.capacity_bound:.6g} ({ceiling})"
+    text = f"within {100 * result.gap:.3g}% of the best placement on {where} ({ceiling}"
+    if not result.gap_reached:
+        text += "; the time budget ended before the gap target"
+    return text + ")"
 
 
 def _capacity(result) -> float:
@@ -626,4 +688,6 @@ __all__ = [
     "domain_of",
     "dual_bound",
     "relative_gap",
+    "bounded",
+    "gap_text",
 ]

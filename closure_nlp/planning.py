@@ -369,6 +369,10 @@ def summary_markdown(model, result: PlanResult, options: dict) -> str:
         f"centroids had rho = {certain(pl.start_rho)}. Total {result.seconds:.2f} s.",
         "",
     ]
+    if pl.capacity_bound is not None:
+        from .placement_bound import gap_text
+
+        rows += [f"Placement quality: {gap_text(pl)}.", ""]
     if "torque_scale" in options and "reference_point" in options:  # the CLI's scale (scale.py)
         unit = f" {options.get('units')}" if options.get("units") else ""
         point = ", ".join(f"{x:.6g}" for x in options["reference_point"])

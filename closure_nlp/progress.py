@@ -22,6 +22,7 @@ STAGES = (
     "placement round",  # an exchange round (value: the best rho of this start)
     "placement start",  # a start finished (value: the best rho over the starts)
     "neighbour move",  # a contact moved into a neighbouring element (value: rho after)
+    "capacity bound",  # a cell of the ceiling's branch and bound (value: the ceiling on -rho)
     "certification",  # 0: the final rho's wide search and bounds begin; 1: done (value: rho)
     "alternative",  # a further element set placed after a failed placement (value: its rho)
     "seed",  # a seed of a plan of several finished (value: the best rho over the seeds so far)

@@ -236,6 +236,8 @@ def _progress(name: str):
     def report(done: int, total: int, row) -> None:
         if row is not None:
             rho = "error" if row["status"] != "ok" else f"rho {row['rho']:+.4f}"
+            if row.get("gap") is not None:
+                rho += f" (gap {100 * row['gap']:.2g}%)"
             print(
                 f"  {name} {done}/{total}: {row['model']} {row['type']} x{row['contacts']} "
                 f"seed {row['seed']}: {rho}",

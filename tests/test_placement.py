@@ -43,7 +43,7 @@ def test_box_placement_beats_centroids_and_is_consistent():
     eligibility = Eligibility(
         box_model(1.0), contact_specs(4, type="pcwf", mu=0.5), torque_scale=1.0
     )
-    placer = Placer(eligibility, PlacementOptions(neighbour_moves=0))
+    placer = Placer(eligibility, PlacementOptions(bound=False, neighbour_moves=0))
     elements = [0, 1, 2, 3]
     result = placer(elements)
     _check_on_elements(eligibility, result)
@@ -68,7 +68,7 @@ def test_given_weights_start_and_bad_weights():
     eligibility = Eligibility(
         box_model(), contact_specs(4, type="sfce", mu=0.4, mu_s=0.1), torque_scale=1.0
     )
-    placer = Placer(eligibility, PlacementOptions(starts=1, neighbour_moves=0))
+    placer = Placer(eligibility, PlacementOptions(bound=False, starts=1, neighbour_moves=0))
     start = [np.array([0.7, 0.1, 0.1, 0.1])] * 4
     result = placer([0, 1, 2, 3], weights=start)
     contacts = [
@@ -102,8 +102,10 @@ def _strip_model() -> Model:
 def test_contact_moves_to_a_neighbour_only_when_that_helps():
     model = _strip_model()
     eligibility = Eligibility(model, contact_specs(4, type="pcwf", mu=0.5), torque_scale=0.5)
-    stay = Placer(eligibility, PlacementOptions(neighbour_moves=0, starts=2))([0, 2, 3, 4])
-    move = Placer(eligibility, PlacementOptions(starts=2))([0, 2, 3, 4])
+    stay = Placer(eligibility, PlacementOptions(bound=False, neighbour_moves=0, starts=2))(
+        [0, 2, 3, 4]
+    )
+    move = Placer(eligibility, PlacementOptions(bound=False, starts=2))([0, 2, 3, 4])
     _check_on_elements(eligibility, move)
     for mv in move.moves:
         assert mv.rho_after < mv.rho_before  # every move helped
@@ -130,7 +132,7 @@ def test_rounds_count_every_exchange_round(monkeypatch):
     eligibility = Eligibility(model, contact_specs(4, type="pcwf", mu=0.5), torque_scale=0.5)
     for share in (True, False):
         solves.clear()
-        options = PlacementOptions(starts=2, share_directions=share)
+        options = PlacementOptions(bound=False, starts=2, share_directions=share)
         result = Placer(eligibility, options)([0, 2, 3, 4])
         assert result.rounds == len(solves) > 0
         assert result.force_closure and result.rho <= result.start_rho
@@ -197,7 +199,9 @@ def test_affine_position_form_matches_the_weights_form(monkeypatch):
     f_max, default = np.ones(len(elements)), placement.AFFINE_ROWS
     for trial in range(3):
         weights = [rng.dirichlet(np.ones(len(model.elements[e].vertices))) for e in elements]
-        slots = WrenchSlots.from_contacts(Placer(eligibility).contact_set(elements, weights))
+        slots = WrenchSlots.from_contacts(
+            Placer(eligibility, PlacementOptions(bound=False)).contact_set(elements, weights)
+        )
         U = rng.standard_normal((40, 6))
         U /= np.linalg.norm(U, axis=1, keepdims=True)
         start = [np.pad(w, (0, k - len(w))) for w, k in zip(weights, rows)]
@@ -236,7 +240,7 @@ def test_neighbour_trials_ruled_out_only_when_no_placement_can_win():
     model = load_model(MODELS / "lamp.model.json")
     specs = contact_specs(4, type="pcwf", mu=0.2)
     eligibility = Eligibility(model, specs, auto_torque_scale(model))
-    placer = Placer(eligibility)
+    placer = Placer(eligibility, PlacementOptions(bound=False))
     elements = [36, 10, 40, 14]
     centroids = [np.full(k, 1.0 / k) for k in (len(model.elements[e].vertices) for e in elements)]
     best = search_rho(placer.contact_set(elements, centroids))
@@ -275,7 +279,7 @@ def test_example_models_end_in_force_closure(name, kind, m):
     eligibility = Eligibility(
         model, contact_specs(m, type=kind, mu=0.2, mu_s=0.2), torque_scale=1.0
     )
-    result = plan(eligibility, seed=0, placement=PlacementOptions(starts=2))
+    result = plan(eligibility, seed=0, placement=PlacementOptions(bound=False, starts=2))
     placed = result.placement
     _check_on_elements(eligibility, placed)
     assert result.iterative.rho_hat <= result.heuristic.rho_hat
@@ -365,7 +369,7 @@ def test_an_exchange_run_ends_on_a_value_the_default_search_confirms(monkeypatch
     eligibility = Eligibility(
         load_model(MODELS / "lamp.model.json"), contact_specs(4, mu=0.2), torque_scale=1.0
     )
-    placer = Placer(eligibility, PlacementOptions(validate=validate))
+    placer = Placer(eligibility, PlacementOptions(bound=False, validate=validate))
     elements = [14, 10, 55, 47]
     counts = [len(eligibility.model.elements[e].vertices) for e in elements]
     over_stated = []
@@ -387,10 +391,10 @@ def test_exchange_nlp_cache_keeps_the_most_recent_shapes(monkeypatch):
 
     model = _strip_model()
     eligibility = Eligibility(model, contact_specs(4, type="pcwf", mu=0.5), torque_scale=0.5)
-    reference_run = Placer(eligibility, PlacementOptions(starts=2))([0, 2, 3, 4])
+    reference_run = Placer(eligibility, PlacementOptions(bound=False, starts=2))([0, 2, 3, 4])
     monkeypatch.setattr(placement, "MAX_EXCHANGE_PROBLEMS", 2)
     caches = PerThread(dict)
-    placer = Placer(eligibility, PlacementOptions(starts=2), caches)
+    placer = Placer(eligibility, PlacementOptions(bound=False, starts=2), caches)
     shared = caches.get()
     a = placer._problem((1, 1, 1, 1), 10)
     b = placer._problem((1, 1, 1, 1), 20)
@@ -400,6 +404,8 @@ def test_exchange_nlp_cache_keeps_the_most_recent_shapes(monkeypatch):
     assert placer._problem((1, 1, 1, 1), 20) is not b  # rebuilt
     assert len(shared) == 2
     monkeypatch.setattr(placement, "MAX_EXCHANGE_PROBLEMS", 1)
-    again = Placer(eligibility, PlacementOptions(starts=2), PerThread(dict))([0, 2, 3, 4])
+    again = Placer(eligibility, PlacementOptions(bound=False, starts=2), PerThread(dict))(
+        [0, 2, 3, 4]
+    )
     assert again.rho == reference_run.rho
     assert [c.element for c in again.contacts] == [c.element for c in reference_run.contacts]

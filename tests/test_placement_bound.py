@@ -118,7 +118,9 @@ def test_capacity_bound_on_the_box():
     model = box_model(1.0)
     specs = contact_specs(4, type="pcwf", mu=0.5)
     eligibility = Eligibility(model, specs, 1.0)
-    placer = Placer(eligibility, PlacementOptions(neighbour_moves=0, starts=1, extra_starts=0))
+    placer = Placer(
+        eligibility, PlacementOptions(neighbour_moves=0, starts=1, extra_starts=0, bound=False)
+    )
     elements = (0, 1, 2, 3)
     placed = placer(elements)
     options = BoundOptions(time_budget=1.0, root_cuts=8, polish_every=0)
@@ -141,7 +143,9 @@ def test_no_force_closure_gives_a_zero_ceiling():
     model = box_model(1.0)
     specs = contact_specs(4, type="pcwf", mu=0.5)
     eligibility = Eligibility(model, specs, 1.0)
-    placer = Placer(eligibility, PlacementOptions(neighbour_moves=0, starts=1, extra_starts=0))
+    placer = Placer(
+        eligibility, PlacementOptions(neighbour_moves=0, starts=1, extra_starts=0, bound=False)
+    )
     placed = placer((0, 0, 0, 0))
     options = BoundOptions(time_budget=1.0, polish_every=0)
     result = capacity_bound(placer, (0, 0, 0, 0), placed, options)

@@ -17,7 +17,7 @@ from closure_nlp.planning import plan
 from closure_nlp.selection import SelectionOptions, _multiset
 from tests.shapes import box_model, corner_model
 
-QUICK = PlacementOptions(starts=1, extra_starts=0, neighbour_moves=0, certify=False)
+QUICK = PlacementOptions(bound=False, starts=1, extra_starts=0, neighbour_moves=0, certify=False)
 
 
 class FailingFirst(Placer):

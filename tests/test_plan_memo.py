@@ -14,7 +14,7 @@ from closure_nlp.planning import plan
 from closure_nlp.selection import SelectionOptions
 from tests.shapes import box_model
 
-QUICK = PlacementOptions(starts=1, extra_starts=0, neighbour_moves=0)
+QUICK = PlacementOptions(bound=False, starts=1, extra_starts=0, neighbour_moves=0)
 
 
 def hand() -> Eligibility:

@@ -21,7 +21,7 @@ def test_plan_reports_every_long_step():
     specs = contact_specs(2, type="sfce", mu=0.4, mu_s=0.5)
     hand = Eligibility(box_model(10.0), specs, torque_scale=0.1)
     events = []
-    options = PlacementOptions(starts=2, extra_starts=0, neighbour_moves=0)
+    options = PlacementOptions(starts=2, extra_starts=0, neighbour_moves=0, bound_cells=3)
     result = plan(hand, seed=1, placement=options, progress=lambda *e: events.append(e))
     stages = [e[0] for e in events]
     assert set(stages) <= set(STAGES)
@@ -29,7 +29,11 @@ def test_plan_reports_every_long_step():
         assert stage in stages, stage
     assert [e[1] for e in events if e[0] == "placement start"] == [1, 2]
     assert [e[1] for e in events if e[0] == "certification"] == [0, 1]
-    assert events[-1] == ("certification", 1, result.placement.rho)
+    assert ("certification", 1, result.placement.exchange_rho) in events
+    cells = [e for e in events if e[0] == "capacity bound"]
+    if cells:  # the ceiling's cells, after the exchange method; the ceiling never rises
+        assert events[-1] == cells[-1] and cells[-1][2] == result.placement.capacity_bound
+        assert all(a[2] >= b[2] for a, b in zip(cells, cells[1:]))
     rounds = [e for e in events if e[0] == "placement round"]
     assert len(rounds) <= result.placement.rounds  # a round that predicts no gain ends silently
     iterative = [e for e in events if e[0] == "iterative"]

@@ -42,6 +42,8 @@ def _columns() -> list[tuple[str, str]]:
         ("marginal", "flag"),
         ("converged", "flag"),
         ("start_rho", "real"),
+        ("capacity_bound", "real"),
+        ("gap", "real"),
         ("placement_rounds", "int"),
         ("placement_moves", "int"),
         ("placement_attempts", "int"),

@@ -19,7 +19,8 @@ def summarize(study: Study, frame):
     Columns: the group keys, ``tasks`` (of the study), ``done``, ``errors``, ``force_closure``
     (count), ``certified`` (rows whose rho bracket converged to the tolerance; rows of older
     versions have none), ``success_rate`` (force closure among the tasks done), ``rho_median``,
-    ``rho_best`` (most negative rho), ``rho_hat_median`` (iterative selection),
+    ``rho_best`` (most negative rho), ``rho_hat_median`` (iterative selection), ``gap_median``
+    (the placements' certified gap to the best placement on their elements, force closure only),
     ``seconds_median`` (the three steps of one task, as it ran), ``reused`` (tasks that took
     the iterative run and the placement of a set from an earlier task of their worker),
     ``best_of_8_rho`` and ``best_of_8_seed`` (:func:`best_of_seeds`).
@@ -42,6 +43,7 @@ def summarize(study: Study, frame):
                 "rho_median": _stat(ok.rho, "median"),
                 "rho_best": _stat(ok.rho, "min"),
                 "rho_hat_median": _stat(ok.iterative_rho_hat, "median"),
+                "gap_median": _stat(ok.gap, "median") if "gap" in ok else float("nan"),
                 "seconds_median": _stat(ok.seconds, "median"),
                 "reused": int(ok.reused.fillna("").astype(bool).sum()),
                 **best_of_seeds(ok, study.seeds[:DEFAULT_SEEDS]),
@@ -78,6 +80,7 @@ SUMMARY_COLUMNS = [
     "rho_median",
     "rho_best",
     "rho_hat_median",
+    "gap_median",
     "seconds_median",
     "reused",
     BEST_RHO,
@@ -103,6 +106,8 @@ def summary_markdown(study: Study, summary, frame) -> str:
         "rho < 0 is force closure (best = most negative); success = force closure; seconds = "
         "heuristic + iterative + placement of one task as it ran (median); reused = tasks that "
         "took the iterative run and the placement of a set from an earlier task of their worker; "
+        "gap = the placement's certified gap to the best placement on its elements (median of "
+        "the force-closure rows); "
         f"best of {DEFAULT_SEEDS} = the task of the first {DEFAULT_SEEDS} seeds that `plan --seeds "
         f"{DEFAULT_SEEDS}` returns (force closure first, then the lowest rho).",
         "",
@@ -139,6 +144,8 @@ def _cell(key: str, value) -> str:
         return f"{value:.4f}"
     if key == "seconds_median":
         return f"{value:.2f}"
+    if key == "gap_median":
+        return f"{100 * value:.2g}%"
     if isinstance(value, float):
         return f"{value:g}"
     return str(value)
