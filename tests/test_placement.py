@@ -144,7 +144,7 @@ def test_frictionless_exchange_matches_the_general_form(monkeypatch):
     from closure_nlp import placement
 
     eligibility = Eligibility(box_model(1.0), contact_specs(7, type="fpc"), torque_scale=1.0)
-    options = PlacementOptions(starts=1, extra_starts=0, neighbour_moves=0)
+    options = PlacementOptions(bound=False, starts=1, extra_starts=0, neighbour_moves=0)
     elements = [0, 1, 2, 3, 4, 5, 0]
     linear = Placer(eligibility, options)
     fast = linear(elements)
@@ -224,7 +224,9 @@ def test_screened_rounds_are_not_certified(monkeypatch):
     eligibility = Eligibility(
         box_model(1.0), contact_specs(4, type="pcwf", mu=0.5), torque_scale=1.0
     )
-    options = PlacementOptions(starts=1, extra_starts=0, neighbour_moves=0, screen=True)
+    options = PlacementOptions(
+        bound=False, starts=1, extra_starts=0, neighbour_moves=0, screen=True
+    )
     result = Placer(eligibility, options)([0, 1, 2, 3])
     assert result.force_closure and result.rounds > 2
     assert 1 <= len(calls) <= 2

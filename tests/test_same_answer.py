@@ -41,7 +41,11 @@ def _without_timings(value):
         if "torque_scale_auto" in value:
             assert value["torque_scale"] == 0.1 and value["mu_s"] == 0.5
             value = {k: v for k, v in value.items() if k not in SCALE_KEYS}
-        return {k: _without_timings(v) for k, v in value.items() if k not in ("seconds", "out")}
+        return {
+            k: _without_timings(v)
+            for k, v in value.items()
+            if k not in ("seconds", "timing", "out")
+        }
     if isinstance(value, list):
         return [_without_timings(v) for v in value]
     return value

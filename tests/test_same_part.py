@@ -1,0 +1,92 @@
+"""Same part, same answer: a part in metres and in millimetres gets placements whose certified
+capacities agree within the reported gaps (the ceiling is certified in both units)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from closure_nlp.contacts import contact_specs
+from closure_nlp.elements import model_from_dict
+from closure_nlp.eligibility import Eligibility
+from closure_nlp.placement import PlacementOptions, Placer
+from closure_nlp.scale import resolve
+
+MODELS = Path(__file__).resolve().parents[1] / "models"
+QUICK = PlacementOptions(starts=1, extra_starts=0, neighbour_moves=0, bound_cells=6)
+
+
+def _scaled(data: dict, factor: float) -> dict:
+    out = dict(data)
+    out["elements"] = [
+        {**e, "vertices": (np.asarray(e["vertices"], float) * factor).tolist()}
+        for e in data["elements"]
+    ]
+    if "reference_point" in data:
+        out["reference_point"] = (np.asarray(data["reference_point"]) * factor).tolist()
+    out.pop("mesh", None)
+    return out
+
+
+def _placed(model, kind: str, elements):
+    scale = resolve(model)
+    specs = contact_specs(len(elements), type=kind, mu=0.5, mu_s=scale.mu_s)
+    return Placer(Eligibility(model, specs, scale.torque_scale), QUICK)(elements)
+
+
+def _agree(a, b):
+    """Both capacities lie within their gaps below the best placement, so they differ by at
+    most the larger gap times the smaller ceiling."""
+    cap_a, cap_b = -a.bounds[1], -b.bounds[1]
+    assert a.gap is not None and b.gap is not None
+    allowed = max(a.gap, b.gap) * min(a.capacity_bound, b.capacity_bound)
+    assert abs(cap_a - cap_b) <= allowed + 1e-6 * max(cap_a, cap_b)
+    # and each ceiling is above the other unit's placement (one part, one ceiling)
+    assert cap_a <= b.capacity_bound * (1 + 1e-9) and cap_b <= a.capacity_bound * (1 + 1e-9)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "name, kind, elements",
+    [("lamp", "pcwf", [14, 10, 55, 47]), ("cup", "sfce", None), ("pistol", "fpc", None)],
+)
+def test_examples_times_1000_agree_within_the_gap(name, kind, elements):
+    data = json.loads((MODELS / f"{name}.model.json").read_text())
+    small = model_from_dict(_scaled(data, 1.0), MODELS)
+    big = model_from_dict({**_scaled(data, 1000.0), "units": "um"}, MODELS)
+    if elements is None:  # the first elements of the model's eligible kind, one per contact
+        from closure_nlp.selection import heuristic
+
+        scale = resolve(small)
+        count = 7 if kind == "fpc" else 4
+        specs = contact_specs(count, type=kind, mu=0.5, mu_s=scale.mu_s)
+        elements = list(heuristic(Eligibility(small, specs, scale.torque_scale), seed=0).elements)
+    a, b = _placed(small, kind, elements), _placed(big, kind, elements)
+    assert a.force_closure and b.force_closure
+    _agree(a, b)
+
+
+@pytest.mark.slow
+def test_a_box_in_metres_and_millimetres_agrees_within_the_gap():
+    """A domino-sized box (pybullet's domino: 0.05 x 0.025 x 0.01 m) with 4 soft fingers."""
+    half = np.array([0.025, 0.0125, 0.005])
+    elements = []
+    for axis in range(3):
+        others = [k for k in range(3) if k != axis]
+        for sign in (-1.0, 1.0):
+            corners = []
+            for p, q in [(-1, -1), (1, -1), (1, 1), (-1, 1)]:
+                v = np.zeros(3)
+                v[axis], v[others[0]], v[others[1]] = sign, p, q
+                corners.append((v * half).tolist())
+            normal = [0.0, 0.0, 0.0]
+            normal[axis] = -sign
+            elements.append({"kind": "facet", "vertices": corners, "inward_normal": normal})
+    data = {"name": "domino", "units": "m", "elements": elements}
+    metres = model_from_dict(data)
+    millimetres = model_from_dict({**_scaled(data, 1000.0), "units": "mm"})
+    ids = [2, 3, 4, 5]
+    _agree(_placed(metres, "sfce", ids), _placed(millimetres, "sfce", ids))
