@@ -473,7 +473,7 @@ def capacity_bound(
             max_rounds=placer.options.max_rounds,
             bound=False,
         ),
-        placer._problems,
+        placer._caches,
     )
 
     def ceiling() -> float:
