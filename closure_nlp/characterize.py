@@ -31,6 +31,7 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components, dijkstra
 
+from .accuracy import ModelTolerance
 from .contacts import as_reference_point
 from .drafts import Draft, thin
 from .elements import Element, ElementKind, Model, part_size
@@ -241,6 +242,7 @@ def characterize_mesh(
         mesh=mesh_ref,
         reference_point=point,
         up=up,
+        tolerance=measured_tolerance(mesh, drafts, options),
     )
     return Characterization(
         model,
@@ -373,6 +375,44 @@ class MeshArrays:
             value = value.view(np.ndarray)
         setattr(self, name, value)  # an instance attribute: not looked up here again
         return value
+
+
+def measured_tolerance(mesh, drafts: list[Draft], options: CharacterizeOptions) -> ModelTolerance:
+    """How far the elements deviate from the mesh they stand for (the largest over elements).
+
+    ``normal_deg``: the largest angle between an element's normal and the (inward) normals of
+    the mesh faces it stands for: a facet's own triangles; for a segment or a point, the faces
+    around its vertices within its smooth region (normals within ``sharp_angle``), the span of
+    normals the real surface may have there. ``position``: the largest distance of a facet's
+    mesh vertices from its plane (segments and points sit on mesh vertices). A flat face
+    merged from triangles within ``flat_angle`` of each other, or a tessellated sphere's
+    point, gets the angle the mesh cannot resolve.
+    """
+    from scipy.spatial import cKDTree
+
+    inward = -np.asarray(mesh.face_normals)
+    vertex_faces = np.asarray(mesh.vertex_faces)  # padded with -1
+    tree = cKDTree(mesh.vertices)
+    sharp = np.cos(np.radians(options.sharp_angle))
+    worst_cos, position = 1.0, 0.0
+    for draft in drafts:
+        e = draft.element
+        n = e.inward_normal
+        if e.kind is ElementKind.FACET:
+            owned = np.fromiter(draft.owned, int)
+            mask = np.zeros(len(mesh.vertices), bool)
+            mask[owned] = True
+            faces = np.flatnonzero(mask[mesh.faces].all(axis=1))
+            if len(owned):
+                offsets = (mesh.vertices[owned] - e.vertices[0]) @ n
+                position = max(position, float(np.abs(offsets).max()))
+        else:
+            faces = vertex_faces[tree.query(e.vertices)[1]].ravel()
+            faces = faces[faces >= 0]
+            faces = faces[inward[faces] @ n >= sharp]
+        if len(faces):
+            worst_cos = min(worst_cos, float(np.clip(inward[faces] @ n, -1.0, 1.0).min()))
+    return ModelTolerance(position, float(np.degrees(np.arccos(worst_cos))))
 
 
 def _is_auto(value) -> bool:

@@ -13,6 +13,7 @@ system refuses (:class:`OutputFault`, any ``OSError``: a full disk, stdout full 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import contextlib
 import json
 import math
@@ -154,9 +155,14 @@ def _add_rho(sub, common) -> None:
     p.set_defaults(run=_cmd_rho)
 
 
+def _tolerance(args, given):
+    """The file's tolerance with the command line's values in place of its own."""
+    return given.merged(args.position_tolerance, args.normal_tolerance)
+
+
 def _cmd_rho(args) -> None:
     for path, contact_set in _load_each(args.files, load_contacts):
-        result = rho(contact_set)
+        result = rho(contact_set, tolerance=_tolerance(args, contact_set.tolerance))
         payload = {"file": path, **result.to_dict()}
         direction = " ".join(f"{x:+.4f}" for x in result.direction)
         _emit(
@@ -172,6 +178,12 @@ def _verdict(result, positive: bool, yes="force closure", no="not force closure"
     """The certified verdict in words; a bracket that reaches zero is marginal, never closure."""
     if getattr(result, "marginal", False):
         return "marginal: within numerical accuracy of no interior"
+    robust = getattr(result, "robust", None)
+    if positive and robust is not None:
+        shift = f"the support function may move {result.shift:.3g}"
+        if robust:
+            return f"{yes}, robust within the model's tolerance ({shift})"
+        return f"{yes} by the file, NOT robust within the model's tolerance ({shift})"
     return yes if positive else no
 
 
@@ -360,6 +372,7 @@ def _load_model(args, marked: list | None = None):
     from .model_mesh import check_normals, outward_elements, read_model_mesh
 
     [(_, model)] = _load_each([args.model], load_model)
+    model = replace(model, tolerance=_tolerance(args, model.tolerance))
     if getattr(args, "allow_outside_mesh", False):
         model = replace(model, allow_outside_mesh=True)
     with _reading(args.model):
@@ -491,6 +504,14 @@ def _add_place(sub, common) -> None:
     _add_placement_options(p)
     p.add_argument("--seed", type=_seed, default=0, help="random start weights after the first")
     p.add_argument("--out", metavar="FILE", help="write the placed contacts as a contact-set file")
+    p.add_argument(
+        "--margin",
+        type=_bounded_float(0.0, float("inf"), "the margin"),
+        default=0.0,
+        metavar="D",
+        help="keep every contact at least D (model units) from its element's boundary "
+        "(default 0); the ceiling covers the same region",
+    )
     _add_bound_options(p)
     _add_contact_options(p)
     p.set_defaults(run=_cmd_place)
@@ -541,23 +562,45 @@ def _placement_text(result, model) -> str:
 
 
 def _cmd_place(args) -> None:
+    from .margin import on_original, with_margin
+
     ids = _ids(args.elements, "--elements")
     eligibility = _eligibility(args, len(ids), "--elements")
+    original = eligibility.model
     with _reading(args.model):
         ids = eligibility.check_elements(ids, "--elements")
         require_closure_count(eligibility.specs, "--elements")
+        if args.margin:
+            model, dropped = with_margin(original, args.margin)
+            small = sorted(set(ids) & set(dropped))
+            if small:
+                raise InputError(
+                    "--margin",
+                    f"element(s) {_join(small)} too small for a margin of {args.margin:g}: "
+                    "no point of them is that far from their boundary",
+                )
+            eligibility = Eligibility(
+                model, eligibility.specs, eligibility.torque_scale, tolerance=model.tolerance
+            )
     options, progress, close = _placement_setup(args, True, check_output_file)
     try:
         result = Placer(eligibility, options)(ids, progress=progress)
     finally:
         close()
-    placed = _placement_text(result, eligibility.model)
+    if args.margin:
+        result = on_original(result, original)
+    placed = _placement_text(result, original)
     payload, text = result.to_dict(), f"{_shown(args.model)}: {placed}"
+    payload["margin"] = args.margin
+    if args.margin:
+        text += f"\n  every contact at least {args.margin:g} from its element's boundary"
     if args.out:
         _check_finite(payload, args.model)  # before anything is written
         model = eligibility.model
         try:
-            write_json(args.out, result.contact_file(model.name, model.units))
+            write_json(
+                args.out, {**result.contact_file(model.name, model.units), "margin": args.margin}
+            )
         except OSError as exc:
             raise OutputFault(args.out, f"cannot write: {exc.strerror or exc}") from None
         payload["out"] = {"contacts": str(args.out)}
@@ -566,6 +609,11 @@ def _cmd_place(args) -> None:
     if not result.force_closure:
         raise MethodError(
             f"{args.model}: the placed contacts are not force closure (rho = {result.rho:.6g})"
+        )
+    if result.robust is False:
+        raise MethodError(
+            f"{args.model}: the placed contacts are not robust within the model's tolerance "
+            f"(support shift {result.shift:.3g} against -hi = {-result.bounds[1]:.3g})"
         )
 
 
@@ -675,6 +723,12 @@ def _cmd_plan(args) -> None:
     _emit(args, payload, text)
     if not result.force_closure:
         raise MethodError(f"{args.model}: {result.failure()}")
+    if result.placement.robust is False:
+        raise MethodError(
+            f"{args.model}: no robust placement found: the placed contacts are force closure by "
+            f"the file but not within the model's tolerance (support shift "
+            f"{result.placement.shift:.3g} against -hi = {-result.placement.bounds[1]:.3g})"
+        )
 
 
 def _alternatives_flag(value: int) -> int:
@@ -704,6 +758,20 @@ def build_parser() -> argparse.ArgumentParser:
     common = _Parser(add_help=False)
     common.add_argument("--json", action="store_true", help="print only JSON on stdout")
     common.add_argument("--quiet", action="store_true", help="no progress output on stderr")
+    common.add_argument(
+        "--position-tolerance",
+        type=_bounded_float(0.0, float("inf"), "the position tolerance"),
+        metavar="LENGTH",
+        help="how far the real part's contact points may lie from the file's (model units; "
+        "default: the file's tolerance, else 0)",
+    )
+    common.add_argument(
+        "--normal-tolerance",
+        type=_bounded_float(0.0, 90.0, "the normal tolerance"),
+        metavar="DEGREES",
+        help="how far the real part's normals may lie from the file's (default: the file's "
+        "tolerance, else 0); results say whether they are robust within both",
+    )
     for add in COMMANDS:
         add(sub, common)
     return parser
@@ -830,6 +898,7 @@ def _cmd_characterize(args) -> None:
         text, prefix = str(exc), f"{args.mesh}: "
         raise InputError(args.mesh, text.removeprefix(prefix)) from None
     model, dropped = found.model, list(found.dropped)
+    model = dataclasses.replace(model, tolerance=_tolerance(args, model.tolerance))
     try:
         if copy is not None:  # the repaired mesh, beside the model (pictures draw it)
             write_atomic(copy, found.mesh.export(file_type="stl"))
@@ -859,12 +928,17 @@ def _cmd_characterize(args) -> None:
         "point_spacing": found.point_spacing,
         "repairs": list(found.repairs),
         "dropped": dropped,
+        "tolerance": model.tolerance.to_dict(),
     }
+    tol = model.tolerance
     _emit(
         args,
         payload,
         f"{_shown(args.mesh)}: {found.text()}\n{_shown(args.mesh)}: {summary}, "
-        f"{len(model.adjacency)} neighbour pairs -> {_shown(out)}",
+        f"{len(model.adjacency)} neighbour pairs -> {_shown(out)}"
+        f"\n{_shown(args.mesh)}: model accuracy: positions within "
+        f"{tol.position:.3g}{' ' + model.units if model.units else ''}, normals within "
+        f"{tol.normal_deg:.3g} degrees of the mesh (verdicts are robust within it)",
     )
 
 

@@ -14,6 +14,7 @@ from enum import Enum
 
 import numpy as np
 
+from .accuracy import NO_TOLERANCE, ModelTolerance, tolerance_from_dict
 from .files import load_json
 from .validation import (
     MAX_ELEMENT_CONTACTS,
@@ -251,11 +252,15 @@ class ContactSet:
     contacts: tuple[Contact, ...]
     torque_scale: float = 1.0
     reference_point: np.ndarray | None = None  # torques are taken about it; None: the origin
+    # how far the real contacts may lie from these (robust verdicts, closure_nlp.robustness)
+    tolerance: ModelTolerance = NO_TOLERANCE
 
     def __post_init__(self) -> None:
         object.__setattr__(
             self, "reference_point", as_reference_point(self.reference_point, "reference_point")
         )
+        if not isinstance(self.tolerance, ModelTolerance):
+            raise TypeError(f"tolerance: expected a ModelTolerance, got {self.tolerance!r}")
         contacts = tuple(self.contacts)
         if not contacts:
             raise ValueError("contacts: at least one contact is needed, got an empty list")
@@ -288,6 +293,8 @@ class ContactSet:
         out = {"torque_scale": self.torque_scale}
         if self.reference_point.any():
             out["reference_point"] = self.reference_point.tolist()
+        if self.tolerance:
+            out["tolerance"] = self.tolerance.to_dict()
         return {**out, "contacts": [c.to_dict() for c in self.contacts]}
 
 
@@ -319,6 +326,8 @@ FILE_KEYS = {
     "description",
     "units",
     "comment",
+    "tolerance",
+    "margin",
 }
 
 
@@ -359,7 +368,12 @@ def contact_set_from_dict(data) -> ContactSet:
                 name=name,
             )
         )
-    return ContactSet(tuple(contacts), data.get("torque_scale", 1.0), data.get("reference_point"))
+    return ContactSet(
+        tuple(contacts),
+        data.get("torque_scale", 1.0),
+        data.get("reference_point"),
+        tolerance_from_dict(data.get("tolerance")),
+    )
 
 
 def _check_kept_keys(entry: dict, name: str) -> None:

@@ -244,10 +244,7 @@ def _draw_facets(ax, model: Model, chosen: set[int], marked: set[int] = frozense
         return
     normals = np.array([model.elements[i].inward_normal for i in ids])
     colours = np.array(
-        [
-            _shade(n[None], _colour(i, FACET_COLOUR, chosen, marked))[0]
-            for i, n in zip(ids, normals)
-        ]
+        [_shade(n[None], _colour(i, FACET_COLOUR, chosen, marked))[0] for i, n in zip(ids, normals)]
     )
     polygons = [_shown(ax, model.elements[i].vertices) for i in ids]
     ax.add_collection3d(
@@ -562,6 +559,7 @@ def export_scene(
 def _legend_entries(model: Model, contacts, highlight, marked, mesh: bool) -> list[tuple]:
     """``(label, css colour)`` of what the scene shows, as the pictures' legend names it."""
     kinds = {e.kind for e in model.elements}
+
     def hexed(colour) -> str:
         return "#" + "".join(f"{int(round(255 * v)):02x}" for v in colour)
 

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .accuracy import NO_TOLERANCE, ModelTolerance, tolerance_from_dict
 from .contacts import as_reference_point, cross, grasp_matrices, local_frame
 from .files import load_json, write_json
 from .tolerances import DEFAULT_TOLERANCES, Tolerances
@@ -251,6 +252,7 @@ MODEL_KEYS = {
     "description",
     "source",
     "up",
+    "tolerance",
 }
 ELEMENT_KEYS = {"kind", "vertices", "inward_normal", "label"}
 
@@ -281,6 +283,9 @@ class Model:
         of the model gets it, so its vertex grasp matrices take moments about it.
     up : str
         The model's up axis for pictures: ``x``, ``y`` or ``z``.
+    tolerance : ModelTolerance
+        How far the real part's contact points and normals may lie from the elements'
+        (``characterize`` measures it against the mesh; none by default).
     """
 
     elements: tuple[Element, ...]
@@ -293,8 +298,11 @@ class Model:
     allow_outside_mesh: bool = field(default=False, compare=False, repr=False)
     reference_point: np.ndarray | None = None
     up: str = "z"
+    tolerance: ModelTolerance = NO_TOLERANCE
 
     def __post_init__(self) -> None:
+        if not isinstance(self.tolerance, ModelTolerance):
+            raise TypeError(f"tolerance: expected a ModelTolerance, got {self.tolerance!r}")
         elements = tuple(self.elements)
         if not elements:
             raise ValueError("elements: a model needs at least one element, got none")
@@ -374,6 +382,8 @@ class Model:
         out["adjacency"] = [list(p) for p in self.adjacency]
         if self.mesh is not None:
             out["mesh"] = self.mesh
+        if self.tolerance:
+            out["tolerance"] = self.tolerance.to_dict()
         return out
 
 
@@ -461,6 +471,7 @@ def model_from_dict(data, base_dir=None, tolerances: Tolerances = DEFAULT_TOLERA
         Path(base_dir) if base_dir is not None else None,
         reference_point=data.get("reference_point"),
         up=data.get("up", "z"),
+        tolerance=tolerance_from_dict(data.get("tolerance")),
     )
 
 

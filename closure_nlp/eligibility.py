@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .accuracy import ModelTolerance
 from .contacts import ContactSpec
 from .elements import Model
 from .quality import (
@@ -27,6 +28,7 @@ from .quality import (
     certified_search,
     signed_distance,
 )
+from .robustness import with_robustness
 from .scale import AUTO, auto_torque_scale
 from .solver_cache import PerThread
 from .validation import as_flag, as_id_list, as_torque_scale
@@ -55,6 +57,10 @@ class EligibilityResult:
         The bounds reach within the tolerance of zero; never eligible then.
     converged : bool
         ``hi - lo`` within the tolerance (1e-6 relative).
+    robust : bool or None
+        Eligible for every element set within the model's tolerance (None: no tolerance).
+    shift : float
+        How far the support function can move within that tolerance.
     """
 
     elements: tuple[int, ...]
@@ -65,6 +71,8 @@ class EligibilityResult:
     bounds: tuple[float, float] | None = None
     marginal: bool = False
     converged: bool = True
+    robust: bool | None = None
+    shift: float = 0.0
 
     def to_dict(self) -> dict:
         return element_set_keys(self)
@@ -96,6 +104,8 @@ class Eligibility:
         (:func:`closure_nlp.scale.auto_torque_scale`), so rho does not depend on the model's unit.
     minimizer : SupportMinimizer, optional
         Holds the cached NLPs (one per shape) and the search options.
+    tolerance : ModelTolerance, optional
+        The model's accuracy (default: the model's own): results carry ``robust``.
     """
 
     def __init__(
@@ -104,6 +114,7 @@ class Eligibility:
         specs,
         torque_scale: float | str = AUTO,
         minimizer: SupportMinimizer | None = None,
+        tolerance: ModelTolerance | None = None,
     ):
         if not isinstance(model, Model):
             raise TypeError(f"model: expected a Model, got {type(model).__name__}")
@@ -119,6 +130,10 @@ class Eligibility:
         self.torque_scale = auto_torque_scale(model) if auto else as_torque_scale(torque_scale)
         self.minimizer = minimizer or SupportMinimizer()
         self._counts: PerThread[Counter] = PerThread(Counter)
+        tolerance = model.tolerance if tolerance is None else tolerance
+        if not isinstance(tolerance, ModelTolerance):
+            raise TypeError(f"tolerance: expected a ModelTolerance, got {tolerance!r}")
+        self.tolerance = tolerance
         self._vertex_G = [e.grasp_matrices(self.torque_scale) for e in model.elements]
         self._all: dict[ContactSpec, WrenchSlots] = {}
 
@@ -169,7 +184,8 @@ class Eligibility:
         slots = self.slots(elements)
         self._counts.get()["evaluations"] += 1
         if certify:
-            return self._result(elements, certified_search(self.minimizer, slots, warm_start))
+            found = certified_search(self.minimizer, slots, warm_start)
+            return self._result(elements, self._robust(found, slots))
         found = self.minimizer(slots, warm_start)
         value = signed_distance(found, slots, self.minimizer.tolerances)
         return EligibilityResult(elements, value, value < 0.0, found.direction, found.stats)
@@ -185,13 +201,26 @@ class Eligibility:
         return self._certified(result.elements, slots, found)
 
     def _certified(self, elements, slots, found) -> EligibilityResult:
-        return self._result(elements, certified_rho(slots, found, self.minimizer))
+        return self._result(
+            elements, self._robust(certified_rho(slots, found, self.minimizer), slots)
+        )
+
+    def _robust(self, result, slots):
+        return with_robustness(result, slots, self.tolerance, self.minimizer.tolerances)
 
     @staticmethod
     def _result(elements, r) -> EligibilityResult:
         return EligibilityResult(
-            elements, r.rho, r.force_closure, r.direction, r.stats, r.bounds, r.marginal,
+            elements,
+            r.rho,
+            r.force_closure,
+            r.direction,
+            r.stats,
+            r.bounds,
+            r.marginal,
             r.converged,
+            r.robust,
+            r.shift,
         )
 
     def element_values(self, spec_index: int, u: np.ndarray) -> np.ndarray:

@@ -281,6 +281,10 @@ class PlacementResult:
     exchange_rho : float or None
         The exchange method's own certified rho, before the bound's search (equal to ``rho``
         unless that search found better contacts).
+    robust : bool or None
+        Force closure for every contact set within the model's tolerance (None: no tolerance).
+    shift : float
+        How far the support function can move within that tolerance.
     """
 
     contacts: tuple[PlacedContact, ...]
@@ -303,6 +307,8 @@ class PlacementResult:
     bound_nodes: int = 0
     bound_seconds: float = 0.0
     exchange_rho: float | None = None
+    robust: bool | None = None
+    shift: float = 0.0
 
     @property
     def elements(self) -> tuple[int, ...]:
@@ -607,6 +613,7 @@ class Placer:
             ),
             self.eligibility.torque_scale,
             model.reference_point,
+            self.eligibility.tolerance,
         )
 
     def optimise(
@@ -799,6 +806,8 @@ class Placer:
             final.bounds,
             final.marginal,
             final.converged,
+            robust=final.robust,
+            shift=final.shift,
         )
         if not self.options.bound:
             return result

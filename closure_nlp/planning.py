@@ -162,9 +162,18 @@ def plan(
         from .seeds import plan_seeds
 
         return plan_seeds(
-            eligibility, seed=seed, seeds=seeds, workers=workers, budget=budget, start=start,
-            selection=selection, placement=placement, progress=progress, placer=placer,
-            alternatives=alternatives, memo=memo,
+            eligibility,
+            seed=seed,
+            seeds=seeds,
+            workers=workers,
+            budget=budget,
+            start=start,
+            selection=selection,
+            placement=placement,
+            progress=progress,
+            placer=placer,
+            alternatives=alternatives,
+            memo=memo,
         )
     if workers is not None or budget is not None:
         raise ValueError("workers, budget: only with seeds (a plan of several seeds)")
@@ -178,20 +187,31 @@ def plan(
     second = recall.iterative(first.elements, "iterative")
     best = recall.placement(second.elements, "placement")
     attempts = [_attempt(second.elements, "iterative", second.rho_hat, best)]
-    if not best.force_closure and alternatives and second.eligible:  # else 50 rounds failed
+    if not _held(best) and alternatives and second.eligible:  # else 50 rounds failed
         candidates = _alternatives(eligibility, seed, selection, second, recall)
         for elements, source, value in itertools.islice(candidates, alternatives):
             found = recall.placement(elements, f"placement {len(attempts)}")
             attempts.append(_attempt(elements, source, value, found))
             if progress:
                 progress("alternative", len(attempts) - 1, found.rho)
-            if found.rho < best.rho:
+            if _robust_value(found) < _robust_value(best):
                 best = found
-            if found.force_closure:
+            if _held(found):
                 break
     return PlanResult(
         first, second, best, time.perf_counter() - t0, tuple(attempts), tuple(recall.reused)
     )
+
+
+def _held(result: PlacementResult) -> bool:
+    """Force closure, and robust within the model's tolerance when it has one."""
+    return bool(result.force_closure) and result.robust is not False
+
+
+def _robust_value(result: PlacementResult) -> float:
+    """rho plus the support shift within the model's tolerance (rho without one): what the
+    plan steers by, so that a robust placement wins over a merely force-closure one."""
+    return result.rho + result.shift
 
 
 # Results one memo keeps (least recently used dropped first): a few KB each (pickled, 3.6 KB
@@ -369,6 +389,13 @@ def summary_markdown(model, result: PlanResult, options: dict) -> str:
         f"centroids had rho = {certain(pl.start_rho)}. Total {result.seconds:.2f} s.",
         "",
     ]
+    if pl.robust is not None:
+        held = "robust" if pl.robust else "NOT robust"
+        rows += [
+            f"Within the model's tolerance the placement is {held} (the support function may "
+            f"move {pl.shift:.3g}).",
+            "",
+        ]
     if pl.capacity_bound is not None:
         from .placement_bound import gap_text
 
@@ -528,12 +555,20 @@ def _seeds_figure(result: PlanResult, path: Path) -> Path:
         runs = [r for r in spread.runs if r.ok and keep(r.result.placement)]
         if runs:
             ax.plot(
-                [r.seed for r in runs], [r.result.placement.rho for r in runs], "o",
-                color=colour, label=label,
+                [r.seed for r in runs],
+                [r.result.placement.rho for r in runs],
+                "o",
+                color=colour,
+                label=label,
             )
     chosen = spread.runs[spread.chosen]
     ax.plot(
-        [chosen.seed], [chosen.result.placement.rho], "*", ms=16, mfc="none", color="black",
+        [chosen.seed],
+        [chosen.result.placement.rho],
+        "*",
+        ms=16,
+        mfc="none",
+        color="black",
         label=f"chosen: seed {chosen.seed}",
     )
     ax.axhline(float(np.median(spread.rhos)), color="grey", lw=0.8, ls="--", label="median")

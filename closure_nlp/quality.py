@@ -153,6 +153,11 @@ class RhoResult:
         without interior; never force closure.
     converged : bool
         ``hi - lo`` within the tolerance (1e-6 relative); otherwise the bounds are valid but wider.
+    robust : bool or None
+        Force closure for every contact set within the set's tolerance
+        (:mod:`closure_nlp.robustness`); None: no tolerance, the same as ``force_closure``.
+    shift : float
+        How far the support function can move within that tolerance (0 without one).
     """
 
     rho: float
@@ -163,6 +168,8 @@ class RhoResult:
     bounds: tuple[float, float] | None = None
     marginal: bool = False
     converged: bool = True
+    robust: bool | None = None
+    shift: float = 0.0
 
     def to_dict(self) -> dict:
         return {
@@ -183,11 +190,18 @@ def certificate_keys(result) -> dict:
     if getattr(result, "bounds", None) is None:
         return {}
     lo, hi = result.bounds
-    return {
+    robust = getattr(result, "robust", None)
+    if robust is None:  # no tolerance: robust is force closure (or eligibility)
+        robust = bool(getattr(result, "force_closure", getattr(result, "eligible", False)))
+    keys = {
         "bounds": [float(lo), float(hi)],
         "marginal": result.marginal,
         "converged": result.converged,
+        "robust": robust,
     }
+    if getattr(result, "shift", 0.0):
+        keys["tolerance_shift"] = float(result.shift)
+    return keys
 
 
 class SupportMinProblem:
@@ -513,6 +527,7 @@ def rho(
     minimizer: SupportMinimizer | None = None,
     warm_start=None,
     certify: bool = True,
+    tolerance=None,
 ) -> RhoResult:
     """rho(0, W_c^M) of a contact set (eq 24), with certified bounds.
 
@@ -525,6 +540,9 @@ def rho(
         Non-zero directions to add to the starts (e.g. the previous ``u*`` in a loop).
     certify : bool
         Accepted for compatibility: the bounds are always computed.
+    tolerance : ModelTolerance, optional
+        The model's accuracy (default: the contact set's own): ``robust`` and ``shift`` of the
+        result say whether every set within it is force closure.
 
     Returns
     -------
@@ -536,9 +554,13 @@ def rho(
     if not isinstance(contact_set, ContactSet):
         raise TypeError(f"contact_set: expected a ContactSet, got {type(contact_set).__name__}")
     certify = as_flag(certify, "certify")
+    from .robustness import with_robustness
+
     minimizer = minimizer or _DEFAULT_MINIMIZER
     slots = WrenchSlots.from_contacts(contact_set)
-    return certified_search(minimizer, slots, warm_start)
+    result = certified_search(minimizer, slots, warm_start)
+    tolerance = contact_set.tolerance if tolerance is None else tolerance
+    return with_robustness(result, slots, tolerance, minimizer.tolerances)
 
 
 def search_rho(

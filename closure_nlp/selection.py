@@ -250,6 +250,7 @@ def iterative(
     # value, direction, elements, and the start direction if the screen may have stopped at
     # the bar (else None)
     screened: dict[tuple, tuple[float, np.ndarray, tuple[int, ...], np.ndarray | None]] = {}
+
     def evaluate(elements, warm):
         key = _multiset(eligibility, elements)
         if key not in seen:

@@ -133,8 +133,9 @@ def as_id_list(value, field: str) -> list:
     (no order), a mapping, text or an iterator is refused. The ids are checked by the caller."""
     if isinstance(value, np.ndarray):
         if value.ndim != 1:
-            raise TypeError(f"{field}: expected a list of element ids, got an array of shape "
-                            f"{value.shape}")
+            raise TypeError(
+                f"{field}: expected a list of element ids, got an array of shape {value.shape}"
+            )
         return value.tolist() if value.dtype.kind in "iu" else list(value)
     if isinstance(value, (set, frozenset)):
         raise TypeError(

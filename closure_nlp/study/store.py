@@ -39,6 +39,7 @@ def _columns() -> list[tuple[str, str]]:
         ("rho_lo", "real"),
         ("rho_hi", "real"),
         ("force_closure", "flag"),
+        ("robust", "flag"),
         ("marginal", "flag"),
         ("converged", "flag"),
         ("start_rho", "real"),

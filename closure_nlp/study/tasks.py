@@ -245,6 +245,7 @@ def run_task(task: Task, model_text: str | None = None) -> dict:
         rho_lo=rho_lo,
         rho_hi=rho_hi,
         force_closure=bool(placed.force_closure),
+        robust=bool(placed.force_closure if placed.robust is None else placed.robust),
         marginal=bool(placed.marginal),
         converged=bool(placed.converged),
         start_rho=float(placed.start_rho),

@@ -1,0 +1,79 @@
+"""Contacts kept a margin D from their element's boundary (``--margin``)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import closure_nlp.cli as cli
+from closure_nlp.elements import Element, save_model
+from closure_nlp.margin import shrunk, with_margin
+from tests.shapes import box_model
+
+
+def _edge_distances(element: Element, point: np.ndarray) -> np.ndarray:
+    """Distances from ``point`` (in the facet's plane) to each edge line of ``element``."""
+    v = element.vertices
+    out = []
+    for j in range(len(v)):
+        a, b = v[j], v[(j + 1) % len(v)]
+        d = (b - a) / np.linalg.norm(b - a)
+        r = point - a
+        out.append(np.linalg.norm(r - (r @ d) * d))
+    return np.array(out)
+
+
+def test_a_facet_shrinks_inward_by_the_margin():
+    rng = np.random.default_rng(0)
+    angles = np.sort(rng.uniform(0, 2 * np.pi, 7))
+    polygon = np.column_stack([np.cos(angles), np.sin(angles), np.zeros(7)])
+    facet = Element("facet", polygon, [0, 0, 1])
+    inner = shrunk(facet, 0.1)
+    for x in inner.vertices:
+        assert _edge_distances(facet, x).min() == pytest.approx(0.1, rel=1e-9)
+    for w in rng.dirichlet(np.ones(len(inner.vertices)), 50):  # every point of it
+        assert _edge_distances(facet, w @ inner.vertices).min() >= 0.1 - 1e-12
+    assert shrunk(facet, 0.0) is facet
+    assert shrunk(facet, 2.0) is None  # nothing left
+
+
+def test_segments_shorten_and_points_stay():
+    segment = Element("segment", [[0, 0, 0], [1, 0, 0]], [0, 1, 0])
+    np.testing.assert_allclose(shrunk(segment, 0.2).vertices, [[0.2, 0, 0], [0.8, 0, 0]])
+    assert shrunk(segment, 0.5) is None
+    point = Element("point", [[0, 0, 0]], [0, 1, 0])
+    assert shrunk(point, 5.0) is point
+
+
+def test_too_small_elements_are_left_out_and_named():
+    model, dropped = with_margin(box_model(1.0), 1.5)
+    assert dropped == tuple(range(6))
+    model, dropped = with_margin(box_model(1.0), 0.25)
+    assert dropped == () and len(model.elements) == 6
+    with pytest.raises(ValueError, match="margin"):
+        with_margin(box_model(1.0), -1.0)
+
+
+@pytest.mark.slow
+def test_place_keeps_the_margin(tmp_path, capsys):
+    path = tmp_path / "box.model.json"
+    save_model(box_model(1.0), path)
+    out = tmp_path / "placed.contacts.json"
+    argv = ["place", str(path), "--elements", "0,1,2,3", "--mu", "0.5", "--starts", "1"]
+    code = cli.main([*argv, "--margin", "0.3", "--bound-cells", "2", "--json", "--out", str(out)])
+    data = json.loads(capsys.readouterr().out)
+    assert code == 0 and data["margin"] == 0.3
+    box = box_model(1.0)
+    for c in data["contacts"]:
+        element = box.elements[c["element"]]
+        position = np.array(c["position"])
+        assert _edge_distances(element, position).min() >= 0.3 - 1e-9
+        np.testing.assert_allclose(np.array(c["weights"]) @ element.vertices, position, atol=1e-9)
+    assert json.loads(out.read_text())["margin"] == 0.3
+    assert cli.main(["rho", str(out), "--json"]) == 0  # the written file reads back
+    capsys.readouterr()
+    code = cli.main([*argv, "--margin", "1.5"])
+    err = capsys.readouterr().err
+    assert code == 2 and "--margin" in err and "0,1,2,3" in err

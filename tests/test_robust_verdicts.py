@@ -1,0 +1,108 @@
+"""The model's accuracy in files, commands and results: robust verdicts end to end."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import trimesh
+
+import closure_nlp.cli as cli
+from closure_nlp.accuracy import ModelTolerance
+from closure_nlp.characterize import characterize_mesh
+from closure_nlp.contacts import load_contact_set
+from closure_nlp.elements import load_model, save_model
+from closure_nlp.quality import rho
+from closure_nlp.random_sets import random_contact_set
+
+
+def _held_set(tmp_path, tolerance=None):
+    rng = np.random.default_rng(4)
+    while True:
+        contacts = random_contact_set(rng, ["pcwf"] * 4)
+        if rho(contacts).force_closure:
+            break
+    data = contacts.to_dict()
+    if tolerance is not None:
+        data["tolerance"] = tolerance
+    path = tmp_path / "held.contacts.json"
+    path.write_text(json.dumps(data))
+    return str(path)
+
+
+def _json(capsys, *argv):
+    code = cli.main([*argv, "--json"])
+    out, err = capsys.readouterr()
+    return code, (json.loads(out) if out.strip() else None), err
+
+
+def test_characterize_measures_the_models_accuracy(tmp_path):
+    """A tessellated sphere's points stand for faces whose normals differ by degrees; a box's
+    facets are exact. The tolerance goes into the model file and back."""
+    sphere = characterize_mesh(trimesh.creation.icosphere(subdivisions=2, radius=0.05)).model
+    assert 1.0 < sphere.tolerance.normal_deg < 20.0
+    assert sphere.tolerance.position == 0.0
+    box = characterize_mesh(trimesh.creation.box((1.0, 2.0, 3.0))).model
+    assert box.tolerance.normal_deg < 1e-6 and box.tolerance.position < 1e-9
+    save_model(sphere, tmp_path / "s.model.json")
+    assert load_model(tmp_path / "s.model.json").tolerance == sphere.tolerance
+
+
+def test_rho_is_robust_only_within_the_tolerance(tmp_path, capsys):
+    path = _held_set(tmp_path)
+    code, plain, _ = _json(capsys, "rho", path)
+    assert code == 0 and plain["force_closure"] and plain["robust"] is True
+    assert "tolerance_shift" not in plain
+    code, loose, _ = _json(capsys, "rho", path, "--normal-tolerance", "30")
+    assert loose["force_closure"] and loose["robust"] is False
+    assert loose["tolerance_shift"] > -loose["bounds"][1]
+    code, tight, _ = _json(capsys, "rho", path, "--position-tolerance", "1e-6")
+    assert tight["robust"] is True and 0 < tight["tolerance_shift"] < -tight["bounds"][1]
+
+
+def test_contact_files_carry_a_tolerance(tmp_path, capsys):
+    path = _held_set(tmp_path, {"position": 0.0, "normal_deg": 30.0})
+    assert load_contact_set(path).tolerance == ModelTolerance(0.0, 30.0)
+    code, data, _ = _json(capsys, "rho", path)
+    assert data["force_closure"] and data["robust"] is False
+    code, data, _ = _json(capsys, "rho", path, "--normal-tolerance", "0")  # the flag wins
+    assert data["robust"] is True
+
+
+@pytest.mark.parametrize(
+    "argv, field",
+    [
+        (["--normal-tolerance", "-1"], "--normal-tolerance"),
+        (["--normal-tolerance", "95"], "--normal-tolerance"),
+        (["--position-tolerance", "x"], "--position-tolerance"),
+    ],
+)
+def test_bad_tolerance_flags_exit_2(tmp_path, capsys, argv, field):
+    code = cli.main(["rho", _held_set(tmp_path), *argv])
+    err = capsys.readouterr().err
+    assert code == 2 and field in err and "Traceback" not in err
+
+
+def test_a_bad_tolerance_key_is_refused(tmp_path, capsys):
+    path = _held_set(tmp_path, {"position": -1.0})
+    code = cli.main(["rho", path])
+    err = capsys.readouterr().err
+    assert code == 2 and "tolerance.position" in err
+
+
+@pytest.mark.slow
+def test_seven_frictionless_contacts_on_a_tessellated_sphere_are_not_held(tmp_path, capsys):
+    """The file's 7 FPC may be force closure by a hair; within the mesh's own accuracy they
+    are not, and plan says so with exit 1."""
+    mesh = tmp_path / "ball.stl"
+    trimesh.creation.icosphere(subdivisions=2, radius=0.05).export(mesh)
+    model = tmp_path / "ball.model.json"
+    assert cli.main(["characterize", str(mesh), "--out", str(model), "--units", "m"]) == 0
+    capsys.readouterr()
+    code, data, err = _json(
+        capsys, "plan", str(model), "--contacts", "7", "--type", "fpc", "--no-bound"
+    )
+    assert code == 1
+    assert data["placement"]["robust"] is False
+    assert "robust" in err or not data["placement"]["force_closure"]
