@@ -597,7 +597,7 @@ def gap_text(result) -> str:
         return f"no placement on {where} holds more than {result.capacity_bound:.6g} ({ceiling})"
     text = f"within {100 * result.gap:.3g}% of the best placement on {where} ({ceiling}"
     if not result.gap_reached:
-        text += "; the time budget ended before the gap target"
+        text += "; a budget (cells or seconds) ended before the gap target"
     return text + ")"
 
 
