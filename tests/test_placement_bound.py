@@ -160,3 +160,20 @@ def test_options_are_checked():
         BoundOptions(time_budget=float("nan"))
     with pytest.raises(ValueError, match="root_cuts"):
         BoundOptions(root_cuts=1.5)
+
+
+def test_gap_text_says_what_was_proved():
+    from types import SimpleNamespace
+
+    from closure_nlp.placement_bound import gap_text
+
+    base = dict(capacity_bound=0.6, bound_nodes=12, bound_elements=((1,), (2,)))
+    held = SimpleNamespace(**base, gap=0.013, gap_reached=True)
+    assert gap_text(held).startswith("within 1.3% of the best placement on these elements (")
+    late = SimpleNamespace(**base, gap=0.1, gap_reached=False)
+    assert "budget" in gap_text(late)
+    nowhere = SimpleNamespace(**{**base, "capacity_bound": 1e-12}, gap=None, gap_reached=True)
+    assert gap_text(nowhere).startswith("no placement on these elements is force closure")
+    near = SimpleNamespace(**{**base, "bound_elements": ((1, 3), (2,))}, gap=0.2, gap_reached=True)
+    assert "and their neighbours" in gap_text(near)
+    assert gap_text(SimpleNamespace(capacity_bound=None)) == ""
