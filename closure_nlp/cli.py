@@ -13,8 +13,8 @@ system refuses (:class:`OutputFault`, any ``OSError``: a full disk, stdout full 
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import contextlib
+import dataclasses
 import json
 import math
 import os
