@@ -21,7 +21,9 @@ def test_plan_reports_every_long_step():
     specs = contact_specs(2, type="sfce", mu=0.4, mu_s=0.5)
     hand = Eligibility(box_model(10.0), specs, torque_scale=0.1)
     events = []
-    options = PlacementOptions(starts=2, extra_starts=0, neighbour_moves=0, bound_cells=3)
+    options = PlacementOptions(
+        starts=2, extra_starts=0, neighbour_moves=0, bound_cells=3, time_budget=5.0
+    )
     result = plan(hand, seed=1, placement=options, progress=lambda *e: events.append(e))
     stages = [e[0] for e in events]
     assert set(stages) <= set(STAGES)
