@@ -1,4 +1,5 @@
-"""Benchmarks that print JSON: ``python -m closure_nlp.bench rho|rho-hat|certify|select|plan|gap``.
+"""Benchmarks that print JSON: ``python -m closure_nlp.bench WHAT`` (``rho``, ``rho-hat``,
+``certify``, ``engine``, ``select``, ``plan``, ``gap``, ``characterize``).
 
 Timings are medians over seeded random cases with every solver built and warmed up first, and
 each is compared in the same process with a paper-style baseline: scipy SLSQP started from the
@@ -19,7 +20,7 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import minimize
 
-from .contacts import contact_specs
+from .contacts import Contact, ContactSet, ContactType, contact_specs
 from .elements import load_model
 from .eligibility import Eligibility
 from .placement import PlacementOptions, Placer
@@ -169,6 +170,147 @@ def bench_certify(cases: int = 20, seed: int = 0, models_dir=None) -> dict:
             "relative_width_max": float(max(widths)),
             "converged": f"{sum(converged)}/{len(converged)}",
         }
+    return report
+
+
+def cylinder_set(kind: str, m: int, mu: float = 0.5, mu_s: float = 0.2) -> ContactSet:
+    """``m`` contacts around a unit cylinder (axis z), heights alternating +-0.3: a round part
+    held by a gripper, whose weakest directions repeat under its symmetry."""
+    angles = 2 * np.pi * np.arange(m) / m
+    pts = np.column_stack([np.cos(angles), np.sin(angles), 0.3 * (-1.0) ** np.arange(m)])
+    normals = -np.column_stack([np.cos(angles), np.sin(angles), np.zeros(m)])
+    return ContactSet(tuple(Contact(p, n, kind, mu=mu, mu_s=mu_s) for p, n in zip(pts, normals)))
+
+
+def opposite_pair(mu: float, mu_s: float) -> ContactSet:
+    """Two soft fingers pinching a part from opposite sides: a circle of equally weak
+    directions when ``mu_s >= mu``."""
+    return ContactSet(
+        (
+            Contact([0, 0, 1], [0, 0, -1], ContactType.SFCE, mu=mu, mu_s=mu_s),
+            Contact([0, 0, -1], [0, 0, 1], ContactType.SFCE, mu=mu, mu_s=mu_s),
+        )
+    )
+
+
+def engine_families(cases: int, seed: int = 0) -> dict:
+    """The certified-rho families of ``bench engine``: name -> list of ContactSet, or
+    ``("lamp", element lists)`` for rho_hat of 4 lamp facets."""
+    families = {
+        name: [random_contact_set(np.random.default_rng(seed + k), types) for k in range(cases)]
+        for name, types in BENCH_CASES.items()
+    }
+    rng = np.random.default_rng(seed)
+    facets = len(load_model(MODELS_DIR / "lamp.model.json"))
+    families["rho_hat lamp 4 facets"] = (
+        "lamp",
+        [rng.integers(0, facets, 4).tolist() for _ in range(cases)],
+    )
+    families["4 SFCe cylinder"] = [cylinder_set("sfce", 4)]
+    families["6 SFCe cylinder"] = [cylinder_set("sfce", 6)]
+    families["2 opposite SFCe"] = [
+        opposite_pair(mu, mu_s) for mu, mu_s in ((0.5, 0.5), (0.5, 1.0), (0.2, 0.2))
+    ]
+    for m in (200, 2000):
+        families[f"{m} PCwF"] = [
+            random_contact_set(np.random.default_rng(seed + k), ["pcwf"] * m)
+            for k in range(max(1, cases // (10 if m == 200 else 20)))
+        ]
+    return families
+
+
+# Run by ``bench engine --baseline DIR`` with DIR's closure_nlp first on the path: the same
+# measurement of another checkout (the sets travel as contact-set dicts or lamp facet lists).
+_ENGINE_RUNNER = """
+import json, sys, time
+import numpy as np
+from closure_nlp.certify import tolerance_unit
+from closure_nlp.contacts import contact_set_from_dict
+from closure_nlp.quality import SupportMinimizer, certified_rho, certified_search
+from closure_nlp.wrenches import WrenchSlots
+spec = json.loads(sys.stdin.read())
+minimizer = SupportMinimizer(**spec.get("minimizer", {}))
+if spec["kind"] == "lamp":
+    from closure_nlp.bench import paper_eligibility
+    eligibility = paper_eligibility("lamp", spec["models"])
+    slots = [eligibility.slots(e) for e in spec["sets"]]
+else:
+    slots = [WrenchSlots.from_contacts(contact_set_from_dict(d)) for d in spec["sets"]]
+certified_search(minimizer, slots[0])  # solvers built and kernels compiled first
+out = []
+for s in slots:
+    t = time.perf_counter()
+    r = certified_search(minimizer, s)
+    seconds = time.perf_counter() - t
+    lo, hi = r.bounds
+    width = (hi - lo) / max(abs(lo), tolerance_unit(s))
+    out.append([seconds, width, bool(r.converged), getattr(r.stats, "solver", "ipopt")])
+    print(json.dumps(out[-1]), flush=True)
+"""
+
+
+def _engine_family(spec: dict, python_path: str, timeout: float) -> list:
+    """[seconds, relative width, converged, solver] per set of one family, measured in a
+    subprocess with ``python_path`` first; the sets finished when ``timeout`` passes."""
+    import os
+    import subprocess
+
+    env = {**os.environ, "PYTHONPATH": python_path}
+    try:
+        done = subprocess.run(
+            [sys.executable, "-c", _ENGINE_RUNNER],
+            input=json.dumps(spec),
+            capture_output=True,
+            text=True,
+            env=env,
+            timeout=timeout,
+        ).stdout
+    except subprocess.TimeoutExpired as stopped:
+        done = stopped.stdout or ""
+        done = done.decode() if isinstance(done, bytes) else done
+    return [json.loads(line) for line in done.splitlines() if line.startswith("[")]
+
+
+def _engine_stats(rows: list, cases: int) -> dict:
+    if not rows:
+        return {"finished": f"0/{cases}"}
+    seconds = [r[0] for r in rows]
+    return {
+        "finished": f"{len(rows)}/{cases}",
+        "certified_ms": _stats(1e3 * np.array(seconds)),
+        "relative_width_max": float(max(r[1] for r in rows)),
+        "converged": f"{sum(r[2] for r in rows)}/{len(rows)}",
+        "solvers": sorted({r[3] for r in rows}),
+    }
+
+
+def bench_engine(cases: int = 20, seed: int = 0, baseline=None, timeout: float = 300.0) -> dict:
+    """Certified rho (seed search and certificate) per family, with this checkout's default
+    solver, with ``solver="ipopt"`` and, given ``baseline`` (a checkout's folder, e.g. a
+    ``git worktree`` of an earlier commit), with that checkout: each family in its own
+    subprocess, one after the other, every solver built and kernel compiled before timing,
+    at most ``timeout`` seconds per family and checkout. Medians and ratios baseline / ours."""
+    here = str(Path(__file__).resolve().parents[1])
+    runs = {"ours": (here, {}), "ipopt": (here, {"solver": "ipopt"})}
+    if baseline is not None:
+        runs["baseline"] = (str(Path(baseline).resolve()), {})
+    report = {"benchmark": "engine", "cases_per_family": cases, "families": {}}
+    for name, sets in engine_families(cases, seed).items():
+        if isinstance(sets, tuple):
+            spec = {"kind": "lamp", "sets": sets[1], "models": str(MODELS_DIR)}
+        else:
+            spec = {"kind": "contacts", "sets": [cs.to_dict() for cs in sets]}
+        entry = {}
+        for run, (path, minimizer) in runs.items():
+            rows = _engine_family({**spec, "minimizer": minimizer}, path, timeout)
+            entry[run] = _engine_stats(rows, len(spec["sets"]))
+        for run in ("ipopt", "baseline"):
+            if run in entry and "certified_ms" in entry[run] and "certified_ms" in entry["ours"]:
+                ratio = (
+                    entry[run]["certified_ms"]["median"] / entry["ours"]["certified_ms"]["median"]
+                )
+                entry[f"ratio_{run}_over_ours"] = float(ratio)
+        report["families"][name] = entry
     return report
 
 
@@ -600,6 +742,11 @@ def main(argv=None) -> int:
     p = sub.add_parser("certify", help="certified rho and rho_hat: search, certificate, SLSQP")
     p.add_argument("--cases", type=int, default=20)
     p.add_argument("--seed", type=int, default=0)
+    p = sub.add_parser("engine", help="certified rho per family: ours, ipopt, a baseline checkout")
+    p.add_argument("--cases", type=int, default=20)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--baseline", help="folder of another checkout (e.g. a git worktree)")
+    p.add_argument("--timeout", type=float, default=300.0, help="seconds per family and run")
     p = sub.add_parser("select", help="heuristic and iterative selection on the example models")
     p.add_argument("--seeds", type=int, default=10)
     p = sub.add_parser("characterize", help="seconds and peak memory of characterize")
@@ -628,6 +775,8 @@ def main(argv=None) -> int:
         report = bench_rho_hat(args.cases, args.repeats, args.seed)
     elif args.what == "certify":
         report = bench_certify(args.cases, args.seed)
+    elif args.what == "engine":
+        report = bench_engine(args.cases, args.seed, args.baseline, args.timeout)
     elif args.what == "characterize":
         report = bench_characterize(args.subdivisions, args.noise)
     elif args.what == "model-size":

@@ -1179,6 +1179,7 @@ def main(argv: list[str] | None = None) -> int:
             raise OutputFault("stdout", "closed: nothing could be printed")
         args = build_parser().parse_args(argv)
         with _one_line_warnings(), interruptible():
+            _compile_kernels(args)
             args.run(args)
         _flush_stdout()  # a full device fails here: the answer is not out, exit 1
     except SystemExit as exc:  # argparse: --help (0) or a bad flag (2, its line already printed)
@@ -1232,6 +1233,16 @@ def _drop_stdout() -> None:
         null = os.open(os.devnull, os.O_WRONLY)
         os.dup2(null, fd)
         os.close(null)
+
+
+def _compile_kernels(args) -> None:
+    """Before a command that computes rho: the compiled kernels, loaded from the disk cache, or
+    compiled once, said on stderr (how long) unless ``--quiet``."""
+    if args.run not in (_cmd_rho, _cmd_eligibility, _cmd_select, _cmd_place, _cmd_plan, _cmd_study):
+        return
+    from .kernels import warm_up
+
+    warm_up(None if args.quiet else lambda text: sys.stderr.write(f"{text}\n"))
 
 
 @contextlib.contextmanager

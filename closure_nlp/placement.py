@@ -458,8 +458,7 @@ class ExchangeProblem:
         """
         m, K = len(self.rows), self.capacity
         n = len(U)
-        d = slots_at_c.local(U)  # (n, m, 4)
-        P, piece, _ = slots_at_c.row_terms(d)
+        P, piece = slots_at_c.row_terms(U)  # (n, m) each
         mask = np.zeros((m, K))
         mask[:, :n] = (P > -self.margin * f_max[None, :]).T
         none = ~mask[:, :n].any(axis=0)

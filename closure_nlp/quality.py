@@ -27,6 +27,7 @@ import numpy as np
 
 from .contacts import ContactSet
 from .interrupts import interruptible
+from .kernels import descent as descent_kernels
 from .solver_cache import PerThread, cached
 from .sphere_search import descend, smoothed_descent, sphere_samples
 from .tolerances import DEFAULT_TOLERANCES, Tolerances
@@ -98,15 +99,28 @@ class SearchOptions:
             raise ValueError(f"search.smoothing: must be a tuple of positive numbers, got {taus!r}")
 
 
+SOLVERS = ("auto", "ipopt")
+# The local solver of the default path: gradient sampling on the sphere, compiled
+# (:func:`closure_nlp.kernels.descent.local_minimum`); its iteration cap and the cloud radius
+# (radians) at which it stops.
+LOCAL_MAX_ITER = 400
+LOCAL_SMALLEST = 1e-9
+
+
 @dataclass(frozen=True)
 class SolverStats:
-    """What the solves cost. ``status``/``success`` are those of the run that gave the answer."""
+    """What the solves cost. ``status``/``success`` are those of the run that gave the answer.
+
+    ``solver`` names what found the reported direction: ``"ipopt"`` (the support-minimum NLP),
+    ``"local"`` (the compiled local minimiser), ``"descent"`` (a start's descent, no local run
+    lowered it) or ``"branch_and_bound"`` (the certificate's search found a lower value)."""
 
     ipopt_runs: int
     iterations: int
     status: str
     success: bool
     seconds: float
+    solver: str = "ipopt"
 
 
 @dataclass(frozen=True, eq=False)
@@ -158,6 +172,8 @@ class RhoResult:
         (:mod:`closure_nlp.robustness`); None: no tolerance, the same as ``force_closure``.
     shift : float
         How far the support function can move within that tolerance (0 without one).
+    timing : (float, float) or None
+        Seconds of the search and of the certificate; ``stats.seconds`` is their sum.
     """
 
     rho: float
@@ -170,6 +186,7 @@ class RhoResult:
     converged: bool = True
     robust: bool | None = None
     shift: float = 0.0
+    timing: tuple[float, float] | None = None
 
     def to_dict(self) -> dict:
         return {
@@ -177,11 +194,22 @@ class RhoResult:
             "force_closure": self.force_closure,
             "direction": self.direction.tolist(),
             "support_point": self.support_point.tolist(),
+            "solver": self.stats.solver,
             "ipopt_runs": self.stats.ipopt_runs,
             "iterations": self.stats.iterations,
             "seconds": self.stats.seconds,
+            **timing_keys(self),
             **certificate_keys(self),
         }
+
+
+def timing_keys(result) -> dict:
+    """The JSON key ``timing`` (``search`` and ``certificate`` seconds) of a certified result,
+    or none for the search alone."""
+    timing = getattr(result, "timing", None)
+    if timing is None:
+        return {}
+    return {"timing": {"search": float(timing[0]), "certificate": float(timing[1])}}
 
 
 def certificate_keys(result) -> dict:
@@ -380,7 +408,10 @@ class SupportMinimizer:
 
     ``search`` is the start strategy of a search alone (the comparisons inside selection and
     placement); ``seed_search`` that of a search whose answer a certificate then proves
-    (:data:`SEED_SEARCH`; None: ``search`` as well).
+    (:data:`SEED_SEARCH`; None: ``search`` as well). ``solver`` is the local solver run from
+    the starts: ``"auto"``, the compiled local minimiser (microseconds per run), or
+    ``"ipopt"``, the CasADi support-minimum NLP (the solver of record, about a millisecond per
+    run).
     """
 
     def __init__(
@@ -389,7 +420,11 @@ class SupportMinimizer:
         search: SearchOptions = SearchOptions(),
         ipopt_options: dict | None = None,
         seed_search: SearchOptions | None = SEED_SEARCH,
+        solver: str = "auto",
     ):
+        if solver not in SOLVERS:
+            raise ValueError(f"solver: must be one of {', '.join(SOLVERS)}, got {solver!r}")
+        self.solver = solver
         if not isinstance(search, SearchOptions):
             raise TypeError(f"search: expected SearchOptions, got {search!r}")
         if not (seed_search is None or isinstance(seed_search, SearchOptions)):
@@ -408,7 +443,17 @@ class SupportMinimizer:
 
     def with_search(self, search: SearchOptions) -> SupportMinimizer:
         """The same NLPs (the cache is shared) with another start strategy."""
-        other = SupportMinimizer(self.tolerances, search, self.ipopt_options, self.seed_search)
+        other = SupportMinimizer(
+            self.tolerances, search, self.ipopt_options, self.seed_search, self.solver
+        )
+        other._caches = self._caches
+        return other
+
+    def with_solver(self, solver: str) -> SupportMinimizer:
+        """The same options and NLPs (the cache is shared) with another local solver."""
+        other = SupportMinimizer(
+            self.tolerances, self.search, self.ipopt_options, self.seed_search, solver
+        )
         other._caches = self._caches
         return other
 
@@ -417,8 +462,9 @@ class SupportMinimizer:
         return self if self.seed_search is None else self.with_search(self.seed_search)
 
     def polish(self, slots: WrenchSlots, u: np.ndarray) -> np.ndarray:
-        """A local minimum's direction of ``p`` near ``u`` (one IPOPT run; ``+-e_k`` instead
-        when one is lower): what the certificate's branch and bound polishes its incumbent by."""
+        """A local minimum's direction of ``p`` near ``u`` (one run of the local solver;
+        ``+-e_k`` instead when one is lower): what the certificate's branch and bound polishes
+        its incumbent by."""
         return self.with_search(POLISH_SEARCH)(slots, u).direction
 
     def problem(self, slots: WrenchSlots) -> SupportMinProblem:
@@ -457,7 +503,8 @@ class SupportMinimizer:
 
     def _search(self, slots: WrenchSlots, warm_start=None, stop=None) -> SupportMinimum:
         start_time = time.perf_counter()
-        problem = self.problem(slots)
+        ipopt = self.solver == "ipopt"
+        problem = self.problem(slots) if ipopt else None
         search = self.search
         stop = -np.inf if stop is None else stop
         U0 = sphere_samples(search.samples)
@@ -470,9 +517,9 @@ class SupportMinimizer:
                 slots, U0, search.smoothing, search.smoothing_iterations
             )
             U, values = np.vstack([U, U_s]), np.concatenate([values, values_s])
-        params = problem.parameters(slots)
+        params = problem.parameters(slots) if ipopt else None
         first = int(np.argmin(values))
-        best = (values[first], U[first], "descent", False)
+        best = (values[first], U[first], "descent", False, "descent")
         iterations = runs = basins = 0
         budget = search.ipopt_starts if slots.m == len(slots.G) else search.element_ipopt_starts
         tried: list[np.ndarray] = []  # starts and the minima they led to
@@ -483,7 +530,10 @@ class SupportMinimizer:
                 break
             if any(np.linalg.norm(U[i] - v) <= near for v in tried):
                 continue  # a basin already explored
-            u, nit, status, success = problem.solve(slots, U[i], params)
+            if ipopt:
+                u, nit, status, success = problem.solve(slots, U[i], params)
+            else:
+                u, nit, status, success = _local_minimum(slots, U[i])
             runs += 1
             iterations += nit
             # A run that ends in a minimum already found explored no new basin: it does not
@@ -494,15 +544,30 @@ class SupportMinimizer:
             tried += [U[i], u]
             value = float(slots.support(u)[0])
             if value < best[0]:
-                best = (value, u, status, success)
+                best = (value, u, status, success, "ipopt" if ipopt else "local")
             if success and value < 0:
                 # The origin is outside W, and a KKT point with p(u) < 0 is the global minimum:
                 # -p is concave and positive there, so (homogeneity) the sphere's multiplier has
                 # the sign of the ball's, and the point maximises -p over the whole unit ball.
                 break
-        value, u, status, success = best
-        stats = SolverStats(runs, iterations, status, success, time.perf_counter() - start_time)
+        value, u, status, success, solver = best
+        stats = SolverStats(
+            runs if ipopt else 0,
+            iterations,
+            status,
+            success,
+            time.perf_counter() - start_time,
+            solver,
+        )
         return SupportMinimum(float(value), u, slots.support_point(u), stats)
+
+
+def _local_minimum(slots: WrenchSlots, u0: np.ndarray):
+    """One run of the compiled local minimiser: (unit u, iterations, status, success)."""
+    u, _, iterations, converged = descent_kernels.local_minimum(
+        *slots.packed, np.asarray(u0, dtype=float), LOCAL_MAX_ITER, LOCAL_SMALLEST
+    )
+    return u, int(iterations), "converged" if converged else "iteration limit", bool(converged)
 
 
 def _warm_starts(warm_start) -> np.ndarray:
@@ -519,6 +584,7 @@ def _warm_starts(warm_start) -> np.ndarray:
 
 
 _DEFAULT_MINIMIZER = SupportMinimizer()
+_DEFAULT_MINIMIZERS = {"auto": _DEFAULT_MINIMIZER, "ipopt": SupportMinimizer(solver="ipopt")}
 
 
 def rho(
@@ -528,6 +594,7 @@ def rho(
     warm_start=None,
     certify: bool = True,
     tolerance=None,
+    solver: str | None = None,
 ) -> RhoResult:
     """rho(0, W_c^M) of a contact set (eq 24), with certified bounds.
 
@@ -543,6 +610,9 @@ def rho(
     tolerance : ModelTolerance, optional
         The model's accuracy (default: the contact set's own): ``robust`` and ``shift`` of the
         result say whether every set within it is force closure.
+    solver : {"auto", "ipopt"}, optional
+        The local solver of the search (``minimizer``'s when omitted, else ``"auto"``):
+        ``"ipopt"`` runs the CasADi support-minimum NLP, certified the same way.
 
     Returns
     -------
@@ -556,7 +626,12 @@ def rho(
     certify = as_flag(certify, "certify")
     from .robustness import with_robustness
 
-    minimizer = minimizer or _DEFAULT_MINIMIZER
+    if solver is not None and solver not in SOLVERS:
+        raise ValueError(f"solver: must be one of {', '.join(SOLVERS)}, got {solver!r}")
+    if minimizer is None:
+        minimizer = _DEFAULT_MINIMIZERS[solver or "auto"]
+    elif solver is not None and solver != minimizer.solver:
+        minimizer = minimizer.with_solver(solver)
     slots = WrenchSlots.from_contacts(contact_set)
     result = certified_search(minimizer, slots, warm_start)
     tolerance = contact_set.tolerance if tolerance is None else tolerance
@@ -627,19 +702,22 @@ def certified_rho(
     )
     if -bounds.lo < found.value:  # the certificate's search found a lower support value
         u = bounds.direction
-        found = SupportMinimum(-bounds.lo, u, slots.support_point(u), found.stats)
+        stats = replace(found.stats, solver="branch_and_bound")
+        found = SupportMinimum(-bounds.lo, u, slots.support_point(u), stats)
     value = -found.value
     if bounds.marginal and bounds.lo <= 0.0 <= bounds.hi:
         value = 0.0  # no interior, within numerical accuracy
+    search_seconds = found.stats.seconds
     return RhoResult(
         value,
         bounds.force_closure,
         found.direction,
         found.support_point,
-        found.stats,
+        replace(found.stats, seconds=search_seconds + bounds.seconds),
         (bounds.lo, bounds.hi),
         bounds.marginal,
         bounds.converged,
+        timing=(search_seconds, bounds.seconds),
     )
 
 
@@ -665,4 +743,5 @@ __all__ = [
     "rho",
     "search_rho",
     "signed_distance",
+    "timing_keys",
 ]

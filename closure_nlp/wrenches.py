@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .contacts import ContactSet, ContactType, friction_pieces
+from .kernels import support as kernels
 
 MAX_PIECES = 2  # SFCl has two friction pieces, the others fewer
 # The NLPs (support minimum, exchange) take an element's vertex rows padded up to one of these
@@ -145,7 +146,23 @@ class WrenchSlots:
         bottom = np.linalg.norm(G[:, 3:, :], ord=2, axis=(1, 2))
         return float(np.max(top * force)), float(np.max(bottom * force))
 
-    # --- evaluation ---------------------------------------------------------------------------
+    # --- evaluation: the compiled kernels of :mod:`closure_nlp.kernels.support` ------------
+
+    @property
+    def packed(self) -> tuple:
+        """The rows as the kernels take them: ``G`` (K, 6, 4), ``f_max`` (K,), pieces
+        (K, 2, 4), real pieces per row (K,) int, slot ends (m + 1,) int."""
+        if "_packed" not in self.__dict__:
+            counts = np.diff(np.append(self.starts, len(self.G)))
+            packed = (
+                np.ascontiguousarray(self.G, dtype=float),
+                np.ascontiguousarray(self.f_max, dtype=float),
+                np.ascontiguousarray(self.pieces, dtype=float),
+                np.repeat(np.asarray(self.n_pieces, dtype=np.int64), counts),
+                np.append(self.starts, len(self.G)).astype(np.int64),
+            )
+            object.__setattr__(self, "_packed", packed)
+        return self._packed
 
     def local(self, U: np.ndarray) -> np.ndarray:
         """``d = G^T u`` of every row: (N, 6) -> (N, K, 4)."""
@@ -154,24 +171,14 @@ class WrenchSlots:
             object.__setattr__(self, "_G_flat", self.G.transpose(1, 0, 2).reshape(6, -1))
         return (U @ self._G_flat).reshape(len(U), -1, 4)
 
-    def row_terms(self, d: np.ndarray):
-        """Row values ``p_{W_ij}`` (N, K) and each row's largest friction piece (index, square)."""
-        if "_pieces_used" not in self.__dict__:  # the second piece is SFCl's alone
-            object.__setattr__(self, "_pieces_used", 1 + bool(self.pieces[:, 1:].any()))
-        dd = d * d
-        # one product per piece: 2-8x faster than one einsum over the piece axis as well
-        qk = np.einsum("nkc,kc->nk", dd, self.pieces[:, 0])
-        k = np.zeros(qk.shape, dtype=np.intp)
-        if self._pieces_used == 2:
-            q1 = np.einsum("nkc,kc->nk", dd, self.pieces[:, 1])
-            k = (q1 > qk).astype(np.intp)  # argmax's choice: the first of equal pieces
-            qk = np.maximum(qk, q1)
-        return self.f_max * (d[..., 0] + np.sqrt(np.maximum(qk, 0.0))), k, qk
+    def row_terms(self, U: np.ndarray):
+        """Row values ``p_{W_ij}`` (N, K) and each row's largest friction piece (N, K) int."""
+        G, f, W, npc, _ = self.packed
+        return kernels.rows_many(G, f, W, npc, _directions(U))
 
     def _normal_wrenches(self) -> np.ndarray | None:
         """``f_max`` times each row's normal column (K, 6) when no row has friction (FPC, or
-        mu = mu_s = 0): then every row's support wrench is that one, whatever the direction,
-        and its value a single product, a quarter of :meth:`local` and none of the rim."""
+        mu = mu_s = 0): then every row's support wrench is that one, whatever the direction."""
         if "_normals" not in self.__dict__:
             normals = None if self.pieces.any() else self.f_max[:, None] * self.G[:, :, 0]
             object.__setattr__(self, "_normals", normals)
@@ -179,73 +186,24 @@ class WrenchSlots:
 
     def row_values(self, U: np.ndarray) -> np.ndarray:
         """Support function of every row's extreme wrench set ``W_ij``: (N, 6) -> (N, K)."""
-        normals = self._normal_wrenches()
-        if normals is not None:
-            return np.atleast_2d(U) @ normals.T
-        return self.row_terms(self.local(U))[0]
+        return self.row_terms(U)[0]
 
     def slot_values(self, U: np.ndarray) -> np.ndarray:
         """``P_i(u)``, the support function of each slot (eq 36): (N, 6) -> (N, m)."""
-        rows = self.row_values(U)
-        return (
-            rows
-            if len(self.starts) == rows.shape[1]
-            else np.maximum.reduceat(rows, self.starts, axis=1)
-        )
+        return kernels.slots_many(*self.packed, _directions(U))
 
     def support(self, U: np.ndarray) -> np.ndarray:
         """Support function ``p(u)`` of the whole set (eqs 26, 35): (N, 6) -> (N,)."""
-        return combine_slots(self.slot_values(U))
+        return kernels.support_many(*self.packed, _directions(U))
 
     def row_support(self, U: np.ndarray):
         """Each row's value ``p_{W_ij}(u)`` and support wrench (gradient): (N, K), (N, K, 6)."""
-        normals = self._normal_wrenches()
-        if normals is not None:  # a read-only view: the same wrench for every direction
-            U = np.atleast_2d(U)
-            return U @ normals.T, np.broadcast_to(normals, (len(U), *normals.shape))
-        d = self.local(U)
-        rows, k, qk = self.row_terms(d)
-        force = self._forces(d, k, qk, np.arange(len(self.G))[None, :])
-        # optimize: a BLAS path, 10x faster here
-        return rows, np.einsum("krc,nkc->nkr", self.G, force, optimize=True)
-
-    def _forces(self, d, k, qk, index):
-        """The argmax force of rows ``index`` (eqs 9-12) in their frames, from their ``d``, largest
-        piece ``k`` and its square ``qk``: full normal force, tangential part on the cone's rim
-        (the gradient of ``sqrt(q_k)`` at ``d``; none when ``q_k = 0``). (N, R, 4)."""
-        rim = self.pieces[index, k] * d / np.sqrt(np.where(qk > 0, qk, np.inf))[..., None]
-        rim[..., 0] += 1.0
-        return self.f_max[index][..., None] * rim
+        G, f, W, npc, _ = self.packed
+        return kernels.row_wrenches_many(G, f, W, npc, _directions(U))
 
     def evaluate(self, U: np.ndarray):
         """``p(u)`` and a wrench attaining it (its gradient where unique): (N,), (N, 6)."""
-        U = np.atleast_2d(U)
-        normals = self._normal_wrenches()
-        if len(self.starts) == len(self.G):  # contacts: one row per slot
-            P, slot_wrench = self.row_support(U)
-        elif normals is not None:
-            P, best = self._best_rows(U @ normals.T)
-            slot_wrench = normals[best]
-        else:  # the support wrench of each slot's best row only: m of the K rows
-            d = self.local(U)
-            rows, k, qk = self.row_terms(d)
-            P, best = self._best_rows(rows)
-            d = np.take_along_axis(d, best[..., None], axis=1)
-            k, qk = np.take_along_axis(k, best, axis=1), np.take_along_axis(qk, best, axis=1)
-            slot_wrench = np.einsum("nmrc,nmc->nmr", self.G[best], self._forces(d, k, qk, best))
-        chosen = P > 0
-        none = ~chosen.any(axis=1)
-        chosen[none, np.argmax(P[none], axis=1)] = True  # no positive slot: the largest alone
-        points = np.einsum("nm,nmr->nr", chosen, slot_wrench)
-        return combine_slots(P), points
-
-    def _best_rows(self, rows: np.ndarray):
-        """Each slot's value (the max over its rows) and the row attaining it: (N, m) twice."""
-        ends = np.append(self.starts[1:], rows.shape[1])
-        best = np.stack(
-            [s + np.argmax(rows[:, s:e], axis=1) for s, e in zip(self.starts, ends)], axis=1
-        )
-        return np.take_along_axis(rows, best, axis=1), best
+        return kernels.evaluate_many(*self.packed, _directions(U))
 
     def support_points(self, U: np.ndarray) -> np.ndarray:
         """Wrenches of the set attaining ``p(u)``: (N, 6) -> (N, 6)."""
@@ -256,6 +214,11 @@ class WrenchSlots:
         return self.evaluate(np.asarray(u, dtype=float)[None])[1][0]
 
 
+def _directions(U) -> np.ndarray:
+    """Directions as the kernels take them: (N, 6) float64, C-contiguous."""
+    return np.ascontiguousarray(np.atleast_2d(U), dtype=float)
+
+
 def as_slots(value) -> WrenchSlots:
     """A :class:`WrenchSlots` from slots or a :class:`ContactSet` (``TypeError`` otherwise)."""
     if isinstance(value, WrenchSlots):
@@ -263,8 +226,3 @@ def as_slots(value) -> WrenchSlots:
     if isinstance(value, ContactSet):
         return WrenchSlots.from_contacts(value)
     raise TypeError(f"slots: expected WrenchSlots or ContactSet, got {type(value).__name__}")
-
-
-def combine_slots(P: np.ndarray) -> np.ndarray:
-    """Max over non-empty subsets of the sum of slot values: (N, m) -> (N,)."""
-    return np.maximum(P, 0.0).sum(axis=-1) + np.minimum(P.max(axis=-1), 0.0)

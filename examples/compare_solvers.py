@@ -7,8 +7,8 @@ m = 2..7, force closure and not. For each set the certified bounds ``lo <= rho <
 (``closure_nlp.certify``, started at IPOPT's direction) are the yardstick; a method's error is
 how far its rho falls outside ``[lo, hi]`` (0 inside). Methods:
 
-* IPOPT: ``closure_nlp.quality.search_rho`` (our search alone, what rho cost before it was
-  certified), solver built and warmed up first.
+* IPOPT: ``closure_nlp.quality.search_rho`` with ``solver="ipopt"`` (our search alone, with
+  the CasADi support-minimum NLP), solver built and warmed up first.
 * SLSQP from +-e_k: the paper's multi-start SQP (``closure_nlp.bench.paper_baseline``).
 * GraspIt!/Dex-Net style: every friction cone cut to 8 edges (soft fingers: 8 edges and the two
   spin tips), the convex hull of the union of all edge wrenches at ``f_max``, epsilon = distance
@@ -54,7 +54,7 @@ from closure_nlp.crosscheck import ball_minimum, force_closure_check
 from closure_nlp.elements import load_model
 from closure_nlp.eligibility import Eligibility
 from closure_nlp.files import write_atomic
-from closure_nlp.quality import rho, search_rho
+from closure_nlp.quality import SupportMinimizer, rho, search_rho
 from closure_nlp.random_sets import random_contact_set
 from closure_nlp.wrenches import WrenchSlots
 
@@ -76,6 +76,7 @@ METHODS = {
     "certified": "certified bounds (ours: branch and bound / nearest point)",
 }
 EDGES = 8
+IPOPT = SupportMinimizer(solver="ipopt")  # the solver of record, as a column of its own
 
 
 def suite(small: bool, seeds: int):
@@ -96,9 +97,8 @@ def element_suite(small: bool, seeds: int):
     """(kind, m, seed, Eligibility, element ids): random element sets of the example models."""
     for name, kind, m in ELEMENT_CASES:
         model = load_model(ROOT / "models" / f"{name}.model.json")
-        eligibility = Eligibility(
-            model, contact_specs(m, type=kind, mu=0.2, mu_s=0.2), torque_scale=1.0
-        )
+        specs = contact_specs(m, type=kind, mu=0.2, mu_s=0.2)
+        eligibility = Eligibility(model, specs, torque_scale=1.0, minimizer=IPOPT)
         for seed in range(2 if small else 4 * seeds):
             rng = np.random.default_rng(seed)
             yield f"{name} {kind}", m, seed, eligibility, rng.choice(len(model), m).tolist()
@@ -143,11 +143,11 @@ def run(small: bool, seeds: int) -> list[dict]:
     """One row per (set, method): the contact sets, then the element sets (rho_hat)."""
     rows = []
     for kind, m, seed, cs in suite(small, seeds):
-        search_rho(cs)  # build and warm the NLP of this shape: we time reuse
+        search_rho(cs, minimizer=IPOPT)  # build and warm the NLP of this shape: we time reuse
         rows += measure(
             {"family": "contacts", "kind": kind, "m": m, "seed": seed},
             WrenchSlots.from_contacts(cs),
-            lambda _cs=cs: _as_tuple(search_rho(_cs)),
+            lambda _cs=cs: _as_tuple(search_rho(_cs, minimizer=IPOPT)),
             lambda _cs=cs: graspit_rho(_cs),
         )
     for kind, m, seed, eligibility, elements in element_suite(small, seeds):

@@ -1,5 +1,5 @@
-"""The branch and bound: its batched matrix-game solver against an independent LP solver
-(HiGHS), and its budget."""
+"""The branch and bound: its matrix-game solver against an independent LP solver (HiGHS), its
+cell bounds against the reference support function, and its budget."""
 
 from __future__ import annotations
 
@@ -7,17 +7,11 @@ import numpy as np
 import pytest
 from scipy.optimize import linprog
 
-from closure_nlp import branch_bound
-from closure_nlp.branch_bound import (
-    BranchBoundOptions,
-    _cells,
-    _exact_bound,
-    _game_weights,
-    _initial_cells,
-    sphere_minimum,
-)
+from closure_nlp.branch_bound import BranchBoundOptions, _initial_cells, sphere_minimum
 from closure_nlp.contacts import Contact, ContactSet, ContactType
+from closure_nlp.kernels import branch_bound as kernels
 from closure_nlp.quality import SupportMinimizer
+from closure_nlp.random_sets import random_contact_set
 from closure_nlp.wrenches import WrenchSlots
 
 from . import reference
@@ -51,30 +45,47 @@ def test_game_weights_reach_the_lp_value(shape, scale):
     M[1::3, :, 1:] = M[1::3, :, :1] + 1e-9 * rng.normal(size=(8, C, K - 1))
     # A small cell's game: entries close together, far from zero (its support values).
     M = 7.0 + scale * M
-    lam = _game_weights(M)
+    lam = np.empty((len(M), K))
+    for n in range(len(M)):
+        kernels.game_weights(M[n], lam[n])
     assert np.all(lam >= 0) and np.allclose(lam.sum(axis=1), 1.0, atol=1e-12)
     values = np.einsum("nck,nk->nc", M, lam).min(axis=1)
     for n in range(len(M)):
-        # Feasible weights give at most the value; the dual bound at least. The simplex runs in
-        # float32 on the game scaled to [0, 1]: within 1e-6 of the spread of its entries.
+        # Feasible weights give at most the value; the dual bound at least. The simplex runs on
+        # the game scaled to [0, 1]: within 1e-6 of the spread of its entries.
         # (HiGHS on the game scaled to [0, 1] too: its tolerances are absolute.)
         low, spread = M[n].min(), M[n].max() - M[n].min()
         upper = low + spread * _game_upper_bound((M[n] - low) / spread)
         assert upper - 1e-6 * spread <= values[n] <= upper + 1e-12 * abs(upper)
 
 
-def test_exact_bounds_do_not_depend_on_the_chunking(monkeypatch):
-    """Exact bounds run in chunks of cells (memory): every cell's game is its own, so the bounds
-    of 1100 cells are those of the same cells one small batch at a time."""
+@pytest.mark.parametrize("kind", ["fpc", "pcwf", "sfcl", "sfce", "mixed"])
+def test_cell_bounds_hold_under_the_reference(kind):
+    """Every stage of a cell's bound (single support points, Frank-Wolfe combinations with the
+    anchors, the exact game of small cells: target +inf runs all three) lies below the
+    reference support function at random directions of the cell."""
+    rng = np.random.default_rng(len(kind))
+    types = ["fpc", "pcwf", "sfcl", "sfce"] if kind == "mixed" else [kind] * 4
+    cs = random_contact_set(rng, types * (2 if kind == "fpc" else 1))
+    slots, ref = WrenchSlots.from_contacts(cs), reference.from_contact_set(cs)
     axis, sign, lo, hi = _initial_cells(2)
-    pick = np.random.default_rng(4).choice(len(lo), 1100, replace=False)
-    _, _, corners, unit, nearest = _cells(axis[pick], sign[pick], lo[pick], hi[pick], np.ones(6))
-    points = np.random.default_rng(5).normal(size=(len(pick), 20, 6))
-    whole = _exact_bound(points, corners, unit, nearest)
-    monkeypatch.setattr(branch_bound, "EXACT_CHUNK", 7)
-    small = _exact_bound(points, corners, unit, nearest)
-    np.testing.assert_array_equal(whole, small)
-    assert np.isfinite(whole).all()
+    pick = rng.choice(len(lo), 40, replace=False)
+    axis, sign, lo, hi = axis[pick], sign[pick], lo[pick], hi[pick]
+    best, best_u = np.array([np.inf, 0.0]), np.zeros(6)
+    kernels.sample_cells(*slots.packed, axis, sign, lo, hi, np.ones(6), best, best_u)
+    bound = kernels.bound_cells(
+        *slots.packed, axis, sign, lo, hi, np.ones(6), np.inf, 0.0, 12, 10.0,
+        best, best_u, np.empty((kernels.ANCHORS, 6)), np.zeros(7),
+    )  # fmt: skip
+    for n in range(len(pick)):
+        y = lo[n] + (hi[n] - lo[n]) * rng.uniform(size=(60, 5))
+        x = np.empty((len(y), 6))
+        x[:, axis[n]] = sign[n]  # the cube face; the box's five free coordinates
+        free = [j for j in range(6) if j != axis[n]]
+        x[:, free] = y
+        U = x / np.linalg.norm(x, axis=1, keepdims=True)
+        low = min(reference.support(u, ref) for u in U)
+        assert bound[n] <= low + 1e-12 * max(1.0, abs(low)), (n, bound[n], low)
 
 
 def _min_over_sphere(contact_set, max_cells, **budget):
@@ -114,20 +125,3 @@ def test_a_continuum_of_minima_stops_soon_after_the_budget():
     _, found = _min_over_sphere(pair, 1000, extension_alive=1000)
     assert not found.converged
     assert 1000 < found.cells < BranchBoundOptions().extended_cells // 10
-
-
-def test_the_bounds_do_not_depend_on_the_cell_chunking(monkeypatch):
-    """Rounds are bounded in chunks of cells (memory) against one target and one set of
-    anchors per round: the search is the same, bit for bit, one small chunk at a time. No
-    start direction, so the incumbent moves within rounds, as cells find lower samples."""
-    slots = WrenchSlots.from_contacts(dict(symmetric_sets())["box sfce faces (0, 1, 2, 3)"])
-
-    def search():
-        return sphere_minimum(slots, gap=1e-6, options=BranchBoundOptions(max_cells=3000))
-
-    whole = search()
-    monkeypatch.setattr(branch_bound, "CELL_CHUNK", 7)
-    small = search()
-    assert whole.cells > 5 * 7
-    assert (small.lower, small.upper, small.cells) == (whole.lower, whole.upper, whole.cells)
-    np.testing.assert_array_equal(small.direction, whole.direction)

@@ -14,7 +14,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import closure_nlp.branch_bound as branch_bound
 from closure_nlp.certify import certified_bounds, tolerance_unit
 from closure_nlp.contacts import (
     Contact,
@@ -24,6 +23,7 @@ from closure_nlp.contacts import (
     grasp_matrices,
 )
 from closure_nlp.crosscheck import ball_minimum
+from closure_nlp.kernels import branch_bound as kernels
 from closure_nlp.quality import SEED_SEARCH, SupportMinimizer, rho
 from closure_nlp.random_sets import random_contact_set
 from closure_nlp.wrenches import WrenchSlots
@@ -175,18 +175,21 @@ def test_element_brackets_contain_the_references():
         assert bounds.converged, (name, bounds)
 
 
+@pytest.mark.slow  # the cell bounds run as Python
 def test_a_broken_lower_bound_is_caught(monkeypatch):
     """A box bound that looks at one corner only (a plausible slip) claims too much. Started far
     from the minimum, the branch and bound then drops the cells that hold it: the references
     see the bracket miss the truth. (From the search's direction the incumbent is already the
     minimum and a too-high bound is clipped to it: harmless there, so the start is poor.)"""
 
-    def broken(W, corners, corners_unit, nearest):
-        raw = np.einsum("ncr,nkr->nck", corners[:, :1], W).min(axis=1)
-        unit = np.einsum("ncr,nkr->nck", corners_unit[:, :1], W).min(axis=1)
-        return np.where(raw >= 0, unit, raw / nearest[:, None])
+    def broken(w, corners, unit, nearest):
+        raw, low = corners[0] @ w, unit[0] @ w
+        return low if raw >= 0 else raw / nearest
 
-    monkeypatch.setattr(branch_bound, "_box_bound", broken)
+    # The compiled cell bounds run as Python (their py_func) so that they call the broken one.
+    monkeypatch.setattr(kernels, "box_bound", broken)
+    monkeypatch.setattr(kernels, "exact_bound", kernels.exact_bound.py_func)
+    monkeypatch.setattr(kernels, "bound_cells", kernels.bound_cells.py_func)
     caught = tried = 0
     for name, cs in CONTACT_SETS[::25]:
         slots = WrenchSlots.from_contacts(cs)

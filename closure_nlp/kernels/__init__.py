@@ -1,0 +1,116 @@
+"""The compiled kernels (numba): one module per concept, named after what it computes.
+
+* :mod:`.support`: support values and support points of wrench slots (eqs 26-32, 35-36);
+* :mod:`.branch_bound`: cells, bounds and matrix games of the branch and bound over the sphere;
+* :mod:`.nearest_point`: Wolfe's nearest point of a hull and Gilbert's iteration;
+* :mod:`.descent`: the batched descent and the local minimiser on the sphere.
+
+Every kernel is compiled on first use and cached on disk (``cache=True``), releases the GIL
+(``nogil=True``) and takes plain arrays and integers, never a function.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import tempfile
+from pathlib import Path
+
+
+def _cache_dir_fallback() -> None:
+    """Point numba's disk cache at a user cache folder when this package's folder is read-only
+    (a system-wide install): set before numba is imported, only when needed, never over a
+    ``NUMBA_CACHE_DIR`` the user chose."""
+    if "NUMBA_CACHE_DIR" in os.environ:
+        return
+    here = Path(__file__).resolve().parent
+    pycache = here / "__pycache__"
+    if os.access(pycache if pycache.is_dir() else here, os.W_OK):
+        return
+    base = os.environ.get("XDG_CACHE_HOME") or (
+        os.environ.get("LOCALAPPDATA") if sys.platform == "win32" else None
+    )
+    root = Path(base) if base else Path.home() / ".cache"
+    for folder in (root / "closure_nlp" / "numba", Path(tempfile.gettempdir()) / "closure_nlp"):
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+        except OSError:
+            continue
+        if os.access(folder, os.W_OK):
+            os.environ["NUMBA_CACHE_DIR"] = str(folder)
+            return
+
+
+_cache_dir_fallback()
+
+MODULES = ("support", "branch_bound", "nearest_point", "descent")
+
+
+def _dispatchers():
+    """Every compiled kernel of the package."""
+    import importlib
+
+    for name in MODULES:
+        module = importlib.import_module(f"{__name__}.{name}")
+        for value in vars(module).values():
+            if hasattr(value, "_cache") and getattr(value, "__module__", "") == module.__name__:
+                yield value
+
+
+def _cached() -> bool:
+    """Whether every kernel has a current copy in numba's disk cache (the index numba reads:
+    empty when missing or when the source changed since)."""
+    try:
+        return all(d._cache._cache_file._load_index() for d in _dispatchers())
+    except Exception:  # numba's cache layout is private: assume a compile is due
+        return False
+
+
+def warm_up(notify=None) -> float | None:
+    """Compile (or load from the disk cache) the kernels a certified rho runs, on a tiny set.
+
+    Parameters
+    ----------
+    notify : callable, optional
+        ``notify(text)`` is called before a compile (when the disk cache lacks a kernel) and
+        after it, with the seconds it took; the library itself never prints (the CLI shows
+        it on stderr; the ``closure_nlp`` logger records it too).
+
+    Returns
+    -------
+    float or None
+        Seconds spent compiling, None when everything came from the cache.
+    """
+    import logging
+    import time
+
+    import numpy as np
+
+    if _cached():
+        return None
+    log = logging.getLogger("closure_nlp")
+    where = os.environ.get("NUMBA_CACHE_DIR") or str(Path(__file__).resolve().parent)
+    text = f"compiling the numeric kernels (once; cached in {where})"
+    log.info(text)
+    if notify is not None:
+        notify(text)
+    start = time.perf_counter()
+    from ..contacts import Contact, ContactSet
+    from ..quality import rho
+
+    normals = np.vstack([np.eye(3), -np.eye(3)])
+    closure = ContactSet(tuple(Contact(-n, n) for n in normals[[0, 1, 2, 3]]))
+    apart = ContactSet(tuple(Contact(-n, n) for n in normals[[0, 1]]))
+    for contact_set in (closure, apart):
+        rho(contact_set)
+    from ..wrenches import WrenchSlots
+
+    slots = WrenchSlots.from_contacts(closure)
+    slots.slot_values(normals[:1].repeat(2, axis=1))
+    slots.row_support(normals[:1].repeat(2, axis=1))
+    seconds = time.perf_counter() - start
+    text = f"compiled the numeric kernels in {seconds:.1f} s"
+    log.info(text)
+    if notify is not None:
+        notify(text)
+    return seconds

@@ -1,0 +1,457 @@
+"""Compiled cells, bounds and matrix games of the branch and bound over the sphere.
+
+The mathematics is that of :mod:`closure_nlp.branch_bound` (which drives the rounds and owns
+the budget): a cell is a box of the five free coordinates of one face of the cube
+``[-1, 1]^6`` mapped by a positive diagonal ``metric``; every support point ``w`` gives
+``p(u) >= w . u``, and so does every convex combination of support points.
+
+Incumbent state, shared with the driver and updated in place: ``best`` (2,) holds the lowest
+value and the evaluation count, ``best_u`` (6,) its direction, ``anchor`` (31, 6) the support
+points of a small cloud around the incumbent and ``anchor_at`` (7,) the direction they were
+taken at (last entry 1 when valid).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from .support import OPTIONS, support_point, support_value
+
+SAMPLES = 11  # a cell's centre and the ends of its five axes
+CORNERS = 32
+ANCHOR_SCALES = np.array([1e-3, 1e-5, 1e-7])
+ANCHORS = 1 + 10 * len(ANCHOR_SCALES)
+MAX_PIVOTS = 300
+# Optimality and pivot tolerance of the games, on games scaled to [0, 1]: weights within about
+# this of the value times the spread of the entries, tiny in the small cells near a minimum.
+GAME_EPS = 1e-6
+
+
+@njit(**OPTIONS)
+def face_point(axis, sign, y, metric, out):
+    """``metric * x`` for the cube-face point ``x`` with ``x[axis] = sign`` and the other five
+    coordinates ``y`` (5,); into ``out`` (6,), unnormalised."""
+    j = 0
+    for k in range(6):
+        if k == axis:
+            out[k] = sign * metric[k]
+        else:
+            out[k] = y[j] * metric[k]
+            j += 1
+
+
+@njit(**OPTIONS)
+def normalise(x):
+    s = 0.0
+    for k in range(len(x)):
+        s += x[k] * x[k]
+    s = np.sqrt(s)
+    for k in range(len(x)):
+        x[k] /= s
+
+
+@njit(**OPTIONS)
+def cell_samples(axis, sign, lo, hi, metric, out):
+    """Unit directions of the cell's centre and its five axes' ends: ``out`` (11, 6)."""
+    y = np.empty(5)
+    for s in range(SAMPLES):
+        for j in range(5):
+            y[j] = 0.5 * (lo[j] + hi[j])
+        if s > 0:
+            j = (s - 1) % 5
+            half = 0.5 * (hi[j] - lo[j])
+            y[j] += half if s <= 5 else -half
+        face_point(axis, sign, y, metric, out[s])
+        normalise(out[s])
+
+
+@njit(**OPTIONS)
+def cell_geometry(axis, sign, lo, hi, metric, centre, corners, unit):
+    """The cap holding the cell: fills its centre (6,), its 32 corners (mapped by ``metric``)
+    and their unit directions (32, 6); returns the cap's angular radius and a lower bound on
+    ``|metric * x|`` over the box (``c . x / |x|`` is quasi-concave: its minimum over a box is
+    at a corner)."""
+    y = np.empty(5)
+    for j in range(5):
+        y[j] = 0.5 * (lo[j] + hi[j])
+    face_point(axis, sign, y, metric, centre)
+    normalise(centre)
+    cos = 1.0
+    for q in range(CORNERS):
+        for j in range(5):
+            y[j] = hi[j] if (q >> (4 - j)) & 1 else lo[j]
+        face_point(axis, sign, y, metric, corners[q])
+        s = 0.0
+        for k in range(6):
+            s += corners[q, k] * corners[q, k]
+        s = np.sqrt(s)
+        c = 0.0
+        for k in range(6):
+            unit[q, k] = corners[q, k] / s
+            c += unit[q, k] * centre[k]
+        cos = min(cos, c)
+    far = 1.0
+    for j in range(5):
+        v = max(max(lo[j], -hi[j]), 0.0)
+        far += v * v
+    delta = np.arccos(min(1.0, max(-1.0, cos)))
+    return delta, np.sqrt(far) * metric.min()
+
+
+@njit(**OPTIONS)
+def box_bound(w, corners, unit, nearest):
+    """A lower bound of ``w . u`` over the cell: exact (the smallest over the unit corners)
+    where ``w . x >= 0`` at every corner, else the most negative ``w . x`` over the smallest
+    ``|x|``."""
+    raw, low = np.inf, np.inf
+    for q in range(CORNERS):
+        a, b = 0.0, 0.0
+        for k in range(6):
+            a += corners[q, k] * w[k]
+            b += unit[q, k] * w[k]
+        raw, low = min(raw, a), min(low, b)
+    return low if raw >= 0.0 else raw / nearest
+
+
+@njit(**OPTIONS)
+def line_search(beta, s, A, b, C):
+    """argmax over [0, 1] of ``beta g - s sqrt(A g^2 + 2 b g + C)`` (concave)."""
+    if not A > 0.0:
+        return 0.0
+    D = max(A * C - b * b, 0.0)
+    r = beta / (s if s > 0.0 else 1e-300)
+    room = A - r * r
+    if room > 0.0:
+        t = np.sign(r) * np.sqrt(r * r * D / room)
+        g = (t - b) / A
+    else:
+        g = 1.0 if beta > 0.0 else 0.0
+    if g != g:
+        return 0.0
+    return min(1.0, max(0.0, g))
+
+
+@njit(**OPTIONS)
+def frank_wolfe(points, n, c, delta, steps, lam, wbar):
+    """Convex weights ``lam`` of ``points[:n]`` for a high cap bound ``cos(delta) wbar . c -
+    sin(delta) |wbar_perp|`` (concave in the weights; every iterate is valid); fills ``lam``
+    and ``wbar`` (their combination) and returns the cap bound."""
+    cd, sd = np.cos(delta), np.sin(delta)
+    a = np.empty(n)
+    B = np.empty((n, 6))
+    best, j = -np.inf, 0
+    for i in range(n):
+        s = 0.0
+        for k in range(6):
+            s += points[i, k] * c[k]
+        a[i] = s
+        nb = 0.0
+        for k in range(6):
+            B[i, k] = points[i, k] - s * c[k]
+            nb += B[i, k] * B[i, k]
+        single = cd * s - sd * np.sqrt(nb)
+        if single > best:
+            best, j = single, i
+    lam[:n] = 0.0
+    lam[j] = 1.0
+    lam_a = a[j]
+    v = B[j].copy()
+    unit = np.empty(6)
+    for _ in range(steps):
+        nv2 = 0.0
+        for k in range(6):
+            nv2 += v[k] * v[k]
+        nv = np.sqrt(nv2)
+        for k in range(6):
+            unit[k] = v[k] / nv if nv > 0.0 else v[k]
+        best, j = -np.inf, 0
+        for i in range(n):
+            s = 0.0
+            for k in range(6):
+                s += B[i, k] * unit[k]
+            g = cd * a[i] - sd * s
+            if g > best:
+                best, j = g, i
+        beta = cd * (a[j] - lam_a)
+        A = b = 0.0
+        for k in range(6):
+            dv = B[j, k] - v[k]
+            A += dv * dv
+            b += v[k] * dv
+        gamma = line_search(beta, sd, A, b, nv2)
+        for i in range(n):
+            lam[i] *= 1.0 - gamma
+        lam[j] += gamma
+        lam_a += gamma * (a[j] - lam_a)
+        for k in range(6):
+            v[k] += gamma * (B[j, k] - v[k])
+    b_bar = 0.0
+    for k in range(6):
+        b_bar += v[k] * v[k]
+    b_bar = np.sqrt(b_bar)
+    for k in range(6):
+        s = 0.0
+        for i in range(n):
+            s += lam[i] * points[i, k]
+        wbar[k] = s
+    if np.arctan2(b_bar, lam_a) + delta > np.pi:  # past the antipode: -wbar itself
+        return -np.hypot(lam_a, b_bar)
+    return cd * lam_a - sd * b_bar
+
+
+@njit(**OPTIONS)
+def game_weights(M, lam):
+    """Convex weights ``lam`` (K,) maximising ``min_c (M lam)_c`` for ``M`` (C, K): the value
+    of a small matrix game by a dense primal simplex (Dantzig's rule) on the game scaled to
+    [0, 1]; every iterate is feasible, so capped weights still give a valid bound (callers
+    recompute the bound from the weights). Returns the pivots taken."""
+    C, K = M.shape
+    low, high = np.inf, -np.inf
+    for i in range(C):
+        for k in range(K):
+            low, high = min(low, M[i, k]), max(high, M[i, k])
+    span = high - low if high > low else 1.0
+    j0, best = 0, -np.inf
+    for k in range(K):
+        col = np.inf
+        for i in range(C):
+            col = min(col, M[i, k])
+        if col > best:
+            best, j0 = col, k
+    V = K + 1 + C
+    T = np.zeros((C + 2, V + 1))
+    for i in range(C):
+        pivot = (M[i, j0] - low) / span
+        for k in range(K):
+            T[i, k] = -(M[i, k] - low) / span + pivot
+        T[i, K] = 1.0
+        T[i, K + 1 + i] = 1.0
+        T[i, V] = pivot
+    for k in range(K):
+        T[C, k] = 1.0
+    T[C, V] = 1.0
+    T[C + 1, K] = -1.0
+    basis = np.empty(C + 1, np.int64)
+    for i in range(C):
+        basis[i] = K + 1 + i
+    basis[C] = j0
+    eps = GAME_EPS
+    pivots = 0
+    for _ in range(MAX_PIVOTS):
+        j, low_obj = 0, np.inf
+        for k in range(V):
+            if T[C + 1, k] < low_obj:
+                low_obj, j = T[C + 1, k], k
+        if not low_obj < -eps:
+            break
+        i, ratio = -1, np.inf
+        for r in range(C + 1):
+            if T[r, j] > eps:
+                q = T[r, V] / T[r, j]
+                if q < ratio:
+                    ratio, i = q, r
+        if i < 0:
+            break
+        p = T[i, j]
+        for k in range(V + 1):
+            T[i, k] /= p
+        for r in range(C + 2):
+            if r != i and T[r, j] != 0.0:
+                factor = T[r, j]
+                for k in range(V + 1):
+                    T[r, k] -= factor * T[i, k]
+        basis[i] = j
+        pivots += 1
+    lam[:K] = 0.0
+    for r in range(C + 1):
+        if basis[r] < K:
+            lam[basis[r]] = max(T[r, V], 0.0)
+    total = 0.0
+    for k in range(K):
+        total += lam[k]
+    if total > 0.0:
+        for k in range(K):
+            lam[k] /= total
+    else:
+        lam[0] = 1.0
+    return pivots
+
+
+@njit(**OPTIONS)
+def exact_bound(points, n, corners, unit, nearest):
+    """The corner bound of the best convex combination of ``points[:n]`` against the cell's
+    unit corners (a matrix game)."""
+    M = np.empty((CORNERS, n))
+    for q in range(CORNERS):
+        for i in range(n):
+            s = 0.0
+            for k in range(6):
+                s += unit[q, k] * points[i, k]
+            M[q, i] = s
+    lam = np.empty(n)
+    game_weights(M, lam)
+    wbar = np.zeros(6)
+    for i in range(n):
+        for k in range(6):
+            wbar[k] += lam[i] * points[i, k]
+    return box_bound(wbar, corners, unit, nearest)
+
+
+@njit(**OPTIONS)
+def tangent_basis(u, E):
+    """An orthonormal basis (5, 6) of the tangent space at unit ``u``: a Householder
+    reflection taking ``u`` to ``+-e_0``, its other columns."""
+    v = u.copy()
+    v[0] += 1.0 if u[0] >= 0.0 else -1.0
+    vv = 0.0
+    for k in range(6):
+        vv += v[k] * v[k]
+    for j in range(1, 6):
+        for k in range(6):
+            E[j - 1, k] = (1.0 if k == j else 0.0) - 2.0 * v[k] * v[j] / vv
+
+
+@njit(**OPTIONS)
+def cloud(u, scales, out):
+    """``u`` and ``u +- eps e_j`` along a tangent basis, normalised: ``out`` (1 + 10 k, 6).
+    Their support points hold every piece of ``p`` that meets at ``u``."""
+    E = np.empty((5, 6))
+    tangent_basis(u, E)
+    out[0] = u
+    at = 1
+    for eps in scales:
+        for sgn in (1.0, -1.0):
+            for j in range(5):
+                for k in range(6):
+                    out[at, k] = u[k] + sgn * eps * E[j, k]
+                normalise(out[at])
+                at += 1
+
+
+@njit(**OPTIONS)
+def consider(G, f, W, npc, ends, U, points, best, best_u):
+    """Support values and points (into ``points``) of unit directions ``U``; the lowest value
+    updates the incumbent. Returns the index of the lowest of ``U``."""
+    low, at = np.inf, 0
+    for n in range(len(U)):
+        v = support_point(G, f, W, npc, ends, U[n], points[n])
+        if v < low:
+            low, at = v, n
+    best[1] += len(U)
+    if low < best[0]:
+        best[0] = low
+        best_u[:] = U[at]
+    return at
+
+
+@njit(**OPTIONS)
+def sample_cells(G, f, W, npc, ends, axis, sign, lo, hi, metric, best, best_u):
+    """Evaluate every cell's 11 samples (values only); the lowest updates the incumbent."""
+    U = np.empty((SAMPLES, 6))
+    for n in range(len(axis)):
+        cell_samples(axis[n], sign[n], lo[n], hi[n], metric, U)
+        for s in range(SAMPLES):
+            v = support_value(G, f, W, npc, ends, U[s])
+            if v < best[0]:
+                best[0] = v
+                best_u[:] = U[s]
+    best[1] += SAMPLES * len(axis)
+
+
+@njit(**OPTIONS)
+def bound_cells(
+    G,
+    f,
+    W,
+    npc,
+    ends,
+    axis,
+    sign,
+    lo,
+    hi,
+    metric,
+    target,
+    margin,
+    fw_steps,
+    refine_below,
+    best,
+    best_u,
+    anchor,
+    anchor_at,
+):
+    """Lower bounds of ``p`` over every cell (N,): each cheaper bound first, the next only for
+    the cells it leaves below ``target``. Single support points of the samples (exact on a
+    linear piece of ``p``); Frank-Wolfe combinations with the incumbent's anchors (second
+    order at a kink, approximately); in small cells, the exact best combination of more
+    support points (the corners and a cloud around the lowest sample)."""
+    N = len(axis)
+    out = np.empty(N)
+    U = np.empty((SAMPLES, 6))
+    pool_size = SAMPLES + ANCHORS + CORNERS + 21
+    pool = np.empty((pool_size, 6))
+    values = np.empty(SAMPLES)
+    centre = np.empty(6)
+    corners = np.empty((CORNERS, 6))
+    unit = np.empty((CORNERS, 6))
+    lam = np.empty(pool_size)
+    wbar = np.empty(6)
+    refine = np.array([0.25, 0.01])
+    anchored = False
+    for n in range(N):
+        cell_samples(axis[n], sign[n], lo[n], hi[n], metric, U)
+        for s in range(SAMPLES):
+            values[s] = support_point(G, f, W, npc, ends, U[s], pool[s])
+        delta, nearest = cell_geometry(
+            axis[n], sign[n], lo[n], hi[n], metric, centre, corners, unit
+        )
+        bound = -np.inf
+        for s in range(SAMPLES):
+            bound = max(bound, box_bound(pool[s], corners, unit, nearest))
+        bound -= margin
+        if bound < target:
+            if not anchored and (anchor_at[6] == 0.0 or not np.array_equal(anchor_at[:6], best_u)):
+                # the incumbent's anchors: taken once per round, when first needed
+                directions = np.empty((ANCHORS, 6))
+                cloud(best_u, ANCHOR_SCALES, directions)
+                anchor_at[:6] = best_u
+                anchor_at[6] = 1.0
+                consider(G, f, W, npc, ends, directions, anchor, best, best_u)
+            anchored = True
+            size = SAMPLES + ANCHORS
+            pool[SAMPLES:size] = anchor
+            cap = frank_wolfe(pool, size, centre, delta, fw_steps, lam, wbar)
+            box = box_bound(wbar, corners, unit, nearest)
+            bound = max(bound, max(cap, box) - margin)
+            if bound < target and delta < refine_below:
+                lowest = U[np.argmin(values)].copy()
+                more = np.empty((CORNERS + 21, 6))
+                more[:CORNERS] = unit
+                cloud(lowest, refine * delta, more[CORNERS:])
+                consider(G, f, W, npc, ends, more, pool[size:], best, best_u)
+                exact = exact_bound(pool, pool_size, corners, unit, nearest)
+                bound = max(bound, exact - margin)
+        out[n] = bound
+    return out
+
+
+@njit(**OPTIONS)
+def halve(axis, sign, lo, hi, cells_per_round):
+    """Every cell cut in two across its widest coordinate, ``cuts`` times (``2^cuts``
+    children, ``cuts <= 5``), so that a round holds about ``cells_per_round`` cells."""
+    n = len(axis)
+    cuts = 1
+    while cuts < 5 and n * 2 ** (cuts + 1) <= cells_per_round:
+        cuts += 1
+    for _ in range(cuts):
+        axis2 = np.concatenate((axis, axis))
+        sign2 = np.concatenate((sign, sign))
+        lo2 = np.concatenate((lo, lo))
+        hi2 = np.concatenate((hi, hi))
+        for c in range(len(axis)):
+            w = np.argmax(hi[c] - lo[c])
+            cut = 0.5 * (lo[c, w] + hi[c, w])
+            hi2[c, w] = cut
+            lo2[c + len(axis), w] = cut
+        axis, sign, lo, hi = axis2, sign2, lo2, hi2
+    return axis, sign, lo, hi

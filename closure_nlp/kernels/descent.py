@@ -1,0 +1,120 @@
+"""Compiled descents of a support function over the unit sphere: the batched subgradient
+descent of :func:`closure_nlp.sphere_search.descend`, and a local minimiser (gradient
+sampling) that the default search and the certificate's incumbent use."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from .branch_bound import cloud, normalise
+from .nearest_point import min_norm_point
+from .support import OPTIONS, support_point, support_value
+
+
+@njit(**OPTIONS)
+def _rotate(u, direction, angle, out):
+    """``cos(angle) u + sin(angle) direction``, normalised, into ``out``."""
+    c, s = np.cos(angle), np.sin(angle)
+    for k in range(6):
+        out[k] = c * u[k] + s * direction[k]
+    normalise(out)
+
+
+@njit(**OPTIONS)
+def descend_many(G, f, W, npc, ends, U0, iterations, stop):
+    """Riemannian (sub)gradient descent from every row of ``U0`` (N, 6) at once, a step angle
+    per direction that grows on success and halves on failure (values only decrease); ends
+    once some value is at or below ``stop``. Returns unit end directions (N, 6) and ``p``
+    there (N,)."""
+    N = len(U0)
+    U = U0.copy()
+    for n in range(N):
+        normalise(U[n])
+    values = np.empty(N)
+    grads = np.empty((N, 6))
+    for n in range(N):
+        values[n] = support_point(G, f, W, npc, ends, U[n], grads[n])
+    angle = np.full(N, 0.3)
+    step = np.empty(6)
+    trial = np.empty(6)
+    trial_grad = np.empty(6)
+    for _ in range(iterations):
+        if values.min() <= stop:
+            break
+        for n in range(N):
+            gu = grads[n] @ U[n]
+            norm = 0.0
+            for k in range(6):
+                step[k] = -(grads[n, k] - gu * U[n, k])
+                norm += step[k] * step[k]
+            norm = np.sqrt(norm)
+            if not norm > 1e-12:
+                angle[n] *= 0.5
+                continue
+            step /= norm
+            _rotate(U[n], step, angle[n], trial)
+            v = support_point(G, f, W, npc, ends, trial, trial_grad)
+            if v < values[n]:
+                U[n] = trial
+                grads[n] = trial_grad
+                values[n] = v
+                angle[n] = min(angle[n] * 1.5, 0.6)
+            else:
+                angle[n] *= 0.5
+    return U, values
+
+
+@njit(**OPTIONS)
+def local_minimum(G, f, W, npc, ends, u0, max_iter, smallest):
+    """A local minimum of ``p`` on the sphere near ``u0`` by gradient sampling: the shortest
+    convex combination ``g`` of the tangential parts of the support points of a cloud of radius
+    ``eps`` around ``u`` (they hold every piece of ``p`` meeting within ``eps``), a backtracking
+    step along ``-g``, and ``eps`` cut tenfold once ``|g|`` is below ``eps`` times the wrench
+    scale (stationary at that resolution) or no step lowers ``p``; done below ``smallest``.
+
+    Returns (unit direction, value, iterations, converged)."""
+    u = u0.copy()
+    normalise(u)
+    value = support_value(G, f, W, npc, ends, u)
+    directions = np.empty((11, 6))
+    points = np.empty((11, 6))
+    tangent = np.empty((11, 6))
+    trial = np.empty(6)
+    step = np.empty(6)
+    scales = np.empty(1)
+    eps, angle = 1e-2, 1e-2
+    iterations = 0
+    while iterations < max_iter and eps >= smallest:
+        iterations += 1
+        scales[0] = eps
+        cloud(u, scales, directions)
+        size = 0.0
+        for i in range(11):
+            support_point(G, f, W, npc, ends, directions[i], points[i])
+            a = points[i] @ u
+            for k in range(6):
+                tangent[i, k] = points[i, k] - a * u[k]
+            size = max(size, np.sqrt(points[i] @ points[i]))
+        g = min_norm_point(tangent)[0]
+        gn = np.sqrt(g @ g)
+        if not gn > eps * size:
+            eps *= 0.1
+            continue
+        for k in range(6):
+            step[k] = -g[k] / gn
+        angle = min(2.0 * angle, 0.5)
+        moved = False
+        while angle > 1e-3 * smallest:
+            _rotate(u, step, angle, trial)
+            v = support_value(G, f, W, npc, ends, trial)
+            if v <= value - 1e-4 * angle * gn:
+                u[:] = trial
+                value = v
+                moved = True
+                break
+            angle *= 0.5
+        if not moved:
+            eps *= 0.1
+            angle = eps
+    return u, value, iterations, eps < smallest

@@ -1,0 +1,170 @@
+"""Compiled nearest point of a convex hull to the origin (Wolfe), and Gilbert's iteration on a
+support function: the mathematics of :mod:`closure_nlp.nearest_point`."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from .support import OPTIONS, support_point
+
+MAX_LINE_STEPS = 20  # Wolfe's fallback steps in a row (roundoff) before it returns its point
+STALL = 10  # Gilbert steps without progress after which the bracket is returned as it is
+
+
+@njit(**OPTIONS)
+def _affine_minimizer(P, S, k, mu):
+    """Weights ``mu[:k]`` (summing to 1) of the point of the affine hull of ``P[S[:k]]``
+    nearest 0, by least squares on the differences (not their Gram matrix, whose condition
+    number is the square)."""
+    if k == 1:
+        mu[0] = 1.0
+        return
+    A = np.empty((P.shape[1], k - 1))
+    for i in range(1, k):
+        A[:, i - 1] = P[S[i]] - P[S[0]]
+    z = np.linalg.lstsq(A, -P[S[0]])[0]
+    mu[0] = 1.0 - z.sum()
+    mu[1:k] = z
+
+
+@njit(**OPTIONS)
+def _current(P, S, lam, k):
+    x = np.zeros(P.shape[1])
+    for i in range(k):
+        x += lam[i] * P[S[i]]
+    return x
+
+
+@njit(**OPTIONS)
+def _line_step(S, lam, k, x, P, j):
+    """``x`` moved towards ``P[j]`` by exact line search; returns the new count, or -1 when
+    the step is zero."""
+    d = P[j] - x
+    dd = d @ d
+    gamma = min(1.0, max(0.0, -(x @ d) / dd)) if dd > 0.0 else 0.0
+    if not gamma > 0.0:
+        return -1
+    lam[:k] *= 1.0 - gamma
+    for i in range(k):
+        if S[i] == j:
+            lam[i] += gamma
+            return k
+    S[k], lam[k] = j, gamma
+    return k + 1
+
+
+@njit(**OPTIONS)
+def min_norm_point(points, tol=1e-15):
+    """Wolfe's algorithm: the point of ``conv(points)`` (n, d) nearest the origin and its
+    convex weights (n,)."""
+    n, dim = points.shape
+    weights = np.zeros(n)
+    size = np.abs(points).max() if n else 0.0
+    if not size > 0.0:
+        weights[0] = 1.0
+        return np.zeros(dim), weights
+    P = points / size  # Wolfe's steps are scale-free: points of unit size
+    norms2 = np.empty(n)
+    for i in range(n):
+        norms2[i] = P[i] @ P[i]
+    scale = max(norms2.max(), 1e-300)
+    S = np.empty(n + 1, np.int64)
+    lam = np.zeros(n + 1)
+    mu = np.empty(n + 1)
+    S[0], lam[0], k = np.argmin(norms2), 1.0, 1
+    fallbacks = 0
+    for _ in range(50 * (n + 1)):
+        x = _current(P, S, lam, k)
+        j = np.argmin(P @ x)
+        if x @ x - x @ P[j] <= tol * scale or fallbacks == MAX_LINE_STEPS:
+            break
+        fallbacks += 1
+        inside = False
+        for i in range(k):
+            inside |= S[i] == j
+        if inside:  # roundoff of a nearly singular system: step towards P[j] instead
+            k2 = _line_step(S, lam, k, x, P, j)
+            if k2 < 0:
+                break
+            k = k2
+            continue
+        S_before, lam_before, k_before = S.copy(), lam.copy(), k
+        S[k], lam[k] = j, 0.0
+        k += 1
+        for _ in range(k):  # minor cycle: each step drops a point, so it ends
+            _affine_minimizer(P, S, k, mu)
+            if np.all(mu[:k] > 0.0):
+                lam[:k] = mu[:k]
+                break
+            theta = np.inf
+            for i in range(k):
+                if mu[i] <= 0.0:
+                    theta = min(theta, lam[i] / (lam[i] - mu[i]))
+            kept = 0
+            for i in range(k):
+                value = lam[i] + theta * (mu[i] - lam[i])
+                if value > 1e-15:
+                    S[kept], lam[kept] = S[i], value
+                    kept += 1
+            k = kept
+            lam[:k] /= lam[:k].sum()
+        inside = False
+        for i in range(k):
+            inside |= S[i] == j
+        if inside:
+            fallbacks = 0
+        else:  # roundoff dropped the improving point again: step towards it instead
+            S[:], lam[:], k = S_before, lam_before, k_before
+            k2 = _line_step(S, lam, k, x, P, j)
+            if k2 < 0:
+                break
+            k = k2
+    for i in range(k):
+        weights[S[i]] += lam[i]
+    return weights @ points, weights
+
+
+@njit(**OPTIONS)
+def nearest_point_bounds(G, f, W, npc, ends, U0, gap, max_iter):
+    """Gilbert's iteration from the start directions ``U0`` (n, 6): certified ``lo <= dist(0,
+    W) <= hi`` when the origin lies outside ``W``. Returns (lo, hi, best direction,
+    evaluations)."""
+    n0 = len(U0)
+    kept = np.empty((n0 + max_iter, 6))
+    lo, best = -np.inf, 0
+    for i in range(n0):
+        v = support_point(G, f, W, npc, ends, U0[i], kept[i])
+        if -v > lo:
+            lo, best = -v, i
+    best_u = U0[best].copy()
+    x, w = min_norm_point(kept[:n0])
+    hi = np.sqrt(x @ x)
+    count = 0
+    for i in range(n0):
+        if w[i] > 0.0:
+            kept[count] = kept[i]
+            count += 1
+    evaluations, stalled = n0, 0
+    u = np.empty(6)
+    for _ in range(max_iter):
+        if hi - lo <= gap or not hi > 0.0 or stalled >= STALL:
+            break
+        u[:] = -x / np.sqrt(x @ x)
+        v = support_point(G, f, W, npc, ends, u, kept[count])
+        count += 1
+        evaluations += 1
+        if -v > lo:
+            lo = -v
+            best_u[:] = u
+        x, w = min_norm_point(kept[:count])
+        norm = np.sqrt(x @ x)
+        stalled = stalled + 1 if norm >= hi * (1.0 - 1e-15) else 0
+        hi = min(hi, norm)
+        kept_now = 0
+        for i in range(count):
+            if w[i] > 0.0:
+                kept[kept_now] = kept[i]
+                kept_now += 1
+        count = kept_now
+    return lo, max(hi, lo), best_u, evaluations
