@@ -284,7 +284,9 @@ def _engine_stats(rows: list, cases: int) -> dict:
     }
 
 
-def bench_engine(cases: int = 20, seed: int = 0, baseline=None, timeout: float = 300.0) -> dict:
+def bench_engine(
+    cases: int = 20, seed: int = 0, baseline=None, timeout: float = 300.0, names=None
+) -> dict:
     """Certified rho (seed search and certificate) per family, with this checkout's default
     solver, with ``solver="ipopt"`` and, given ``baseline`` (a checkout's folder, e.g. a
     ``git worktree`` of an earlier commit), with that checkout: each family in its own
@@ -296,6 +298,8 @@ def bench_engine(cases: int = 20, seed: int = 0, baseline=None, timeout: float =
         runs["baseline"] = (str(Path(baseline).resolve()), {})
     report = {"benchmark": "engine", "cases_per_family": cases, "families": {}}
     for name, sets in engine_families(cases, seed).items():
+        if names and name not in names:
+            continue
         if isinstance(sets, tuple):
             spec = {"kind": "lamp", "sets": sets[1], "models": str(MODELS_DIR)}
         else:
@@ -311,6 +315,7 @@ def bench_engine(cases: int = 20, seed: int = 0, baseline=None, timeout: float =
                 )
                 entry[f"ratio_{run}_over_ours"] = float(ratio)
         report["families"][name] = entry
+        print(json.dumps({name: entry}), file=sys.stderr, flush=True)  # a long run's progress
     return report
 
 
@@ -747,6 +752,7 @@ def main(argv=None) -> int:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--baseline", help="folder of another checkout (e.g. a git worktree)")
     p.add_argument("--timeout", type=float, default=300.0, help="seconds per family and run")
+    p.add_argument("--families", help="comma-separated family names (default: all)")
     p = sub.add_parser("select", help="heuristic and iterative selection on the example models")
     p.add_argument("--seeds", type=int, default=10)
     p = sub.add_parser("characterize", help="seconds and peak memory of characterize")
@@ -776,7 +782,8 @@ def main(argv=None) -> int:
     elif args.what == "certify":
         report = bench_certify(args.cases, args.seed)
     elif args.what == "engine":
-        report = bench_engine(args.cases, args.seed, args.baseline, args.timeout)
+        names = args.families.split(",") if args.families else None
+        report = bench_engine(args.cases, args.seed, args.baseline, args.timeout, names)
     elif args.what == "characterize":
         report = bench_characterize(args.subdivisions, args.noise)
     elif args.what == "model-size":

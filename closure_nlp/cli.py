@@ -1237,12 +1237,14 @@ def _drop_stdout() -> None:
 
 def _compile_kernels(args) -> None:
     """Before a command that computes rho: the compiled kernels, loaded from the disk cache, or
-    compiled once, said on stderr (how long) unless ``--quiet``."""
+    compiled once, said on stderr (how long) like the progress lines: on a terminal, unless
+    ``--quiet``."""
     if args.run not in (_cmd_rho, _cmd_eligibility, _cmd_select, _cmd_place, _cmd_plan, _cmd_study):
         return
     from .kernels import warm_up
 
-    warm_up(None if args.quiet else lambda text: sys.stderr.write(f"{text}\n"))
+    shown = not args.quiet and sys.stderr.isatty()
+    warm_up((lambda text: sys.stderr.write(f"{text}\n")) if shown else None)
 
 
 @contextlib.contextmanager

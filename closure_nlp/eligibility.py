@@ -27,6 +27,7 @@ from .quality import (
     certified_rho,
     certified_search,
     signed_distance,
+    timing_keys,
 )
 from .robustness import with_robustness
 from .scale import AUTO, auto_torque_scale
@@ -61,6 +62,8 @@ class EligibilityResult:
         Eligible for every element set within the model's tolerance (None: no tolerance).
     shift : float
         How far the support function can move within that tolerance.
+    timing : (float, float) or None
+        Seconds of the search and of the certificate; ``stats.seconds`` is their sum.
     """
 
     elements: tuple[int, ...]
@@ -73,9 +76,15 @@ class EligibilityResult:
     converged: bool = True
     robust: bool | None = None
     shift: float = 0.0
+    timing: tuple[float, float] | None = None
 
     def to_dict(self) -> dict:
-        return element_set_keys(self)
+        return {
+            **element_set_keys(self),
+            "solver": self.stats.solver,
+            "seconds": self.stats.seconds,
+            **timing_keys(self),
+        }
 
 
 def element_set_keys(result) -> dict:
@@ -221,6 +230,7 @@ class Eligibility:
             r.converged,
             r.robust,
             r.shift,
+            timing=r.timing,
         )
 
     def element_values(self, spec_index: int, u: np.ndarray) -> np.ndarray:

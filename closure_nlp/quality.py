@@ -99,12 +99,16 @@ class SearchOptions:
             raise ValueError(f"search.smoothing: must be a tuple of positive numbers, got {taus!r}")
 
 
-SOLVERS = ("auto", "ipopt")
+# "auto": the compiled local minimiser where a certificate follows (the seed of a certified
+# rho, the certificate's polish), IPOPT for a search alone (inside selection and placement,
+# whose values are compared uncertified: on optimised placements' flat minima the compiled
+# minimiser's values spread by up to 5e-6 relative over starts, IPOPT's by under 1e-9).
+SOLVERS = ("auto", "ipopt", "compiled")
 # The local solver of the default path: gradient sampling on the sphere, compiled
 # (:func:`closure_nlp.kernels.descent.local_minimum`); its iteration cap and the cloud radius
 # (radians) at which it stops.
 LOCAL_MAX_ITER = 400
-LOCAL_SMALLEST = 1e-9
+LOCAL_SMALLEST = 1e-12
 
 
 @dataclass(frozen=True)
@@ -409,9 +413,10 @@ class SupportMinimizer:
     ``search`` is the start strategy of a search alone (the comparisons inside selection and
     placement); ``seed_search`` that of a search whose answer a certificate then proves
     (:data:`SEED_SEARCH`; None: ``search`` as well). ``solver`` is the local solver run from
-    the starts: ``"auto"``, the compiled local minimiser (microseconds per run), or
+    the starts: ``"compiled"``, the compiled local minimiser (microseconds per run),
     ``"ipopt"``, the CasADi support-minimum NLP (the solver of record, about a millisecond per
-    run).
+    run), or ``"auto"``: the compiled one where a certificate follows (:meth:`seeding`,
+    :meth:`polish`), IPOPT for a search alone.
     """
 
     def __init__(
@@ -458,14 +463,23 @@ class SupportMinimizer:
         return other
 
     def seeding(self) -> SupportMinimizer:
-        """The same NLPs with the start strategy of a search that a certificate follows."""
-        return self if self.seed_search is None else self.with_search(self.seed_search)
+        """The same NLPs with the start strategy of a search that a certificate follows (and,
+        with ``solver="auto"``, the compiled local minimiser)."""
+        seeded = self if self.seed_search is None else self.with_search(self.seed_search)
+        return seeded.with_solver("compiled") if self.solver == "auto" else seeded
+
+    def local_solver(self) -> str:
+        """``"ipopt"`` or ``"compiled"``: the local solver that this minimizer's searches run."""
+        return "ipopt" if self.solver == "auto" else self.solver
 
     def polish(self, slots: WrenchSlots, u: np.ndarray) -> np.ndarray:
         """A local minimum's direction of ``p`` near ``u`` (one run of the local solver;
         ``+-e_k`` instead when one is lower): what the certificate's branch and bound polishes
         its incumbent by."""
-        return self.with_search(POLISH_SEARCH)(slots, u).direction
+        polisher = self.with_search(POLISH_SEARCH)
+        return (polisher.with_solver("compiled") if self.solver == "auto" else polisher)(
+            slots, u
+        ).direction
 
     def problem(self, slots: WrenchSlots) -> SupportMinProblem:
         """The NLP of this shape, built once; the least recently used of more than
@@ -503,7 +517,7 @@ class SupportMinimizer:
 
     def _search(self, slots: WrenchSlots, warm_start=None, stop=None) -> SupportMinimum:
         start_time = time.perf_counter()
-        ipopt = self.solver == "ipopt"
+        ipopt = self.local_solver() == "ipopt"
         problem = self.problem(slots) if ipopt else None
         search = self.search
         stop = -np.inf if stop is None else stop
@@ -584,7 +598,10 @@ def _warm_starts(warm_start) -> np.ndarray:
 
 
 _DEFAULT_MINIMIZER = SupportMinimizer()
-_DEFAULT_MINIMIZERS = {"auto": _DEFAULT_MINIMIZER, "ipopt": SupportMinimizer(solver="ipopt")}
+_DEFAULT_MINIMIZERS = {
+    "auto": _DEFAULT_MINIMIZER,
+    **{name: SupportMinimizer(solver=name) for name in SOLVERS if name != "auto"},
+}
 
 
 def rho(
@@ -610,9 +627,10 @@ def rho(
     tolerance : ModelTolerance, optional
         The model's accuracy (default: the contact set's own): ``robust`` and ``shift`` of the
         result say whether every set within it is force closure.
-    solver : {"auto", "ipopt"}, optional
-        The local solver of the search (``minimizer``'s when omitted, else ``"auto"``):
-        ``"ipopt"`` runs the CasADi support-minimum NLP, certified the same way.
+    solver : {"auto", "ipopt", "compiled"}, optional
+        The local solver of the search (``minimizer``'s when omitted, else ``"auto"``, the
+        compiled minimiser under the certificate): ``"ipopt"`` runs the CasADi support-minimum
+        NLP, certified the same way.
 
     Returns
     -------

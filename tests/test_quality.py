@@ -302,7 +302,7 @@ def test_a_run_into_a_minimum_already_found_does_not_use_up_the_budget():
     assert missed.rho < lo - 0.05  # the former rule's answer: 8% over-stated
 
 
-@pytest.mark.parametrize("solver", ["ipopt", "auto"])
+@pytest.mark.parametrize("solver", ["ipopt", "compiled"])
 @pytest.mark.parametrize("kinds", [["pcwf"] * 3, ["fpc"] * 5, ["sfce", "sfcl"], ["sfcl", "pcwf"]])
 def test_outside_the_set_one_ipopt_run_finds_the_distance(kinds, solver):
     """With the origin outside W, a local minimum with p < 0 is the global one (-p is concave

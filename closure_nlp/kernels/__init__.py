@@ -43,25 +43,26 @@ def _cache_dir_fallback() -> None:
 
 _cache_dir_fallback()
 
-MODULES = ("support", "branch_bound", "nearest_point", "descent")
-
-
-def _dispatchers():
-    """Every compiled kernel of the package."""
-    import importlib
-
-    for name in MODULES:
-        module = importlib.import_module(f"{__name__}.{name}")
-        for value in vars(module).values():
-            if hasattr(value, "_cache") and getattr(value, "__module__", "") == module.__name__:
-                yield value
+# The kernels called from Python (the others are compiled into them): what warm_up loads.
+ENTRY_POINTS = {
+    "support": ("support_many", "evaluate_many", "rows_many", "row_wrenches_many", "slots_many"),
+    "branch_bound": ("consider", "sample_cells", "bound_cells", "halve"),
+    "nearest_point": ("min_norm_point", "nearest_point_bounds"),
+    "descent": ("descend_many", "local_minimum"),
+}
 
 
 def _cached() -> bool:
-    """Whether every kernel has a current copy in numba's disk cache (the index numba reads:
-    empty when missing or when the source changed since)."""
+    """Whether every kernel called from Python has a current copy in numba's disk cache (the
+    index numba reads: empty when missing or when the source changed since)."""
+    import importlib
+
     try:
-        return all(d._cache._cache_file._load_index() for d in _dispatchers())
+        for module, names in ENTRY_POINTS.items():
+            loaded = importlib.import_module(f"{__name__}.{module}")
+            if not all(getattr(loaded, n)._cache._cache_file._load_index() for n in names):
+                return False
+        return True
     except Exception:  # numba's cache layout is private: assume a compile is due
         return False
 
