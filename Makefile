@@ -33,6 +33,7 @@ bench: $(STAMP)
 	$(BIN)/python -m closure_nlp.bench rho
 	$(BIN)/python -m closure_nlp.bench rho-hat
 	$(BIN)/python -m closure_nlp.bench certify
+	$(BIN)/python -m closure_nlp.bench engine
 	$(BIN)/python -m closure_nlp.bench select
 	$(BIN)/python -m closure_nlp.bench plan
 

@@ -263,6 +263,7 @@ def _engine_family(spec: dict, python_path: str, timeout: float) -> list:
             capture_output=True,
             text=True,
             env=env,
+            cwd=python_path,  # ``python -c`` puts the working folder first on the path
             timeout=timeout,
         ).stdout
     except subprocess.TimeoutExpired as stopped:

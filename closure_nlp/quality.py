@@ -465,7 +465,9 @@ class SupportMinimizer:
     def seeding(self) -> SupportMinimizer:
         """The same NLPs with the start strategy of a search that a certificate follows (and,
         with ``solver="auto"``, the compiled local minimiser)."""
-        seeded = self if self.seed_search is None else self.with_search(self.seed_search)
+        if self.seed_search is None:  # the search as well, solver and all
+            return self
+        seeded = self.with_search(self.seed_search)
         return seeded.with_solver("compiled") if self.solver == "auto" else seeded
 
     def local_solver(self) -> str:
