@@ -19,6 +19,7 @@ import json
 import math
 import os
 import sys
+import time
 
 from . import _cli_startup, _quiet_interrupt  # noqa: F401 - first: Ctrl-C while importing
 from .contact_count import require_closure_count
@@ -162,8 +163,9 @@ def _tolerance(args, given):
 
 def _cmd_rho(args) -> None:
     for path, contact_set in _load_each(args.files, load_contacts):
+        t0 = time.perf_counter()
         result = rho(contact_set, tolerance=_tolerance(args, contact_set.tolerance))
-        payload = {"file": path, **result.to_dict()}
+        payload = {"file": path, **result.to_dict(), **_whole_cost(result.stats.seconds, t0)}
         direction = " ".join(f"{x:+.4f}" for x in result.direction)
         _emit(
             args,
@@ -172,6 +174,13 @@ def _cmd_rho(args) -> None:
             f"({_verdict(result, result.force_closure)}); "
             f"weakest direction u* = [{direction}]" + _bounds_text(result, "rho"),
         )
+
+
+def _whole_cost(search: float, t0: float) -> dict:
+    """``seconds``: the whole cost of an answer since ``t0`` (search and certificate), with its
+    parts under ``timing``."""
+    whole = time.perf_counter() - t0
+    return {"seconds": whole, "timing": {"search": search, "certificate": max(whole - search, 0.0)}}
 
 
 def _verdict(result, positive: bool, yes="force closure", no="not force closure") -> str:
@@ -442,11 +451,12 @@ def _cmd_eligibility(args) -> None:
     eligibility = _eligibility(args, len(ids), "--elements")
     with _reading(args.model):
         ids = eligibility.check_elements(ids, "--elements")
+    t0 = time.perf_counter()
     result = eligibility(ids)
     verdict = _verdict(result, result.eligible, "eligible", "not eligible")
     _emit(
         args,
-        result.to_dict(),
+        {**result.to_dict(), **_whole_cost(result.stats.seconds, t0)},
         f"{_shown(args.model)}: elements {_join(result.elements)}: "
         f"rho_hat = {certain(result.rho_hat, result.bounds)} ({verdict})"
         + _bounds_text(result, "rho_hat"),

@@ -92,3 +92,13 @@ def test_bad_flag_exits_2_without_traceback():
     )
     assert proc.returncode == 2
     assert proc.stderr.startswith("error:") and "Traceback" not in proc.stderr
+
+
+def test_seconds_is_the_whole_cost_with_its_parts(capsys):
+    """``seconds`` covers the search and the certificate; ``timing`` names both parts."""
+    code, out, _ = run(["rho", str(EXAMPLE), "--json"], capsys)
+    answer = json.loads(out)
+    parts = answer["timing"]
+    assert code == 0 and set(parts) == {"search", "certificate"}
+    assert parts["search"] > 0 and parts["certificate"] > 0
+    assert answer["seconds"] == pytest.approx(parts["search"] + parts["certificate"], rel=1e-9)
