@@ -235,19 +235,25 @@ _int.__name__ = "integer"  # argparse says "invalid integer value: ..."
 _float.__name__ = "number"
 
 
-def _bounded_int(low: int, high: int, what: str):
-    """argparse type: an integer in [low, high] (the limit named in the message)."""
+def _bounded(parse, noun: str, inside, limits: str, what: str):
+    """argparse type: ``parse(text)`` where ``inside(value)``; the message names ``noun`` (what
+    the text must be) or ``what`` and its ``limits``."""
 
-    def convert(text: str) -> int:
+    def convert(text: str):
         try:
-            value = _int(text)
+            value = parse(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-        if not low <= value <= high:
-            raise argparse.ArgumentTypeError(f"{what} must be in [{low}, {high}], got {text}")
+            raise argparse.ArgumentTypeError(f"expected {noun}, got {text!r}") from None
+        if not inside(value):
+            raise argparse.ArgumentTypeError(f"{what} must be in {limits}, got {text}")
         return value
 
     return convert
+
+
+def _bounded_int(low: int, high: int, what: str):
+    """argparse type: an integer in [low, high] (the limit named in the message)."""
+    return _bounded(_int, "an integer", lambda v: low <= v <= high, f"[{low}, {high}]", what)
 
 
 _seed = _bounded_int(0, MAX_SEED, "a seed")
@@ -289,17 +295,7 @@ CONTACT_OPTIONS = (
 
 def _bounded_float(low: float, high: float, what: str):
     """argparse type: a finite number in [low, high) (the limit named in the message)."""
-
-    def convert(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-        if not low <= value < high:
-            raise argparse.ArgumentTypeError(f"{what} must be in [{low:g}, {high:g}), got {text}")
-        return value
-
-    return convert
+    return _bounded(float, "a number", lambda v: low <= v < high, f"[{low:g}, {high:g})", what)
 
 
 _gap = _bounded_float(0.0, 1.0, "the gap")
