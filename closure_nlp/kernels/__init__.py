@@ -43,7 +43,7 @@ def _cache_dir_fallback() -> None:
 
 _cache_dir_fallback()
 
-# The kernels called from Python (the others are compiled into them): what warm_up loads.
+# The kernels called from Python (the others are compiled into them): warm_up calls each.
 ENTRY_POINTS = {
     "support": ("support_many", "evaluate_many", "rows_many", "row_wrenches_many", "slots_many"),
     "branch_bound": ("consider", "sample_cells", "bound_cells", "halve"),
@@ -105,11 +105,15 @@ def warm_up(notify=None) -> float | None:
     apart = ContactSet(tuple(Contact(-n, n) for n in normals[[0, 1]]))
     for contact_set in (closure, apart):
         rho(contact_set)
+    from ..nearest_point import min_norm_point
     from ..wrenches import WrenchSlots
 
     slots = WrenchSlots.from_contacts(closure)
-    slots.slot_values(normals[:1].repeat(2, axis=1))
-    slots.row_support(normals[:1].repeat(2, axis=1))
+    U = normals[:1].repeat(2, axis=1)
+    slots.slot_values(U)
+    slots.row_support(U)
+    slots.row_terms(U)
+    min_norm_point(slots.support_points(np.vstack([U, -U])))
     seconds = time.perf_counter() - start
     if not compiles:
         return None
