@@ -1,4 +1,4 @@
-"""The ``closure-nlp`` command line: a thin layer over the API (INTERFACE.md).
+"""The ``closure-nlp`` command line: a thin layer over the API (docs/formats.md).
 
 Each command is a ``_cmd_<name>(args)`` function that returns one JSON-able dict per input and a
 human-readable line for it. Exit status (README, "Exit status"): 2 for bad input, which the
@@ -16,7 +16,6 @@ import argparse
 import contextlib
 import dataclasses
 import json
-import math
 import os
 import sys
 import time
@@ -257,17 +256,6 @@ def _bounded_int(low: int, high: int, what: str):
 
 
 _seed = _bounded_int(0, MAX_SEED, "a seed")
-
-
-def _budget(text: str) -> float:
-    """argparse type: a positive, finite number of seconds."""
-    try:
-        value = _float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number of seconds, got {text!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text}")
-    return value
 
 
 _starts = _bounded_int(1, MAX_STARTS, "the number of start weights")
@@ -751,7 +739,7 @@ def _join(ids) -> str:
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse that reports bad flags the INTERFACE.md way: one ``error:`` line, exit 2."""
+    """argparse that reports bad flags the docs/formats.md way: one ``error:`` line, exit 2."""
 
     def error(self, message: str):  # noqa: D401 - argparse API
         sys.stderr.write(f"error: {self.prog}: {message}\n")

@@ -332,7 +332,7 @@ FILE_KEYS = {
 
 
 def contact_set_from_dict(data) -> ContactSet:
-    """Build a :class:`ContactSet` from the contact-set file layout of INTERFACE.md."""
+    """Build a :class:`ContactSet` from the contact-set file layout of docs/formats.md."""
     check_keys(data, "file", FILE_KEYS, required={"contacts"})
     if "units" in data:
         as_units(data["units"])
@@ -388,5 +388,5 @@ def _check_kept_keys(entry: dict, name: str) -> None:
 
 
 def load_contact_set(path) -> ContactSet:
-    """Read a ``*.contacts.json`` file (INTERFACE.md)."""
+    """Read a ``*.contacts.json`` file (docs/formats.md)."""
     return contact_set_from_dict(load_json(path))

@@ -1,4 +1,4 @@
-"""Surface elements and element models (paper section 2, INTERFACE.md ``*.model.json``).
+"""Surface elements and element models (paper section 2, docs/formats.md ``*.model.json``).
 
 An element is a convex facet, a line segment or a discrete point with one unit inward normal. A
 contact on it sits at a convex combination of its vertices (eq 7); the vertex grasp matrices
@@ -436,7 +436,7 @@ def _as_pair(pair, field: str, count: int) -> tuple[int, int]:
 
 
 def model_from_dict(data, base_dir=None, tolerances: Tolerances = DEFAULT_TOLERANCES) -> Model:
-    """Build a :class:`Model` from the ``*.model.json`` layout of INTERFACE.md."""
+    """Build a :class:`Model` from the ``*.model.json`` layout of docs/formats.md."""
     check_keys(data, "file", MODEL_KEYS, required={"elements"})
     entries = data["elements"]
     if not isinstance(entries, list):

@@ -1,7 +1,7 @@
 """A model's own mesh: read for drawing (a missing or broken one is one warning, not an error),
 and used to check that facet and segment normals point into the part.
 
-The mesh is a drawing aid (INTERFACE.md), so only a mesh path that leaves the model's folder
+The mesh is a drawing aid (docs/formats.md), so only a mesh path that leaves the model's folder
 (:attr:`Model.mesh_path`) and a normal that points out of the mesh are errors.
 """
 

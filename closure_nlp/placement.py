@@ -93,7 +93,7 @@ class PlacementOptions:
         ``max_rounds`` (0, the default: every start runs to ``max_rounds``); a neighbour-move
         trial gets this many rounds when ``move_rounds`` is 0.
         Measured with ``screen`` on 3 seeds of the paper's examples (``bench plan``, mode
-        ``fast``, probe 6; rerun on the lamp and the cup for issue 14): placement 1.3-1.7x
+        ``fast``, probe 6, and on the lamp and the cup): placement 1.3-1.7x
         faster, median rho 6-8% less negative (less load capacity), so it is not the default.
     screen : bool
         Judge each exchange round's new weights by a light search first
@@ -347,11 +347,11 @@ class PlacementResult:
         }
 
     def contact_file(self, name: str = "", units: str = "") -> dict:
-        """The placed contacts as a contact-set file (INTERFACE.md), each with its ``element``
+        """The placed contacts as a contact-set file (docs/formats.md), each with its ``element``
         and ``weights``; :func:`closure_nlp.load_contact_set` reads it back to the same set."""
         data = {"torque_scale": self.contact_set.torque_scale}
         reference = getattr(self.contact_set, "reference_point", None)
-        if reference is not None:  # models with a reference point (issue 13)
+        if reference is not None:  # models with a reference point
             data["reference_point"] = np.asarray(reference, float).tolist()
         if name:
             data["name"] = name
