@@ -319,8 +319,10 @@ def _in_processes(eligibility, options, kwargs, seed, seeds, workers, budget, t0
         k = running = 0
         while k < seeds or running:
             while k < seeds and running < workers:
-                if k and budget is not None and time.perf_counter() - t0 >= budget:
-                    seeds = k  # the budget is spent: no further seed starts
+                # The first wave starts at once whatever the pool's start-up cost; after it,
+                # a spent budget starts no further seed.
+                if k >= workers and budget is not None and time.perf_counter() - t0 >= budget:
+                    seeds = k
                     break
                 pool.apply_async(
                     _worker_seed, (k, seed + k), callback=finished.put, error_callback=finished.put
