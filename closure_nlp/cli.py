@@ -16,6 +16,7 @@ import argparse
 import contextlib
 import dataclasses
 import json
+import math
 import os
 import sys
 import time
@@ -283,11 +284,11 @@ CONTACT_OPTIONS = (
 
 def _bounded_float(low: float, high: float, what: str):
     """argparse type: a finite number in [low, high) (the limit named in the message)."""
-    return _bounded(float, "a number", lambda v: low <= v < high, f"[{low:g}, {high:g})", what)
+    return _bounded(_float, "a number", lambda v: low <= v < high, f"[{low:g}, {high:g})", what)
 
 
 _gap = _bounded_float(0.0, 1.0, "the gap")
-_budget = _bounded_float(0.0, float("inf"), "the time budget")
+_budget = _bounded(_float, "a number", lambda v: 0 < v < math.inf, "(0, inf)", "the time budget")
 
 
 def _add_bound_options(parser) -> None:

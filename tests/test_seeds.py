@@ -4,13 +4,14 @@ a seed that fails or ends marginal does not stop the others; the budget stops ne
 from __future__ import annotations
 
 import json
+import multiprocessing
 import time
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from closure_nlp import cli, planning
+from closure_nlp import cli, planning, seeds
 from closure_nlp.contacts import contact_specs
 from closure_nlp.elements import save_model
 from closure_nlp.eligibility import Eligibility
@@ -26,6 +27,14 @@ FEW = SelectionOptions(restarts=2)
 
 def hand() -> Eligibility:
     return Eligibility(box_model(10.0), contact_specs(4, type="pcwf", mu=0.4), torque_scale=0.1)
+
+
+def patch_plan(monkeypatch, fake) -> None:
+    """``planning.plan`` replaced by ``fake``, in the worker processes too: those are forked
+    here whatever threads earlier tests left behind (a forkserver's workers would import the
+    real plan)."""
+    monkeypatch.setattr(planning, "plan", fake)
+    monkeypatch.setattr(seeds, "_context", lambda: multiprocessing.get_context("fork"))
 
 
 def comparable(result: PlanResult) -> dict:
@@ -91,7 +100,7 @@ def fake_plan(eligibility, *, seed, **kwargs):
 
 @pytest.mark.parametrize("workers", [1, 2])
 def test_a_failed_or_marginal_seed_does_not_stop_the_plan(monkeypatch, workers):
-    monkeypatch.setattr(planning, "plan", fake_plan)  # worker processes are forked: patched too
+    patch_plan(monkeypatch, fake_plan)
     from closure_nlp.seeds import plan_seeds
 
     best = plan_seeds(hand(), seed=0, seeds=5, workers=workers)
@@ -111,7 +120,7 @@ def test_a_failed_or_marginal_seed_does_not_stop_the_plan(monkeypatch, workers):
 
 
 def test_every_seed_failing_raises_the_first_error(monkeypatch):
-    monkeypatch.setattr(planning, "plan", lambda *a, **k: (_ for _ in ()).throw(ValueError("x")))
+    patch_plan(monkeypatch, lambda *a, **k: (_ for _ in ()).throw(ValueError("x")))
     with pytest.raises(ValueError, match="x"):
         plan(hand(), seeds=2, workers=1)
 
@@ -123,7 +132,7 @@ def slow_plan(eligibility, *, seed, **kwargs):
 
 @pytest.mark.parametrize("workers", [1, 2])
 def test_the_budget_stops_new_seeds_and_the_report_says_so(monkeypatch, workers):
-    monkeypatch.setattr(planning, "plan", slow_plan)
+    patch_plan(monkeypatch, slow_plan)
     from closure_nlp.seeds import plan_seeds
 
     spread = plan_seeds(hand(), seeds=6, workers=workers, budget=0.2).seeds
