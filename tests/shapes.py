@@ -7,8 +7,10 @@ import numpy as np
 from closure_nlp.elements import Element, Model
 
 
-def box_model(half: float = 1.0) -> Model:
-    """A cube of side ``2 * half``: 6 square facets, neighbours across its 12 edges."""
+def box_facets(half=1.0) -> list[Element]:
+    """The six faces of a box of half-sides ``half`` (a number: a cube; or 3 numbers), as
+    square facets with inward normals, in the order -x, +x, -y, +y, -z, +z."""
+    half = np.broadcast_to(np.asarray(half, float), 3)
     elements = []
     for axis in range(3):
         others = [k for k in range(3) if k != axis]
@@ -16,13 +18,18 @@ def box_model(half: float = 1.0) -> Model:
             corners = []
             for p, q in [(-1, -1), (1, -1), (1, 1), (-1, 1)]:
                 v = np.zeros(3)
-                v[axis], v[others[0]], v[others[1]] = sign * half, p * half, q * half
-                corners.append(v)
+                v[axis], v[others[0]], v[others[1]] = sign, p, q
+                corners.append(v * half)
             normal = np.zeros(3)
             normal[axis] = -sign
             elements.append(Element("facet", corners, normal, name=f"elements[{len(elements)}]"))
+    return elements
+
+
+def box_model(half: float = 1.0) -> Model:
+    """A cube of side ``2 * half``: 6 square facets, neighbours across its 12 edges."""
     adjacency = [(i, j) for i in range(6) for j in range(i + 1, 6) if i // 2 != j // 2]
-    return Model(tuple(elements), tuple(adjacency), "box", "")
+    return Model(tuple(box_facets(half)), tuple(adjacency), "box", "")
 
 
 def corner_model(half: float = 1.0) -> Model:

@@ -15,6 +15,7 @@ from closure_nlp.elements import (
     model_from_dict,
     save_model,
 )
+from tests.shapes import box_facets
 
 SQUARE = [[0, 0, 0], [10, 0, 0], [10, 10, 0], [0, 10, 0]]
 
@@ -177,39 +178,22 @@ def test_missing_file_is_a_value_error(tmp_path):
         load_model(tmp_path / "nothing.model.json")
 
 
-def _box_facets(size: float) -> list:
-    """The six faces of a cube of side ``size`` as facets (inward normals)."""
-    out = []
-    for axis in range(3):
-        others = [k for k in range(3) if k != axis]
-        for sign in (-1.0, 1.0):
-            corners = []
-            for p, q in [(-1, -1), (1, -1), (1, 1), (-1, 1)]:
-                v = np.zeros(3)
-                v[axis], v[others[0]], v[others[1]] = sign, p, q
-                corners.append(v * size / 2)
-            normal = np.zeros(3)
-            normal[axis] = -sign
-            out.append(Element("facet", np.array(corners), normal, name=f"elements[{len(out)}]"))
-    return out
-
-
 @pytest.mark.parametrize("size", [1e-15, 1e-3, 1.0, 1e11])
 def test_degeneracy_is_judged_against_the_part_not_absolutely(size):
     """The same cube is a model at any scale; a facet or segment too small for the part, or a
     sliver at any scale, is refused."""
-    Model(tuple(_box_facets(size)))  # accepted
+    Model(tuple(box_facets(size / 2)))  # accepted
     s = size / 2
     segment = Element("segment", [[-s, -s, -s], [s, -s, -s]], [0, 1, 1])  # a cube's edge
-    Model((*_box_facets(size), segment))
+    Model((*box_facets(size / 2), segment))
     tiny = 1e-9 * size * np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]]) + [0, 0, -s]
     speck = Element("facet", tiny, [0, 0, 1], name="elements[6]")
     with pytest.raises(ValueError, match=r"elements\[6\]: the facet is .* degenerate against"):
-        Model((*_box_facets(size), speck))
+        Model((*box_facets(size / 2), speck))
     short = Element("segment", [[-s, -s, -s], [-s + 1e-9 * size, -s, -s]], [0, 1, 1],
                     name="elements[6]")
     with pytest.raises(ValueError, match=r"elements\[6\]: the segment is"):
-        Model((*_box_facets(size), short))
+        Model((*box_facets(size / 2), short))
     sliver = size * np.array([[0, 0, 0], [1, 0, 0], [0.5, 1e-9, 0]])
     with pytest.raises(ValueError, match="collinear"):
         Element("facet", sliver, [0, 0, 1])

@@ -14,6 +14,7 @@ from closure_nlp.elements import model_from_dict
 from closure_nlp.eligibility import Eligibility
 from closure_nlp.placement import PlacementOptions, Placer
 from closure_nlp.scale import resolve
+from tests.shapes import box_facets
 
 MODELS = Path(__file__).resolve().parents[1] / "models"
 QUICK = PlacementOptions(starts=1, extra_starts=0, neighbour_moves=0, bound_cells=6)
@@ -73,18 +74,14 @@ def test_examples_times_1000_agree_within_the_gap(name, kind, elements):
 def test_a_box_in_metres_and_millimetres_agrees_within_the_gap():
     """A domino-sized box (pybullet's domino: 0.05 x 0.025 x 0.01 m) with 4 soft fingers."""
     half = np.array([0.025, 0.0125, 0.005])
-    elements = []
-    for axis in range(3):
-        others = [k for k in range(3) if k != axis]
-        for sign in (-1.0, 1.0):
-            corners = []
-            for p, q in [(-1, -1), (1, -1), (1, 1), (-1, 1)]:
-                v = np.zeros(3)
-                v[axis], v[others[0]], v[others[1]] = sign, p, q
-                corners.append((v * half).tolist())
-            normal = [0.0, 0.0, 0.0]
-            normal[axis] = -sign
-            elements.append({"kind": "facet", "vertices": corners, "inward_normal": normal})
+    elements = [
+        {
+            "kind": "facet",
+            "vertices": f.vertices.tolist(),
+            "inward_normal": f.inward_normal.tolist(),
+        }
+        for f in box_facets(half)
+    ]
     data = {"name": "domino", "units": "m", "elements": elements}
     metres = model_from_dict(data)
     millimetres = model_from_dict({**_scaled(data, 1000.0), "units": "mm"})
