@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: install demo test test-fast lint bench compare-peers clean
+.PHONY: install demo test test-slow lint bench compare-peers clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -19,12 +19,14 @@ demo: $(STAMP)
 	MPLBACKEND=Agg $(BIN)/closure-nlp plan models/lamp.model.json --contacts 4 --type pcwf \
 		--mu 0.2 --seed 1 --seeds 1 --out out/lamp
 
-# Over every core (pytest-xdist); each worker builds its solvers once and reuses them.
+# The tests not marked slow, over every core (pytest-xdist); each worker builds its solvers once.
 test: $(STAMP)
-	MPLBACKEND=Agg $(BIN)/python -m pytest -q -n auto --durations=15
+	MPLBACKEND=Agg $(BIN)/python -m pytest -q -n auto -m "not slow" --durations=15
 
-test-fast: $(STAMP)
-	MPLBACKEND=Agg $(BIN)/python -m pytest -q -n auto -m "not slow"
+# The tests marked slow (each over ~10 s: whole suites, real plans, a Dask cluster); CI runs
+# them after `make test`.
+test-slow: $(STAMP)
+	MPLBACKEND=Agg $(BIN)/python -m pytest -q -n auto -m slow --durations=15
 
 lint: $(STAMP)
 	$(BIN)/ruff check closure_nlp tests examples models
