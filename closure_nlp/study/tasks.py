@@ -288,20 +288,18 @@ def worker_memory() -> dict:
     return found
 
 
+# The task's fields that a row holds as they are (the options go in as JSON).
+_TASK_COLUMNS = (
+    "model", "model_digest", "type", "contacts", "mu", "mu_s", "f_max", "torque_scale", "seed"
+)
+
+
 def task_row(task: Task) -> dict:
     """A result row with the task's inputs filled in and every result column empty."""
     row = dict.fromkeys(ROW_COLUMNS)
     row.update(
+        {name: getattr(task, name) for name in _TASK_COLUMNS},
         task_id=task.task_id,
-        model=task.model,
-        model_digest=task.model_digest,
-        type=task.type,
-        contacts=task.contacts,
-        mu=task.mu,
-        mu_s=task.mu_s,
-        f_max=task.f_max,
-        torque_scale=task.torque_scale,
-        seed=task.seed,
         selection=json.dumps(dict(task.selection), sort_keys=True),
         placement=json.dumps(dict(task.placement), sort_keys=True),
         worker=f"{socket.gethostname()}:{os.getpid()}",
