@@ -20,10 +20,12 @@ from .accuracy import ModelTolerance
 from .contacts import ContactSpec
 from .elements import Model
 from .quality import (
+    Certificate,
     SolverStats,
     SupportMinimizer,
     SupportMinimum,
     certificate_keys,
+    certificate_of,
     certified_rho,
     certified_search,
     signed_distance,
@@ -37,7 +39,7 @@ from .wrenches import WrenchSlots, padded_rows
 
 
 @dataclass(frozen=True)
-class EligibilityResult:
+class EligibilityResult(Certificate):
     """rho_hat of one element set.
 
     Attributes
@@ -71,12 +73,6 @@ class EligibilityResult:
     eligible: bool
     direction: np.ndarray
     stats: SolverStats
-    bounds: tuple[float, float] | None = None
-    marginal: bool = False
-    converged: bool = True
-    robust: bool | None = None
-    shift: float = 0.0
-    timing: tuple[float, float] | None = None
 
     def to_dict(self) -> dict:
         return {
@@ -220,17 +216,7 @@ class Eligibility:
     @staticmethod
     def _result(elements, r) -> EligibilityResult:
         return EligibilityResult(
-            elements,
-            r.rho,
-            r.force_closure,
-            r.direction,
-            r.stats,
-            r.bounds,
-            r.marginal,
-            r.converged,
-            r.robust,
-            r.shift,
-            timing=r.timing,
+            elements, r.rho, r.force_closure, r.direction, r.stats, **certificate_of(r)
         )
 
     def element_values(self, spec_index: int, u: np.ndarray) -> np.ndarray:

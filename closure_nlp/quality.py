@@ -20,7 +20,7 @@ the support function at the returned unit direction, never the epigraph variable
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 
 import casadi as ca
 import numpy as np
@@ -148,8 +148,27 @@ class SupportMinimum:
     stats: SolverStats
 
 
+@dataclass(frozen=True, eq=False, kw_only=True)
+class Certificate:
+    """The fields a certified result adds to its search's (:class:`RhoResult`,
+    :class:`~closure_nlp.eligibility.EligibilityResult`): keyword-only, after the search's own.
+    Their meaning for each is in its class."""
+
+    bounds: tuple[float, float] | None = None
+    marginal: bool = False
+    converged: bool = True
+    robust: bool | None = None
+    shift: float = 0.0
+    timing: tuple[float, float] | None = None
+
+
+def certificate_of(result) -> dict:
+    """The :class:`Certificate` fields of ``result``, as keyword arguments of another result."""
+    return {f.name: getattr(result, f.name) for f in fields(Certificate)}
+
+
 @dataclass(frozen=True, eq=False)
-class RhoResult:
+class RhoResult(Certificate):
     """rho(0, W_c^M) of a contact set.
 
     Attributes
@@ -185,12 +204,6 @@ class RhoResult:
     direction: np.ndarray
     support_point: np.ndarray
     stats: SolverStats = field(repr=False)
-    bounds: tuple[float, float] | None = None
-    marginal: bool = False
-    converged: bool = True
-    robust: bool | None = None
-    shift: float = 0.0
-    timing: tuple[float, float] | None = None
 
     def to_dict(self) -> dict:
         return {
@@ -734,9 +747,9 @@ def certified_rho(
         found.direction,
         found.support_point,
         replace(found.stats, seconds=search_seconds + bounds.seconds),
-        (bounds.lo, bounds.hi),
-        bounds.marginal,
-        bounds.converged,
+        bounds=(bounds.lo, bounds.hi),
+        marginal=bounds.marginal,
+        converged=bounds.converged,
         timing=(search_seconds, bounds.seconds),
     )
 
@@ -751,6 +764,8 @@ def signed_distance(found: SupportMinimum, slots: WrenchSlots, tolerances: Toler
 
 
 __all__ = [
+    "Certificate",
+    "certificate_of",
     "RhoResult",
     "SearchOptions",
     "SolverStats",
