@@ -27,7 +27,6 @@ from .eligibility import Eligibility
 from .interrupts import leave_to_parent
 from .placement import PlacementOptions, Placer
 from .progress import Progress
-from .selection import SelectionOptions
 from .validation import MAX_SEED
 
 # The command line's defaults. A plan costs 4-9 s per example on one core today, so 8 seeds take
@@ -197,18 +196,17 @@ def plan_seeds(
     seeds: int = DEFAULT_SEEDS,
     workers: int | None = None,
     budget: float | None = None,
-    start=None,
-    selection: SelectionOptions = SelectionOptions(),
     placement: PlacementOptions = PlacementOptions(),
     progress: Progress | None = None,
     placer: Placer | None = None,
-    alternatives: int = 4,
     memo: dict | None = None,
+    **plan_options,
 ):
     """The plans of seeds ``seed, seed + 1, ..., seed + seeds - 1``; the best, with the spread.
 
     Called by :func:`closure_nlp.planning.plan` when it is given ``seeds``; see there for the
-    other parameters.
+    other parameters. ``plan_options`` (``start``, ``selection``, ``alternatives``) go to every
+    seed's plan as they are.
 
     Parameters
     ----------
@@ -240,7 +238,7 @@ def plan_seeds(
     if placer is not None and placer.eligibility is not eligibility:
         raise ValueError("placer: must be built on the same Eligibility as the plan")
     options = placement if placer is None else placer.options
-    kwargs = dict(start=start, selection=selection, alternatives=alternatives)
+    kwargs = plan_options
     t0 = time.perf_counter()
     if workers == 1:
         placer = placer or Placer(eligibility, options)
