@@ -218,6 +218,47 @@ def test_serial_resume_runs_every_task_once(tiny, tmp_path):
     assert all((tmp_path / "results" / n).stat().st_mtime_ns == t for n, t in kept.items())
 
 
+def test_a_local_cluster_runs_every_task_once_in_its_workers(tiny, tmp_path):
+    """The Dask path with fake rows (no solver): one row per task, written by a worker process.
+    Real tasks on a cluster, a killed worker and the CLI: the slow tests below."""
+    study = load_study(tiny)
+    result = run_study(study, tmp_path, workers=1, runner=fake_runner)
+    assert (result.run, result.failed, result.workers) == (4, 0, 1)
+    rows = read_results(tmp_path / "results")
+    assert sorted(rows.task_id) == sorted(t.task_id for t in study.tasks)
+    assert set(rows.status) == {"ok"} and sorted(rows.rho) == [-1.0, -1.0, 0.0, 0.0]
+    assert not rows.worker.str.endswith(f":{os.getpid()}").any()  # not this process
+    assert (tmp_path / "summary.md").stat().st_size > 0
+
+
+def test_a_real_task_row_holds_the_plan(tmp_path):
+    """One real task in this process (without the placement's ceiling, most of a task's time):
+    its row holds what plan gives with the task's options, with the certified brackets (every
+    task of the tiny study, with the ceiling, on a cluster: the slow tests)."""
+    from closure_nlp.elements import load_model
+    from closure_nlp.eligibility import Eligibility
+    from closure_nlp.planning import plan
+
+    task = load_study(write_study(tmp_path, TINY + PLACEMENT + "bound = false\n")).tasks[1]
+    assert not task.placement_options().bound
+    clear_cache()
+    row = run_task(task)
+    clear_cache()
+    eligibility = Eligibility(load_model(task.model_file), task.specs(), task.torque_scale)
+    result = plan(
+        eligibility,
+        seed=task.seed,
+        selection=task.selection_options(),
+        placement=task.placement_options(),
+    )
+    assert row["status"] == "ok" and row["seed"] == task.seed
+    assert row["elements"] == list(result.placement.elements)
+    assert row["iterative_elements"] == list(result.iterative.elements)
+    assert abs(row["rho"] - result.placement.rho) <= 1e-9
+    assert (row["rho_lo"], row["rho_hi"]) == pytest.approx(result.placement.bounds, abs=1e-9)
+    assert row["rho_lo"] <= row["rho"] <= row["rho_hi"] < 0 and row["force_closure"]
+
+
 # --- real tasks: serial against a 2-worker cluster ----------------------------------------------
 
 
