@@ -677,15 +677,64 @@ def bench_seeds(
 GAP_BUDGETS = {"lamp": 30.0, "cup": 30.0, "pistol": 60.0}
 
 
-def bench_gap(names=None, seed: int = 1, neighbours: bool = False, models_dir=MODELS_DIR) -> dict:
+def _gap_run(placer, elements, today, budget: float, **settings) -> dict:
+    """One search of the ceiling for ``bench_gap``: its JSON entry."""
+    from .placement_bound import BoundOptions, capacity_bound, relative_gap
+
+    load = _load()
+    found = capacity_bound(
+        placer,
+        elements,
+        today,
+        BoundOptions(gap=0.0, time_budget=budget, **settings),
+    )
+    reached = {}
+    for target in (0.05, 0.02, 0.01):
+        times = [
+            t for t, ceiling, best in found.history if (relative_gap(ceiling, best) or 1) <= target
+        ]
+        reached[f"seconds_to_{target:g}"] = times[0] if times else None
+    return {
+        "exchange_gap": relative_gap(found.value, -today.bounds[1]),
+        "final_rho": today.rho if found.placement is None else found.placement.rho,
+        "improvement": (found.capacity + today.bounds[1]) / -today.bounds[1],
+        "root_bound": found.root_value,
+        "capacity_bound": found.value,
+        "gap": found.gap,
+        "nodes": found.nodes,
+        "open_cells": found.open_cells,
+        "polishes": found.polishes,
+        "seconds": found.seconds,
+        **reached,
+        "load_before": load,
+        "load_after": _load(),
+    }
+
+
+# The ceiling's former settings, for a comparison in the same process (bench gap --compare):
+# every exchange run the schedule asks for, a cell's cut descent from 24 more quasi-random
+# directions, every working-set direction a row of every cell's LP.
+FORMER_BOUND = {"polish_share": 1.0, "cut_samples": 24, "lp_rows": 0}
+
+
+def bench_gap(
+    names=None,
+    seed: int = 1,
+    neighbours: bool = False,
+    models_dir=MODELS_DIR,
+    compare: bool = False,
+    budgets=None,
+) -> dict:
     """The certified gap of the exchange method's placement on each example's selected elements
     (``plan`` with ``seed``; CLI defaults: automatic torque scale and mu_s, mu 0.2), then the
     ceiling's branch and bound for :data:`GAP_BUDGETS` seconds (target gap 0: it runs the whole
     budget, and the time at which 2% and 5% were reached is reported). ``neighbours``: the
-    ceiling covers the neighbours of each element as well (the default placement's domain)."""
-    from .placement_bound import BoundOptions, capacity_bound, relative_gap
+    ceiling covers the neighbours of each element as well (the default placement's domain).
+    ``compare``: the same search with :data:`FORMER_BOUND` too, in the same process, right
+    after (``former`` in each model's entry)."""
     from .scale import resolve
 
+    budgets = {**GAP_BUDGETS, **(budgets or {})}
     report = {"benchmark": "gap", "seed": seed, "neighbours": neighbours, "models": {}}
     for name in names or PAPER_EXAMPLES:
         setup = PAPER_EXAMPLES[name]
@@ -697,40 +746,21 @@ def bench_gap(names=None, seed: int = 1, neighbours: bool = False, models_dir=MO
         placer = Placer(eligibility, PlacementOptions(bound=False, neighbour_moves=moves))
         planned = plan(eligibility, seed=seed, placer=placer, alternatives=0)
         today = planned.placement
-        budget = GAP_BUDGETS.get(name, 30.0)
-        found = capacity_bound(
-            placer,
-            planned.iterative.elements,
-            today,
-            BoundOptions(gap=0.0, time_budget=budget),
-        )
-        reached = {}
-        for target in (0.05, 0.02, 0.01):
-            times = [
-                t
-                for t, ceiling, best in found.history
-                if (relative_gap(ceiling, best) or 1) <= target
-            ]
-            reached[f"seconds_to_{target:g}"] = times[0] if times else None
-        capacity = found.capacity
-        report["models"][name] = {
+        budget = budgets.get(name, 30.0)
+
+        entry = {
             "type": setup["type"],
             "contacts": setup["m"],
             "elements": list(planned.iterative.elements),
             "exchange_rho": today.rho,
             "exchange_seconds": today.seconds,
-            "exchange_gap": relative_gap(found.value, -today.bounds[1]),
-            "final_rho": today.rho if found.placement is None else found.placement.rho,
-            "improvement": (capacity + today.bounds[1]) / -today.bounds[1],
-            "root_bound": found.root_value,
-            "capacity_bound": found.value,
-            "gap": found.gap,
-            "nodes": found.nodes,
-            "open_cells": found.open_cells,
-            "polishes": found.polishes,
-            "seconds": found.seconds,
-            **reached,
+            **_gap_run(placer, planned.iterative.elements, today, budget),
         }
+        if compare:
+            entry["former"] = _gap_run(
+                placer, planned.iterative.elements, today, budget, **FORMER_BOUND
+            )
+        report["models"][name] = entry
     return report
 
 
@@ -773,6 +803,8 @@ def main(argv=None) -> int:
     p.add_argument("--models", default=",".join(PAPER_EXAMPLES), help="e.g. lamp,cup")
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--neighbours", action="store_true", help="the ceiling over neighbours too")
+    p.add_argument("--compare", action="store_true", help="the former settings too, after")
+    p.add_argument("--budget", type=float, help="seconds per model (default: 30, pistol 60)")
     args = parser.parse_args(argv)
     from .kernels import warm_up
 
@@ -795,7 +827,9 @@ def main(argv=None) -> int:
     elif args.what == "plan":
         report = bench_plan(args.seeds, names=args.models.split(","))
     elif args.what == "gap":
-        report = bench_gap(args.models.split(","), args.seed, args.neighbours)
+        names = args.models.split(",")
+        budgets = {name: args.budget for name in names} if args.budget else None
+        report = bench_gap(names, args.seed, args.neighbours, compare=args.compare, budgets=budgets)
     else:
         report = bench_select(args.seeds)
     json.dump(report, sys.stdout, indent=2)

@@ -76,6 +76,15 @@ from .wrenches import WrenchSlots
 ROUND_OFF = 1e-9
 # Directions kept in the shared working set of the cutting planes (the most recent ones).
 MAX_DIRECTIONS = 600
+# Row generation adds at most this many rows per solve, while the LP's weights fall below
+# (1 - ROW_TOLERANCE) times its value on them.
+ADDED_ROWS = 24
+ROW_TOLERANCE = 1e-6
+# The cut descent starts from the working set's directions lowest at the LP's weights, and at
+# the root from this many quasi-random directions besides (+-e_k always).
+CUT_LOWEST = 12
+ROOT_CUT_SAMPLES = 24
+CUT_ITERATIONS = 60
 
 
 @dataclass(frozen=True)
@@ -100,7 +109,16 @@ class BoundOptions:
         Cells bounded at most (a budget independent of the machine's speed).
     polish_every : int
         Every that many cells, the exchange method is started at the best open cell's LP
-        placement (0: never).
+        placement (0: never)...
+    polish_share : float
+        ... while the exchange runs have taken at most this share of the time spent (1: always).
+    cut_samples : int
+        Quasi-random starts (besides ``+-e_k`` and the working set's lowest directions) of a
+        cell's cut descent; the root's always has 24.
+    lp_rows : int
+        Rows (directions) a cell's LP starts with, the parent's active ones besides; the
+        working set's others join where the LP's weights fall below its value on them (row
+        generation, same bound). 0: every row from the start.
     """
 
     gap: float = 0.02
@@ -110,15 +128,19 @@ class BoundOptions:
     cut_tolerance: float = 1e-3
     max_nodes: int = 100_000
     polish_every: int = 20
+    polish_share: float = 0.3
+    cut_samples: int = 0
+    lp_rows: int = 24
 
     def __post_init__(self) -> None:
-        for name in ("gap", "time_budget", "cut_tolerance"):
+        for name in ("gap", "time_budget", "cut_tolerance", "polish_share"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not value >= 0:
                 raise ValueError(f"{name}: expected a number >= 0, got {value!r}")
             if not np.isfinite(value) and name != "time_budget":
                 raise ValueError(f"{name}: expected a finite number, got {value!r}")
-        for name in ("root_cuts", "cell_cuts", "max_nodes", "polish_every"):
+        names = ("root_cuts", "cell_cuts", "max_nodes", "polish_every", "cut_samples", "lp_rows")
+        for name in names:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 0:
                 raise ValueError(f"{name}: expected an integer >= 0, got {value!r}")
@@ -279,30 +301,73 @@ class CellLP:
             counts.append(len(G))
         return WrenchSlots.build(slots), positions, counts
 
-    def bound(self, cell, rounds: int, tolerance: float, deadline: float = np.inf) -> CellBound:
+    def bound(
+        self,
+        cell,
+        rounds: int,
+        tolerance: float,
+        deadline: float = np.inf,
+        hint=None,
+        rows: int = 0,
+        samples: int = ROOT_CUT_SAMPLES,
+    ) -> CellBound:
         """The cell's certified LP bound after at most ``rounds`` cutting-plane rounds (none
-        begun after ``deadline``, a :func:`time.perf_counter` value)."""
+        begun after ``deadline``, a :func:`time.perf_counter` value). With ``rows`` > 0 the LP
+        starts on ``hint`` (optional (K, 6) directions, a parent cell's active ones) and the
+        ``rows`` directions of the working set lowest at uniform weights; the others join only
+        where the LP's weights fall below its value on them (:meth:`_solve_rows`). ``samples``:
+        quasi-random starts of the cut descent."""
         slots, _, counts = self.rows(cell)
         owner = np.repeat(np.arange(len(counts)), counts)
-        U = self.directions
-        A = np.maximum(slots.row_values(U), 0.0)
+        pool = self.directions if hint is None else np.vstack([hint, self.directions])
+        A = np.maximum(slots.row_values(pool), 0.0)
+        work = self._first_rows(A, owner, len(hint) if hint is not None else 0, rows)
         for k in range(rounds + 1):
-            result = _solve_lp(A, owner, U)
+            result = self._solve_rows(A, owner, pool, work)
             if k == rounds or time.perf_counter() > deadline:
                 break
-            new = self._cuts(slots, result, owner)
+            new = self._cuts(slots, result, owner, samples)
             lowest = g_values(slots, result.lam, new)
             keep = new[lowest < result.lp_value * (1.0 - tolerance)]
             if not len(keep):
                 break
             self.cuts += len(keep)
-            U = np.vstack([U, keep])
+            work = np.concatenate([work, len(pool) + np.arange(len(keep))])
+            pool = np.vstack([pool, keep])
             A = np.vstack([A, np.maximum(slots.row_values(keep), 0.0)])
-        self.directions = np.vstack([self.directions, U[len(self.directions) :]])[-MAX_DIRECTIONS:]
+            self.directions = np.vstack([self.directions, keep])[-MAX_DIRECTIONS:]
         return result
 
     @staticmethod
-    def _cuts(slots: WrenchSlots, result: CellBound, owner: np.ndarray) -> np.ndarray:
+    def _first_rows(A: np.ndarray, owner: np.ndarray, hinted: int, rows: int) -> np.ndarray:
+        """The LP's first rows: the hinted ones and the ``rows`` lowest at uniform weights
+        (every row when ``rows`` is 0)."""
+        if rows <= 0:
+            return np.arange(len(A))
+        m = int(owner.max()) + 1
+        uniform = 1.0 / np.bincount(owner, minlength=m)[owner]
+        lowest = np.argsort(A @ uniform)[:rows]
+        return np.union1d(np.arange(hinted), lowest)
+
+    @staticmethod
+    def _solve_rows(A, owner, pool, work) -> CellBound:
+        """The LP on the rows ``work`` of ``A``, rows of the rest added while the LP's weights
+        fall below its value on them (row generation). The dual bound of any subset of rows is
+        valid; the loop only makes it as tight as the LP over all of them, within
+        :data:`ROW_TOLERANCE`."""
+        while True:
+            result = _solve_lp(A[work], owner, pool[work])
+            values = A @ result.lam
+            below = values < result.lp_value * (1.0 - ROW_TOLERANCE)
+            below[work] = False
+            missing = np.flatnonzero(below)
+            if not len(missing):
+                return result
+            missing = missing[np.argsort(values[missing])[:ADDED_ROWS]]
+            work = np.concatenate([work, missing])
+
+    @staticmethod
+    def _cuts(slots: WrenchSlots, result: CellBound, owner: np.ndarray, samples: int) -> np.ndarray:
         """Directions of low ``g(u; lam*)``: a descent from the working set's lowest ones."""
         lam = result.lam
         used = lam > 1e-12
@@ -316,8 +381,9 @@ class CellLP:
         )
         U = result.directions
         values = g.support(U)
-        starts = np.vstack([U[np.argsort(values)[:12]], sphere_samples(24, seed=len(U))])
-        ends, found = descend(g, starts, iterations=60)
+        lowest = U[np.argsort(values)[:CUT_LOWEST]]
+        starts = np.vstack([lowest, sphere_samples(samples, seed=len(U))])
+        ends, found = descend(g, starts, iterations=CUT_ITERATIONS)
         order = np.argsort(found)
         chosen: list[np.ndarray] = []
         for j in order:
@@ -464,6 +530,7 @@ def capacity_bound(
     heap = [_Cell(root_cell, root, 0)]
     closed = -np.inf  # the largest bound of a closed cell
     nodes, polishes, history = 1, 0, [(0.0, root.value, best_value)]
+    polish_seconds, polished_at = 0.0, -np.inf
     polisher = Placer(
         eligibility,
         PlacementOptions(
@@ -485,7 +552,8 @@ def capacity_bound(
         return ceiling() <= zero or (gap is not None and gap <= options.gap)
 
     def try_placement(cell: _Cell):
-        nonlocal best, best_value, polishes
+        nonlocal best, best_value, polishes, polish_seconds, polished_at
+        started, polished_at = time.perf_counter(), nodes
         start = _lp_placement(lp, cell)
         if start is None:
             return
@@ -493,6 +561,7 @@ def capacity_bound(
         weights = [nearest_weights(model.elements[e].vertices, x) for e, x in zip(ids, positions)]
         polishes += 1
         found = polisher(list(ids), weights)
+        polish_seconds += time.perf_counter() - started
         if _capacity(found) > best_value:
             best, best_value = found, _capacity(found)
 
@@ -502,7 +571,11 @@ def capacity_bound(
         # an exchange run takes seconds: none started in the last quarter of the budget
         late = time.perf_counter() - t0 > 0.75 * options.time_budget
         late |= nodes > 0.75 * options.max_nodes
-        if options.polish_every and (nodes - 1) % options.polish_every == 0 and not late:
+        # an exchange run every polish_every cells, while they take at most polish_share of
+        # the time: one costs seconds, as much as hundreds of cells
+        due = options.polish_every and nodes - polished_at >= options.polish_every
+        due = due and polish_seconds <= options.polish_share * (time.perf_counter() - t0)
+        if due and not late:
             try_placement(heap[0])
             if done():
                 break
@@ -514,8 +587,17 @@ def capacity_bound(
         if split is None:  # every contact on one point: the bound is its placement's own
             closed = max(closed, cell.bound.value)
             continue
+        hint = cell.bound.directions[cell.bound.y > 0.0]
         for pieces in split:
-            bound = lp.bound(pieces, options.cell_cuts, options.cut_tolerance, deadline)
+            bound = lp.bound(
+                pieces,
+                options.cell_cuts,
+                options.cut_tolerance,
+                deadline,
+                hint,
+                options.lp_rows,
+                options.cut_samples,
+            )
             if bound.value > cell.bound.value:  # the parent's bound holds for its parts too
                 bound = replace(bound, value=cell.bound.value)
             nodes += 1

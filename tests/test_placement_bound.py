@@ -46,14 +46,15 @@ def _sample(rng, eligibility, cell) -> ContactSet:
     return ContactSet(tuple(contacts), eligibility.torque_scale, eligibility.model.reference_point)
 
 
-def _violations(eligibility, elements, cells=4, samples=5, seed=0, depth=(0, 10)):
-    """(samples whose certified capacity -hi exceeds their cell's bound, force-closure samples)."""
+def _violations(eligibility, elements, cells=4, samples=5, seed=0, depth=(0, 10), rows=0):
+    """(samples whose certified capacity -hi exceeds their cell's bound, force-closure samples);
+    ``rows`` > 0: each cell's LP by row generation from that many rows."""
     rng = np.random.default_rng(seed)
     lp = CellLP(eligibility)
     bad = closure = 0
     for _ in range(cells):
         cell = _random_cell(rng, eligibility, elements, depth)
-        bound = lp.bound(cell, rounds=2, tolerance=1e-3).value
+        bound = lp.bound(cell, rounds=2, tolerance=1e-3, rows=rows).value
         for _ in range(samples):
             result = rho(_sample(rng, eligibility, cell))
             capacity = -result.bounds[1]  # certified: the true -rho is at least this
@@ -70,11 +71,12 @@ CASES = [
 
 
 @pytest.mark.parametrize("kind, mu, elements", CASES)
-def test_cell_bound_is_above_every_sampled_placement(kind, mu, elements):
+@pytest.mark.parametrize("rows", [0, 8])
+def test_cell_bound_is_above_every_sampled_placement(kind, mu, elements, rows):
     model = box_model(2.0)
     specs = contact_specs(len(elements), type=kind, mu=mu, mu_s=0.2)
     eligibility = Eligibility(model, specs, 0.5)
-    bad, closure = _violations(eligibility, elements)
+    bad, closure = _violations(eligibility, elements, rows=rows)
     assert bad == 0
     assert closure >= 8  # the samples are held: the comparison is not against zero
 
@@ -110,6 +112,23 @@ def test_dual_bound_holds_for_any_weights():
         assert (A @ lam).min() <= result.value
         y = rng.dirichlet(np.ones(30))
         assert (A @ lam).min() <= placement_bound.dual_bound(A, owner, y)
+
+
+def test_row_generation_reaches_the_full_lp():
+    """The LP started on a few rows, with rows added where its weights fall short, ends at the
+    value of the LP over every row (a loop that stopped after its first solve would not)."""
+    rng = np.random.default_rng(4)
+    owner = np.array([0, 0, 0, 1, 1, 1, 2, 2])
+    for _ in range(5):
+        A = rng.random((400, 8)) ** 3
+        pool = np.zeros((400, 6))
+        full = placement_bound._solve_lp(A, owner, pool)
+        first = CellLP._first_rows(A, owner, 0, 6)
+        assert len(first) == 6
+        generated = CellLP._solve_rows(A, owner, pool, first)
+        assert len(generated.directions) < 400  # the point of it: a smaller LP
+        assert generated.value == pytest.approx(full.value, rel=1e-5)
+        assert (A @ generated.lam).min() >= generated.lp_value * (1 - 1e-5)
 
 
 def test_capacity_bound_on_the_box():
