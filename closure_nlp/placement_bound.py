@@ -59,6 +59,7 @@ LP's placement in the best cell, every value certified by :func:`closure_nlp.qua
 from __future__ import annotations
 
 import heapq
+import threading
 import time
 from dataclasses import dataclass, field, replace
 
@@ -70,6 +71,17 @@ from .contacts import ContactSet, grasp_matrices
 from .eligibility import Eligibility
 from .sphere_search import descend, sphere_samples
 from .wrenches import WrenchSlots
+
+try:  # HiGHS's own module (a dependency of cvxpy); its plain class prints no banner
+    from highspy._core import HighsLp as _HighsLp
+    from highspy._core import HighsModelStatus as _ModelStatus
+    from highspy._core import MatrixFormat as _MatrixFormat
+    from highspy._core import _Highs
+    from highspy._core import kHighsInf as _INF
+
+    _ROWWISE, _OPTIMAL = _MatrixFormat.kRowwise, _ModelStatus.kOptimal
+except ImportError:  # pragma: no cover - scipy's linprog instead
+    _Highs = None
 
 # Relative margin added to every dual bound: the round-off of the support values a_ir (a few
 # ulps each, summed over at most a few hundred rows) is far below it.
@@ -404,28 +416,72 @@ def _solve_lp(A: np.ndarray, owner: np.ndarray, U: np.ndarray) -> CellBound:
     """``max_lam min_k (A lam)_k`` over one simplex per contact, and its certified dual bound."""
     N, R = A.shape
     m = int(owner.max()) + 1
+    solved = _highs(A, owner, m) if _Highs is not None else _linprog(A, owner, m)
+    x, duals, value = solved
+    lam = np.maximum(x[:R], 0.0)
+    totals = np.bincount(owner, lam, minlength=m)
+    lam /= totals[owner]
+    y = np.maximum(-duals, 0.0)
+    y = y / y.sum() if y.sum() > 0 else np.full(N, 1.0 / N)
+    return CellBound(dual_bound(A, owner, y), lam, y, U, value)
+
+
+_SOLVERS = threading.local()
+
+
+def _highs(A: np.ndarray, owner: np.ndarray, m: int):
+    """The LP ``min -t`` s.t. ``t - A lam <= 0``, ``sum_{r of i} lam_r = 1``, ``lam >= 0`` by
+    HiGHS itself, one solver per thread (scipy's ``linprog`` around the same solver spends
+    about 4 ms per call checking its options, 2-3 times the solve of a cell's LP):
+    (primal x (R + 1,), duals of the N inequality rows, optimal t)."""
+    solver = getattr(_SOLVERS, "highs", None)
+    if solver is None:
+        solver = _Highs()
+        solver.setOptionValue("output_flag", False)
+        solver.setOptionValue("presolve", "off")  # small dense LPs: presolve costs, finds nothing
+        _SOLVERS.highs = solver
+    N, R = A.shape
+    lp = _HighsLp()
+    lp.num_col_, lp.num_row_ = R + 1, N + m
+    lp.col_cost_ = np.r_[np.zeros(R), -1.0]
+    lp.col_lower_ = np.r_[np.zeros(R), -_INF]
+    lp.col_upper_ = np.full(R + 1, _INF)
+    lp.row_lower_ = np.r_[np.full(N, -_INF), np.ones(m)]
+    lp.row_upper_ = np.r_[np.zeros(N), np.ones(m)]
+    lp.a_matrix_.format_ = _ROWWISE
+    counts = np.bincount(owner, minlength=m)
+    lp.a_matrix_.start_ = np.r_[np.arange(N + 1) * (R + 1), N * (R + 1) + np.cumsum(counts)]
+    lp.a_matrix_.index_ = np.r_[np.tile(np.arange(R + 1), N), np.argsort(owner, kind="stable")]
+    lp.a_matrix_.value_ = np.r_[np.hstack([-A, np.ones((N, 1))]).ravel(), np.ones(R)]
+    solver.passModel(lp)
+    solver.run()
+    if solver.getModelStatus() != _OPTIMAL:  # always feasible and bounded: a solver failure
+        status = solver.modelStatusToString(solver.getModelStatus())
+        raise RuntimeError(f"capacity bound: the LP solver failed ({status})")
+    solution = solver.getSolution()
+    duals = np.asarray(solution.row_dual, float)[:N]
+    return np.asarray(solution.col_value, float), duals, -solver.getInfo().objective_function_value
+
+
+def _linprog(A: np.ndarray, owner: np.ndarray, m: int):
+    """The same LP by scipy's ``linprog`` (where HiGHS's own Python module is missing)."""
+    N, R = A.shape
     cost = np.zeros(R + 1)
     cost[-1] = -1.0
-    A_ub = np.hstack([-A, np.ones((N, 1))])
     A_eq = np.zeros((m, R + 1))
     A_eq[owner, np.arange(R)] = 1.0
     res = linprog(
         cost,
-        A_ub=A_ub,
+        A_ub=np.hstack([-A, np.ones((N, 1))]),
         b_ub=np.zeros(N),
         A_eq=A_eq,
         b_eq=np.ones(m),
         bounds=[(0.0, None)] * R + [(None, None)],
         method="highs",
     )
-    if res.status != 0:  # the LP is always feasible and bounded: a solver failure
+    if res.status != 0:
         raise RuntimeError(f"capacity bound: the LP solver failed ({res.message})")
-    lam = np.maximum(res.x[:R], 0.0)
-    totals = np.bincount(owner, lam, minlength=m)
-    lam /= totals[owner]
-    y = np.maximum(-np.asarray(res.ineqlin.marginals, float), 0.0)
-    y = y / y.sum() if y.sum() > 0 else np.full(N, 1.0 / N)
-    return CellBound(dual_bound(A, owner, y), lam, y, U, float(-res.fun))
+    return res.x, np.asarray(res.ineqlin.marginals, float), float(-res.fun)
 
 
 def dual_bound(A: np.ndarray, owner: np.ndarray, y: np.ndarray) -> float:

@@ -196,3 +196,20 @@ def test_gap_text_says_what_was_proved():
     near = SimpleNamespace(**{**base, "bound_elements": ((1, 3), (2,))}, gap=0.2, gap_reached=True)
     assert "and their neighbours" in gap_text(near)
     assert gap_text(SimpleNamespace(capacity_bound=None)) == ""
+
+
+def test_the_two_lp_solvers_agree():
+    """HiGHS called directly and through scipy's linprog give the same LP value and a dual
+    whose recomputed bound is that value."""
+    if placement_bound._Highs is None:
+        pytest.skip("highspy is not installed")
+    rng = np.random.default_rng(5)
+    owner = np.array([0, 0, 1, 1, 1, 2, 2, 2, 2])
+    for _ in range(5):
+        A = rng.random((60, 9)) ** 2
+        x1, d1, v1 = placement_bound._highs(A, owner, 3)
+        x2, d2, v2 = placement_bound._linprog(A, owner, 3)
+        assert v1 == pytest.approx(v2, rel=1e-8)
+        for d in (d1, d2):
+            y = np.maximum(-d, 0.0)
+            assert placement_bound.dual_bound(A, owner, y / y.sum()) == pytest.approx(v1, rel=1e-7)
