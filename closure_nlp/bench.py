@@ -1,5 +1,5 @@
 """Benchmarks that print JSON: ``python -m closure_nlp.bench WHAT`` (``rho``, ``rho-hat``,
-``certify``, ``engine``, ``select``, ``plan``, ``gap``, ``characterize``).
+``certify``, ``engine``, ``select``, ``plan``, ``plans``, ``seeds``, ``gap``, ``characterize``).
 
 Timings are medians over seeded random cases with every solver built and warmed up first, and
 each is compared in the same process with a paper-style baseline: scipy SLSQP started from the
@@ -581,6 +581,105 @@ FIXTURE_TARGETS = {
 }
 
 
+# One process per checkout: the command line's plan options for one example, every solver built
+# and kernel compiled by a plan on another seed first; then one JSON line per seed read on stdin.
+_PLANS_RUNNER = """
+import json, sys, time
+from closure_nlp import cli
+from closure_nlp.placement import Placer
+from closure_nlp.planning import plan
+argv = json.loads(sys.argv[1])
+args = cli.build_parser().parse_args(argv)
+eligibility = cli._eligibility(args, args.contacts, closure=True)
+placer = Placer(eligibility, cli._placement_options(args, False))
+plan(eligibility, seed=1000, placer=placer)
+print("ready", flush=True)
+for line in sys.stdin:
+    t = time.perf_counter()
+    r = plan(eligibility, seed=int(line), placer=placer)
+    wall = time.perf_counter() - t
+    p = r.placement
+    print(json.dumps({
+        "wall_s": wall,
+        "selection_s": r.heuristic.seconds + r.iterative.seconds,
+        "placement_s": p.seconds,
+        "ceiling_s": getattr(p, "bound_seconds", 0.0),
+        "rho": p.rho,
+        "force_closure": bool(p.force_closure),
+        "rounds": p.rounds,
+        "attempts": len(r.attempts),
+        "ceiling": getattr(p, "capacity_bound", None),
+    }), flush=True)
+"""
+
+# The command lines of ``bench plans``: each example as the README plans it (CLI defaults,
+# automatic torque scale, mu 0.2, mu_s 0.2 as in the paper), one seed at a time.
+PLANS_ARGV = {
+    name: ["--contacts", str(setup["m"]), "--type", setup["type"], "--mu", "0.2", "--mu-s", "0.2"]
+    for name, setup in PAPER_EXAMPLES.items()
+}
+
+
+def bench_plans(seeds=(1, 2, 3), baseline=None, names=None, extra=()) -> dict:
+    """The command line's default plan of one seed on each example (:data:`PLANS_ARGV`, plus
+    ``extra`` flags): wall seconds, the selection's, the placement's and its ceiling's, and rho,
+    medians over ``seeds``. Each checkout (this one; ``baseline``, another checkout's folder,
+    e.g. a ``git worktree`` of an earlier commit) runs in its own process, its solvers built and
+    kernels compiled first; the seeds alternate between them (the order swapped every seed), so
+    both see the same load. Ratios baseline / ours."""
+    import subprocess
+
+    here = str(Path(__file__).resolve().parents[1])
+    checkouts = {"ours": here}
+    if baseline is not None:
+        checkouts["baseline"] = str(Path(baseline).resolve())
+    report = {"benchmark": "plans", "seeds": list(seeds), "load_before": _load(), "models": {}}
+    for name in names or PAPER_EXAMPLES:
+        argv = ["plan", str(MODELS_DIR / f"{name}.model.json"), *PLANS_ARGV[name], *extra]
+        procs = {}
+        for run, path in checkouts.items():
+            procs[run] = subprocess.Popen(
+                [sys.executable, "-c", _PLANS_RUNNER, json.dumps(argv)],
+                stdin=subprocess.PIPE,
+                stdout=subprocess.PIPE,
+                text=True,
+                env={**os.environ, "PYTHONPATH": path, "MPLBACKEND": "Agg"},
+                cwd=path,  # ``python -c`` puts the working folder first on the path
+            )
+        rows = {run: [] for run in checkouts}
+        try:
+            for proc in procs.values():
+                if proc.stdout.readline().strip() != "ready":
+                    raise RuntimeError(f"bench plans: a runner for {name} did not start")
+            for i, seed in enumerate(seeds):
+                order = list(procs) if i % 2 == 0 else list(procs)[::-1]
+                for run in order:
+                    procs[run].stdin.write(f"{seed}\n")
+                    procs[run].stdin.flush()
+                    rows[run].append(json.loads(procs[run].stdout.readline()))
+        finally:
+            for proc in procs.values():
+                proc.stdin.close()
+                proc.wait()
+        entry = {}
+        for run, found in rows.items():
+            entry[run] = {
+                key: float(np.median([r[key] for r in found]))
+                for key in ("wall_s", "selection_s", "placement_s", "ceiling_s", "rho")
+            }
+            entry[run]["rho_each"] = [r["rho"] for r in found]
+            entry[run]["force_closure"] = sum(r["force_closure"] for r in found)
+        if "baseline" in entry:
+            for key in ("wall_s", "placement_s"):
+                entry[f"ratio_{key}_baseline_over_ours"] = (
+                    entry["baseline"][key] / entry["ours"][key]
+                )
+        report["models"][name] = entry
+        print(json.dumps({name: entry}), file=sys.stderr, flush=True)  # a long run's progress
+    report["load_after"] = _load()
+    return report
+
+
 def _load() -> float:
     import os
 
@@ -795,6 +894,11 @@ def main(argv=None) -> int:
     p = sub.add_parser("plan", help="plan on the example models, against the former options")
     p.add_argument("--seeds", type=int, default=3)
     p.add_argument("--models", default=",".join(PAPER_EXAMPLES), help="e.g. lamp,cup")
+    p = sub.add_parser("plans", help="the command line's plan per example, against a checkout")
+    p.add_argument("--seeds", default="1,2,3", help="comma-separated seeds")
+    p.add_argument("--models", default=",".join(PAPER_EXAMPLES), help="e.g. lamp,cup")
+    p.add_argument("--baseline", help="folder of another checkout (e.g. a git worktree)")
+    p.add_argument("--flags", default="", help="further plan flags, e.g. '--bound-cells 40'")
     p = sub.add_parser("seeds", help="plans of several seeds: efficiency, fixtures, examples")
     p.add_argument("--seeds", type=int, default=8)
     p.add_argument("--parts", default="efficiency,fixtures,examples")
@@ -826,6 +930,9 @@ def main(argv=None) -> int:
         report = bench_model_size(args.subdivisions, args.repeats)
     elif args.what == "plan":
         report = bench_plan(args.seeds, names=args.models.split(","))
+    elif args.what == "plans":
+        seeds = [int(x) for x in args.seeds.split(",")]
+        report = bench_plans(seeds, args.baseline, args.models.split(","), args.flags.split())
     elif args.what == "gap":
         names = args.models.split(",")
         budgets = {name: args.budget for name in names} if args.budget else None

@@ -304,10 +304,11 @@ def _add_bound_options(parser) -> None:
     g.add_argument(
         "--bound-cells",
         type=_bounded_int(1, 10**6, "the number of cells"),
-        default=40,
+        default=PlacementOptions.bound_cells,
         metavar="N",
-        help="cells of that search's branch and bound at most (default 40: the same answer on "
-        "any machine)",
+        help="cells of that search's branch and bound at most (default 1, the root ceiling; "
+        "40 tightens it by a few points at several times the cost; the same answer on any "
+        "machine)",
     )
     g.add_argument(
         "--time-budget",

@@ -54,7 +54,7 @@ MIN_RADIUS = 1e-9
 # the new weights start it, besides a quarter of the default's samples. Against the default
 # search from the best direction alone, on 658 rounds of 12 placements (lamp, cup, pistol), each
 # also judged by the other search: it found the weaker direction on 102 rounds, the default on 48.
-ROUND_SEARCH = SearchOptions(samples=32, smoothing=(0.03,), ipopt_starts=2)
+ROUND_SEARCH = SearchOptions(samples=32, smoothing=(0.03,), ipopt_starts=2, ipopt_polish=False)
 WARM_DIRECTIONS = 4
 
 
@@ -139,8 +139,11 @@ class PlacementOptions:
     target_gap : float
         Relative gap ``(ceiling - capacity) / ceiling`` at which that search stops (0.02).
     bound_cells : int
-        Cells the branch and bound of that search may bound (40): a budget that gives the same
-        answer on any machine.
+        Cells the branch and bound of that search may bound: a budget that gives the same
+        answer on any machine. The default, 1, is the root cell alone: the ceiling over every
+        placement with its cutting planes, a fraction of the exchange method's time. More cells
+        tighten it by a few points and may find a better placement, at several times the
+        exchange method's time for 40 cells (docs/placement.md).
     time_budget : float or None
         Seconds that search may take besides (None, the default: no limit in seconds). When a
         budget ends first, the gap reached is reported as such.
@@ -164,7 +167,7 @@ class PlacementOptions:
     validate: bool = True
     bound: bool = True
     target_gap: float = 0.02
-    bound_cells: int = 40
+    bound_cells: int = 1
     time_budget: float | None = None
 
     def __post_init__(self) -> None:

@@ -22,7 +22,9 @@ from .quality import SearchOptions, signed_distance
 from .validation import as_flag, as_id_list, is_whole
 
 # The light search that ranks the iterative algorithm's neighbours: few samples, one IPOPT run.
-SCREEN_SEARCH = SearchOptions(samples=16, smoothing=(), ipopt_starts=1, element_ipopt_starts=1)
+SCREEN_SEARCH = SearchOptions(
+    samples=16, smoothing=(), ipopt_starts=1, element_ipopt_starts=1, ipopt_polish=False
+)
 
 
 @dataclass(frozen=True)
