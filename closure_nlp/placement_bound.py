@@ -728,7 +728,8 @@ def gap_text(result) -> str:
     where = "these elements"
     if any(len(ids) > 1 for ids in result.bound_elements):
         where += " and their neighbours"
-    ceiling = f"certified ceiling {result.capacity_bound:.6g}, {result.bound_nodes} cells"
+    cells = f"{result.bound_nodes} cell" + ("s" if result.bound_nodes != 1 else "")
+    ceiling = f"certified ceiling {result.capacity_bound:.6g}, {cells}"
     if result.gap is None:
         if result.gap_reached:
             return f"no placement on {where} is force closure ({ceiling})"

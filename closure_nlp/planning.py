@@ -450,6 +450,21 @@ def _seeds_markdown(spread) -> list[str]:
             f"| {run.seed}{chosen} | {p.rho:.4f} | {verdict} | {_ids(p.elements)} "
             f"| {run.seconds:.2f} |"
         )
+    sets = spread.element_sets()
+    if any(row["ceiling"] is not None for row in sets):
+        rows += [
+            "",
+            "Element sets placed on, with the certified ceiling on -rho of any placement on them "
+            "(and their neighbours):",
+            "",
+            "| elements | seeds | best rho | ceiling |",
+            "|---|---|---|---|",
+        ]
+        for row in sets:
+            ceiling = "-" if row["ceiling"] is None else f"{row['ceiling']:.4f}"
+            rows.append(
+                f"| {_ids(row['elements'])} | {row['seeds']} | {row['best_rho']:.4f} | {ceiling} |"
+            )
     return rows
 
 

@@ -62,6 +62,7 @@ class SeedRun:
             "marginal": p.marginal,
             "selected": list(r.iterative.elements),
             "elements": list(p.elements),
+            "capacity_bound": getattr(p, "capacity_bound", None),
             "attempts": len(r.attempts),
             "reused": list(r.reused),
             "seconds": self.seconds,
@@ -99,17 +100,29 @@ class SeedSpread:
         return np.array([run.result.placement.rho for run in self.runs if run.ok])
 
     def element_sets(self) -> list[dict]:
-        """The element sets placed on (multisets, as sorted ids), how many seeds ended on each
-        and the best rho there; most often met first."""
-        met: dict[tuple, list[float]] = {}
+        """The element sets placed on (multisets, as sorted ids), how many seeds ended on each,
+        the best rho there and the certified ceiling on ``-rho`` of any placement on them (the
+        lowest of those seeds' ceilings, each of which covers the set; None without one); most
+        often met first."""
+        met: dict[tuple, list] = {}
         for run in self.runs:
             if run.ok:
-                key = tuple(sorted(run.result.placement.elements))
-                met.setdefault(key, []).append(run.result.placement.rho)
-        rows = [
-            {"elements": list(key), "seeds": len(values), "best_rho": min(values)}
-            for key, values in met.items()
-        ]
+                placed = run.result.placement
+                key = tuple(sorted(placed.elements))
+                met.setdefault(key, []).append(
+                    (placed.rho, getattr(placed, "capacity_bound", None))
+                )
+        rows = []
+        for key, found in met.items():
+            ceilings = [c for _, c in found if c is not None]
+            rows.append(
+                {
+                    "elements": list(key),
+                    "seeds": len(found),
+                    "best_rho": min(rho for rho, _ in found),
+                    "ceiling": min(ceilings) if ceilings else None,
+                }
+            )
         return sorted(rows, key=lambda row: (-row["seeds"], row["best_rho"]))
 
     def to_dict(self) -> dict:

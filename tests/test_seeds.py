@@ -71,11 +71,13 @@ def test_seeds_over_processes_equal_the_seeds_one_by_one_and_the_spread_is_their
         assert met[tuple(sorted(r["elements"]))] >= 1
 
 
-def fake_result(rho: float, force_closure: bool, marginal: bool, elements) -> PlanResult:
+def fake_result(
+    rho: float, force_closure: bool, marginal: bool, elements, ceiling=None
+) -> PlanResult:
     """A plan's result with only what the spread reads."""
     placement = SimpleNamespace(
         rho=rho, force_closure=force_closure, marginal=marginal, elements=tuple(elements),
-        bounds=(rho, rho),
+        bounds=(rho, rho), capacity_bound=ceiling,
     )
     selection = SimpleNamespace(elements=tuple(elements))
     return PlanResult(selection, selection, placement, 0.0, (), ())
@@ -83,11 +85,11 @@ def fake_result(rho: float, force_closure: bool, marginal: bool, elements) -> Pl
 
 # seed -> what its plan does: ends with a result, ends marginal, fails
 OUTCOMES = {
-    0: fake_result(-0.2, True, False, [0, 1, 2, 3]),
+    0: fake_result(-0.2, True, False, [0, 1, 2, 3], ceiling=0.6),
     1: fake_result(0.0, False, True, [0, 1, 2, 4]),
     2: RuntimeError("no placement"),
-    3: fake_result(-0.5, True, False, [3, 2, 1, 0]),
-    4: fake_result(-0.1, True, False, [0, 1, 2, 3]),
+    3: fake_result(-0.5, True, False, [3, 2, 1, 0], ceiling=0.55),
+    4: fake_result(-0.1, True, False, [0, 1, 2, 3], ceiling=0.7),
 }
 
 
@@ -112,10 +114,12 @@ def test_a_failed_or_marginal_seed_does_not_stop_the_plan(monkeypatch, workers):
     }
     assert (spread["best_rho"], spread["worst_rho"]) == (-0.5, 0.0)
     assert spread["median_rho"] == pytest.approx(-0.15, rel=1e-12)  # of -0.2, 0.0, -0.5, -0.1
+    # each seed's ceiling covers every placement on its set: the lowest is the set's
     assert spread["element_sets"] == [
-        {"elements": [0, 1, 2, 3], "seeds": 3, "best_rho": -0.5},
-        {"elements": [0, 1, 2, 4], "seeds": 1, "best_rho": 0.0},
+        {"elements": [0, 1, 2, 3], "seeds": 3, "best_rho": -0.5, "ceiling": 0.55},
+        {"elements": [0, 1, 2, 4], "seeds": 1, "best_rho": 0.0, "ceiling": None},
     ]
+    assert [r.get("capacity_bound") for r in spread["runs"]] == [0.6, None, None, 0.55, 0.7]
     assert "; 3 force closure, 1 marginal, 1 failed;" in best.seeds.line()
 
 
