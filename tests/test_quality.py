@@ -329,3 +329,30 @@ def test_outside_the_set_one_ipopt_run_finds_the_distance(kinds, solver):
             assert found.stats.ipopt_runs == (1 if solver == "ipopt" else 0)
             checked += 1
     assert checked >= 4
+
+
+def test_a_search_alone_ends_with_one_ipopt_run_from_the_compiled_runs_best():
+    """solver="auto": the compiled minimiser from every start, then one IPOPT run from the best
+    direction (``ipopt_polish``), whose lower value is kept; without the polish the compiled
+    runs alone, and no IPOPT run at all."""
+    import dataclasses
+
+    from closure_nlp.quality import SearchOptions, SupportMinimizer
+    from closure_nlp.wrenches import WrenchSlots
+
+    polished = SupportMinimizer(search=SearchOptions(ipopt_starts=2))
+    alone = polished.with_search(SearchOptions(ipopt_starts=2, ipopt_polish=False))
+    held = 0
+    for seed in range(4):
+        cs = random_contact_set(np.random.default_rng(seed), ["pcwf"] * 4, mu=0.5)
+        slots = WrenchSlots.from_contacts(cs)
+        a, b = polished(slots), alone(slots)
+        assert a.stats.ipopt_runs == 1 and b.stats.ipopt_runs == 0
+        assert b.stats.solver in ("local", "descent")
+        assert a.value <= b.value  # the polish keeps the lower value: the same starts and runs
+        ref = reference.support(a.direction, reference.from_contact_set(cs))
+        assert a.value == pytest.approx(ref, abs=1e-12 * max(1.0, abs(ref)))
+        held += a.value > 0
+    assert held >= 1  # force closure among them: the regime where the polish matters
+    with pytest.raises((TypeError, ValueError), match="ipopt_polish"):
+        dataclasses.replace(SearchOptions(), ipopt_polish="yes")
