@@ -811,9 +811,9 @@ def _gap_run(placer, elements, today, budget: float, **settings) -> dict:
 
 
 # The ceiling's former settings, for a comparison in the same process (bench gap --compare):
-# every exchange run the schedule asks for, a cell's cut descent from 24 more quasi-random
-# directions, every working-set direction a row of every cell's LP.
-FORMER_BOUND = {"polish_share": 1.0, "cut_samples": 24, "lp_rows": 0}
+# every exchange run the schedule asks for, every working-set direction a row of every cell's
+# LP (the LP solver itself is the same in both runs).
+FORMER_BOUND = {"polish_share": 1.0, "lp_rows": 0}
 
 
 def bench_gap(
@@ -863,6 +863,74 @@ def bench_gap(
     return report
 
 
+UNITS_GRASPS = {"4 PCwF": (4, "pcwf"), "7 FPC": (7, "fpc")}
+
+
+def bench_units(margins=(0.0, 0.02, 0.05), seed: int = 0) -> dict:
+    """Same part, same answer: pybullet's domino characterized in metres and, from the same
+    triangles scaled x1000, in millimetres; elements selected once (``plan`` in metres, seed
+    ``seed``), then placed in both units with the ceiling (CLI defaults, automatic torque
+    scale and mu_s, mu 0.2) under margins of ``margins`` times the part's size (the largest
+    side of its bounding box). Each pair's certified capacities must differ by at most the
+    larger gap times the smaller ceiling (``agree``). Needs pybullet's data (``pybullet_data``)."""
+    import trimesh
+
+    from .characterize import characterize_mesh
+    from .elements import part_size
+    from .margin import with_margin
+    from .scale import resolve
+
+    try:
+        import pybullet_data
+    except ImportError:
+        return {"benchmark": "units", "skipped": "pybullet_data is not installed"}
+    path = Path(pybullet_data.getDataPath()) / "domino" / "domino.obj"
+    models = {}
+    for units, factor in (("m", 1.0), ("mm", 1000.0)):
+        mesh = trimesh.load(str(path), force="mesh")
+        mesh.apply_scale(factor)
+        models[units] = characterize_mesh(mesh, units=units, name="domino").model
+    report = {"benchmark": "units", "part": "pybullet domino", "seed": seed, "grasps": {}}
+    for grasp, (m, kind) in UNITS_GRASPS.items():
+        rows = []
+        elements = None
+        for margin in margins:
+            row = {"margin": margin}
+            for units, model in models.items():
+                size = part_size(model.elements)
+                shrunk, dropped = with_margin(model, margin * size)
+                scale = resolve(model)
+                specs = contact_specs(m, type=kind, mu_s=scale.mu_s)
+                eligibility = Eligibility(shrunk, specs, scale.torque_scale)
+                if elements is None:
+                    elements = list(plan(eligibility, seed=seed).iterative.elements)
+                if any(e in dropped for e in elements):
+                    row[units] = {"error": "an element is too small for the margin"}
+                    continue
+                load, t0 = _load(), time.perf_counter()
+                placed = Placer(eligibility)(elements)
+                row[units] = {
+                    "margin_length": margin * size,
+                    "rho": placed.rho,
+                    "capacity": -placed.bounds[1],
+                    "capacity_bound": placed.capacity_bound,
+                    "gap": placed.gap,
+                    "bound_nodes": placed.bound_nodes,
+                    "seconds": time.perf_counter() - t0,
+                    "load": load,
+                }
+            a, b = row.get("m", {}), row.get("mm", {})
+            if a.get("gap") is not None and b.get("gap") is not None:
+                allowed = max(a["gap"], b["gap"]) * min(a["capacity_bound"], b["capacity_bound"])
+                larger = max(a["capacity"], b["capacity"])
+                difference = abs(a["capacity"] - b["capacity"])
+                row["difference"] = difference / larger
+                row["agree"] = bool(difference <= allowed + 1e-6 * larger)
+            rows.append(row)
+        report["grasps"][grasp] = {"elements": elements, "rows": rows}
+    return report
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m closure_nlp.bench", description=__doc__)
     sub = parser.add_subparsers(dest="what", required=True)
@@ -909,6 +977,8 @@ def main(argv=None) -> int:
     p.add_argument("--neighbours", action="store_true", help="the ceiling over neighbours too")
     p.add_argument("--compare", action="store_true", help="the former settings too, after")
     p.add_argument("--budget", type=float, help="seconds per model (default: 30, pistol 60)")
+    p = sub.add_parser("units", help="pybullet's domino in m and mm, placed under margins")
+    p.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
     from .kernels import warm_up
 
@@ -933,6 +1003,8 @@ def main(argv=None) -> int:
     elif args.what == "plans":
         seeds = [int(x) for x in args.seeds.split(",")]
         report = bench_plans(seeds, args.baseline, args.models.split(","), args.flags.split())
+    elif args.what == "units":
+        report = bench_units(seed=args.seed)
     elif args.what == "gap":
         names = args.models.split(",")
         budgets = {name: args.budget for name in names} if args.budget else None
