@@ -32,8 +32,9 @@ whose bound reaches the incumbent minus the allowed gap are dropped; the others 
 their widest coordinate, until none is left or the budget is spent. The minimum over the sphere
 then lies in ``[min over dropped and live cells of their bounds, incumbent]``.
 
-The cells, bounds and matrix games run compiled (:mod:`closure_nlp.kernels.branch_bound`), one
-call per step of a round; this module drives the rounds, the budget and the local solver.
+The rounds run compiled (:func:`closure_nlp.kernels.branch_bound.advance`), in one call until
+the search ends or wants its incumbent polished; this module sets the budget and runs the
+local solver.
 """
 
 from __future__ import annotations
@@ -51,7 +52,7 @@ MAX_POLISH = 8  # local solves per branch and bound: each cheap; the first ones 
 # Per unit of wrench scale: covers the float64 roundoff of support values and support points
 # (a few ulps of sums of m terms), far below any tolerance of the package.
 ROUNDOFF = 1e-13
-CELLS_PER_ROUND = 128  # children per round while few cells live: fewer rounds, fewer calls
+CELLS_PER_ROUND = 128  # children per round while few cells live: fewer rounds
 
 
 @dataclass(frozen=True)
@@ -183,70 +184,44 @@ def sphere_minimum(
 
     if incumbent is not None:
         consider(incumbent)
-    axis, sign, lo, hi = _initial_cells(options.initial_splits)
-    lower_dropped = np.inf
-    cells = rounds = polished = 0
-    polished_at = best[0]
-    converged = False
-    alive_at_budget = None  # cells alive after the round that reached max_cells
-    while True:
-        kernels.sample_cells(*packed, axis, sign, lo, hi, metric, best, best_u)
-        cells += len(lo)
-        rounds += 1
-        if polish is not None and polished < MAX_POLISH and best[0] < polished_at - gap:
-            consider(polish(best_u.copy()))
-            polished, polished_at = polished + 1, best[0]
-        if options.stop_below_zero and best[0] < -margin:
-            lower = -np.inf
-            break
-        target = best[0] - gap  # the round's: refinements may lower the incumbent meanwhile
-        bound = kernels.bound_cells(
-            *packed,
-            axis,
-            sign,
-            lo,
-            hi,
-            metric,
-            target,
+    tally = np.array([np.inf, 0, 0, -1, best[0], 0], dtype=float)
+    settings = np.array(
+        [
+            gap,
             margin,
             options.fw_steps,
             options.refine_below,
-            best,
-            best_u,
-            anchor,
-            anchor_at,
+            options.max_cells,
+            options.extended_cells,
+            options.extension_alive,
+            options.max_rounds,
+            options.stop_below_zero,
+            CELLS_PER_ROUND,
+            0 if polish is None else MAX_POLISH,
+        ],
+        dtype=float,
+    )
+    cells = (*_initial_cells(options.initial_splits), *kernels.no_samples())
+    evaluated = False
+    while True:
+        status, *cells = kernels.advance(
+            *packed, *cells, evaluated, metric, best, best_u, anchor, anchor_at, tally, settings
         )
-        live = bound < target
-        if (~live).any():
-            lower_dropped = min(lower_dropped, float(bound[~live].min()))
-        if not live.any():
-            converged = True
-            lower = lower_dropped
+        if status != kernels.POLISH:
             break
-        alive = int(live.sum())
-        if cells >= options.max_cells and alive_at_budget is None:
-            alive_at_budget = alive
-        extending = alive_at_budget is not None and alive <= max(
-            options.extension_alive, 2 * alive_at_budget
-        )
-        if (
-            rounds >= options.max_rounds
-            or cells >= max(options.max_cells, options.extended_cells)
-            or (cells >= options.max_cells and not extending)
-        ):
-            lower = min(lower_dropped, float(bound[live].min()))
-            break
-        axis, sign, lo, hi = kernels.halve(
-            axis[live], sign[live], lo[live], hi[live], CELLS_PER_ROUND
-        )
+        consider(polish(best_u.copy()))
+        tally[kernels.POLISHES] += 1
+        tally[kernels.POLISHED_AT] = best[0]
+        evaluated = True  # the same cells, already evaluated: on to their bounds
+    lower = tally[kernels.LOWER]
     return SphereBounds(
         float(min(lower, best[0])),
         float(best[0]),
         best_u.copy(),
-        converged,
-        cells,
+        status == kernels.CONVERGED,
+        int(tally[kernels.CELLS]),
         int(best[1]),
-        rounds,
+        int(tally[kernels.ROUNDS]),
         time.perf_counter() - start,
     )
 

@@ -173,8 +173,7 @@ class WrenchSlots:
 
     def row_terms(self, U: np.ndarray):
         """Row values ``p_{W_ij}`` (N, K) and each row's largest friction piece (N, K) int."""
-        G, f, W, npc, _ = self.packed
-        return kernels.rows_many(G, f, W, npc, _directions(U))
+        return kernels.rows_many(*self.packed, _directions(U))
 
     def _normal_wrenches(self) -> np.ndarray | None:
         """``f_max`` times each row's normal column (K, 6) when no row has friction (FPC, or
@@ -198,8 +197,7 @@ class WrenchSlots:
 
     def row_support(self, U: np.ndarray):
         """Each row's value ``p_{W_ij}(u)`` and support wrench (gradient): (N, K), (N, K, 6)."""
-        G, f, W, npc, _ = self.packed
-        return kernels.row_wrenches_many(G, f, W, npc, _directions(U))
+        return kernels.row_wrenches_many(*self.packed, _directions(U))
 
     def evaluate(self, U: np.ndarray):
         """``p(u)`` and a wrench attaining it (its gradient where unique): (N,), (N, 6)."""

@@ -72,9 +72,12 @@ def test_cell_bounds_hold_under_the_reference(kind):
     pick = rng.choice(len(lo), 40, replace=False)
     axis, sign, lo, hi = axis[pick], sign[pick], lo[pick], hi[pick]
     best, best_u = np.array([np.inf, 0.0]), np.zeros(6)
-    kernels.sample_cells(*slots.packed, axis, sign, lo, hi, np.ones(6), best, best_u)
+    U, points, values = (np.empty((len(pick), *shape)) for shape in ((11, 6), (11, 6), (11,)))
+    kernels.evaluate_cells(
+        *slots.packed, axis, sign, lo, hi, np.ones(6), U, points, values, best, best_u
+    )
     bound = kernels.bound_cells(
-        *slots.packed, axis, sign, lo, hi, np.ones(6), np.inf, 0.0, 12, 10.0,
+        *slots.packed, axis, sign, lo, hi, np.ones(6), U, points, values, np.inf, 0.0, 12, 10.0,
         best, best_u, np.empty((kernels.ANCHORS, 6)), np.zeros(7),
     )  # fmt: skip
     for n in range(len(pick)):

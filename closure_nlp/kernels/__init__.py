@@ -46,7 +46,7 @@ _cache_dir_fallback()
 # The kernels called from Python (the others are compiled into them): warm_up calls each.
 ENTRY_POINTS = {
     "support": ("support_many", "evaluate_many", "rows_many", "row_wrenches_many", "slots_many"),
-    "branch_bound": ("consider", "sample_cells", "bound_cells", "halve"),
+    "branch_bound": ("consider", "advance"),
     "nearest_point": ("min_norm_point", "nearest_point_bounds"),
     "descent": ("descend_many", "local_minimum"),
 }

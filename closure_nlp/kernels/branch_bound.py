@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .support import OPTIONS, support_point, support_value
+from .support import OPTIONS, scratch, set_value, support_point
 
 SAMPLES = 11  # a cell's centre and the ends of its five axes
 CORNERS = 32
@@ -333,9 +333,10 @@ def cloud(u, scales, out):
 def consider(G, f, W, npc, ends, U, points, best, best_u):
     """Support values and points (into ``points``) of unit directions ``U``; the lowest value
     updates the incumbent. Returns the index of the lowest of ``U``."""
+    D = scratch(f)
     low, at = np.inf, 0
     for n in range(len(U)):
-        v = support_point(G, f, W, npc, ends, U[n], points[n])
+        v = support_point(G, f, W, npc, ends, U[n], points[n], D)
         if v < low:
             low, at = v, n
     best[1] += len(U)
@@ -346,93 +347,161 @@ def consider(G, f, W, npc, ends, U, points, best, best_u):
 
 
 @njit(**OPTIONS)
-def sample_cells(G, f, W, npc, ends, axis, sign, lo, hi, metric, best, best_u):
-    """Evaluate every cell's 11 samples (values only); the lowest updates the incumbent."""
-    U = np.empty((SAMPLES, 6))
+def evaluate_cells(G, f, W, npc, ends, axis, sign, lo, hi, metric, U, points, values, best, best_u):
+    """Every cell's 11 samples: unit directions ``U`` (N, 11, 6), support points ``points``
+    (N, 11, 6) and values ``values`` (N, 11), filled in place; the lowest updates the
+    incumbent."""
+    D = scratch(f)
     for n in range(len(axis)):
-        cell_samples(axis[n], sign[n], lo[n], hi[n], metric, U)
+        cell_samples(axis[n], sign[n], lo[n], hi[n], metric, U[n])
         for s in range(SAMPLES):
-            v = support_value(G, f, W, npc, ends, U[s])
+            v = set_value(G, f, W, npc, ends, U[n, s], D, points[n, s], None, None)
+            values[n, s] = v
             if v < best[0]:
                 best[0] = v
-                best_u[:] = U[s]
+                best_u[:] = U[n, s]
     best[1] += SAMPLES * len(axis)
 
 
 @njit(**OPTIONS)
 def bound_cells(
-    G,
-    f,
-    W,
-    npc,
-    ends,
-    axis,
-    sign,
-    lo,
-    hi,
-    metric,
-    target,
-    margin,
-    fw_steps,
-    refine_below,
-    best,
-    best_u,
-    anchor,
-    anchor_at,
-):
-    """Lower bounds of ``p`` over every cell (N,): each cheaper bound first, the next only for
-    the cells it leaves below ``target``. Single support points of the samples (exact on a
-    linear piece of ``p``); Frank-Wolfe combinations with the incumbent's anchors (second
-    order at a kink, approximately); in small cells, the exact best combination of more
-    support points (the corners and a cloud around the lowest sample)."""
+    G, f, W, npc, ends, axis, sign, lo, hi, metric, U, points, values, target, margin,
+    fw_steps, refine_below, best, best_u, anchor, anchor_at,
+):  # fmt: skip
+    """Lower bounds of ``p`` over every cell (N,), from its evaluated samples
+    (:func:`evaluate_cells`): each cheaper bound first, the next only for the cells it leaves
+    below ``target``. Single support points of the samples (exact on a linear piece of
+    ``p``); Frank-Wolfe combinations with the incumbent's anchors (second order at a kink,
+    approximately); in small cells, the exact best combination of more support points (the
+    corners and a cloud around the lowest sample)."""
     N = len(axis)
     out = np.empty(N)
-    U = np.empty((SAMPLES, 6))
     pool_size = SAMPLES + ANCHORS + CORNERS + 21
     pool = np.empty((pool_size, 6))
-    values = np.empty(SAMPLES)
     centre = np.empty(6)
     corners = np.empty((CORNERS, 6))
     unit = np.empty((CORNERS, 6))
     lam = np.empty(pool_size)
     wbar = np.empty(6)
     refine = np.array([0.25, 0.01])
+    more = np.empty((CORNERS + 21, 6))
+    directions = np.empty((ANCHORS, 6))
     anchored = False
     for n in range(N):
-        cell_samples(axis[n], sign[n], lo[n], hi[n], metric, U)
-        for s in range(SAMPLES):
-            values[s] = support_point(G, f, W, npc, ends, U[s], pool[s])
         delta, nearest = cell_geometry(
             axis[n], sign[n], lo[n], hi[n], metric, centre, corners, unit
         )
         bound = -np.inf
         for s in range(SAMPLES):
-            bound = max(bound, box_bound(pool[s], corners, unit, nearest))
+            bound = max(bound, box_bound(points[n, s], corners, unit, nearest))
         bound -= margin
         if bound < target:
             if not anchored and (anchor_at[6] == 0.0 or not np.array_equal(anchor_at[:6], best_u)):
                 # the incumbent's anchors: taken once per round, when first needed
-                directions = np.empty((ANCHORS, 6))
                 cloud(best_u, ANCHOR_SCALES, directions)
                 anchor_at[:6] = best_u
                 anchor_at[6] = 1.0
                 consider(G, f, W, npc, ends, directions, anchor, best, best_u)
             anchored = True
             size = SAMPLES + ANCHORS
+            pool[:SAMPLES] = points[n]
             pool[SAMPLES:size] = anchor
             cap = frank_wolfe(pool, size, centre, delta, fw_steps, lam, wbar)
             box = box_bound(wbar, corners, unit, nearest)
             bound = max(bound, max(cap, box) - margin)
             if bound < target and delta < refine_below:
-                lowest = U[np.argmin(values)].copy()
-                more = np.empty((CORNERS + 21, 6))
                 more[:CORNERS] = unit
-                cloud(lowest, refine * delta, more[CORNERS:])
+                cloud(U[n, np.argmin(values[n])], refine * delta, more[CORNERS:])
                 consider(G, f, W, npc, ends, more, pool[size:], best, best_u)
                 exact = exact_bound(pool, pool_size, corners, unit, nearest)
                 bound = max(bound, exact - margin)
         out[n] = bound
     return out
+
+
+def no_samples():
+    """Empty samples (U, points, values) for :func:`advance`'s first call."""
+    return np.empty((0, SAMPLES, 6)), np.empty((0, SAMPLES, 6)), np.empty((0, SAMPLES))
+
+
+# What :func:`advance` stops for.
+CONVERGED, BUDGET, BELOW_ZERO, POLISH = 0, 1, 2, 3
+# ``tally`` (float64): the search's state between calls of :func:`advance`.
+LOWER, CELLS, ROUNDS, ALIVE_AT_BUDGET, POLISHED_AT, POLISHES = range(6)
+# ``settings`` (float64): its budget and tolerances.
+(
+    GAP, MARGIN, FW_STEPS, REFINE_BELOW, MAX_CELLS, EXTENDED_CELLS, EXTENSION_ALIVE, MAX_ROUNDS,
+    STOP_BELOW_ZERO, CELLS_PER_ROUND, MAX_POLISH,
+) = range(11)  # fmt: skip
+
+
+@njit(**OPTIONS)
+def advance(
+    G, f, W, npc, ends, axis, sign, lo, hi, U, points, values, evaluated, metric, best,
+    best_u, anchor, anchor_at, tally, settings,
+):  # fmt: skip
+    """Rounds of the branch and bound (evaluate every live cell, bound it, drop the cells
+    whose bound reaches the incumbent minus the gap, halve the others) until it converges,
+    spends its budget, meets ``p < 0`` (with ``settings[STOP_BELOW_ZERO]``), or its samples
+    lowered the incumbent by more than the gap since the last polish and a polish is left
+    (``POLISH``: the caller runs its local solver and calls again with the same cells,
+    ``evaluated`` true). ``tally[LOWER]`` holds the least bound of the dropped cells, and once
+    stopped unconverged, of the live ones too.
+
+    Returns (status, axis, sign, lo, hi, U, points, values): the live cells and their
+    samples."""
+    gap, margin = settings[GAP], settings[MARGIN]
+    max_cells, extended = settings[MAX_CELLS], settings[EXTENDED_CELLS]
+    while True:
+        if not evaluated:
+            N = len(axis)
+            U = np.empty((N, SAMPLES, 6))
+            points = np.empty((N, SAMPLES, 6))
+            values = np.empty((N, SAMPLES))
+            evaluate_cells(
+                G, f, W, npc, ends, axis, sign, lo, hi, metric, U, points, values, best, best_u
+            )
+            tally[CELLS] += N
+            tally[ROUNDS] += 1
+            if tally[POLISHES] < settings[MAX_POLISH] and best[0] < tally[POLISHED_AT] - gap:
+                return POLISH, axis, sign, lo, hi, U, points, values
+        evaluated = False
+        if settings[STOP_BELOW_ZERO] > 0 and best[0] < -margin:
+            tally[LOWER] = -np.inf
+            return BELOW_ZERO, axis, sign, lo, hi, U, points, values
+        target = best[0] - gap  # the round's: refinements may lower the incumbent meanwhile
+        bound = bound_cells(
+            G, f, W, npc, ends, axis, sign, lo, hi, metric, U, points, values, target, margin,
+            int(settings[FW_STEPS]), settings[REFINE_BELOW], best, best_u, anchor, anchor_at,
+        )  # fmt: skip
+        alive, lowest_live = 0, np.inf
+        keep = np.empty(len(axis), np.int64)
+        for n in range(len(axis)):
+            if bound[n] < target:
+                keep[alive] = n
+                alive += 1
+                lowest_live = min(lowest_live, bound[n])
+            else:
+                tally[LOWER] = min(tally[LOWER], bound[n])
+        if alive == 0:
+            return CONVERGED, axis, sign, lo, hi, U, points, values
+        cells = tally[CELLS]
+        if cells >= max_cells and tally[ALIVE_AT_BUDGET] < 0:
+            tally[ALIVE_AT_BUDGET] = alive
+        extending = tally[ALIVE_AT_BUDGET] >= 0 and alive <= max(
+            settings[EXTENSION_ALIVE], 2 * tally[ALIVE_AT_BUDGET]
+        )
+        if (
+            tally[ROUNDS] >= settings[MAX_ROUNDS]
+            or cells >= max(max_cells, extended)
+            or (cells >= max_cells and not extending)
+        ):
+            tally[LOWER] = min(tally[LOWER], lowest_live)
+            return BUDGET, axis, sign, lo, hi, U, points, values
+        keep = keep[:alive]
+        axis, sign, lo, hi = halve(
+            axis[keep], sign[keep], lo[keep], hi[keep], int(settings[CELLS_PER_ROUND])
+        )
 
 
 @njit(**OPTIONS)

@@ -9,7 +9,7 @@ from numba import njit
 
 from .branch_bound import cloud, normalise
 from .nearest_point import min_norm_point
-from .support import OPTIONS, support_point, support_value
+from .support import OPTIONS, scratch, support_point, support_value
 
 
 @njit(**OPTIONS)
@@ -27,6 +27,7 @@ def descend_many(G, f, W, npc, ends, U0, iterations, stop):
     per direction that grows on success and halves on failure (values only decrease); ends
     once some value is at or below ``stop``. Returns unit end directions (N, 6) and ``p``
     there (N,)."""
+    D = scratch(f)
     N = len(U0)
     U = U0.copy()
     for n in range(N):
@@ -34,7 +35,7 @@ def descend_many(G, f, W, npc, ends, U0, iterations, stop):
     values = np.empty(N)
     grads = np.empty((N, 6))
     for n in range(N):
-        values[n] = support_point(G, f, W, npc, ends, U[n], grads[n])
+        values[n] = support_point(G, f, W, npc, ends, U[n], grads[n], D)
     angle = np.full(N, 0.3)
     step = np.empty(6)
     trial = np.empty(6)
@@ -54,7 +55,7 @@ def descend_many(G, f, W, npc, ends, U0, iterations, stop):
                 continue
             step /= norm
             _rotate(U[n], step, angle[n], trial)
-            v = support_point(G, f, W, npc, ends, trial, trial_grad)
+            v = support_point(G, f, W, npc, ends, trial, trial_grad, D)
             if v < values[n]:
                 U[n] = trial
                 grads[n] = trial_grad
@@ -74,9 +75,10 @@ def local_minimum(G, f, W, npc, ends, u0, max_iter, smallest):
     scale (stationary at that resolution) or no step lowers ``p``; done below ``smallest``.
 
     Returns (unit direction, value, iterations, converged)."""
+    D = scratch(f)
     u = u0.copy()
     normalise(u)
-    value = support_value(G, f, W, npc, ends, u)
+    value = support_value(G, f, W, npc, ends, u, D)
     directions = np.empty((11, 6))
     points = np.empty((11, 6))
     tangent = np.empty((11, 6))
@@ -91,7 +93,7 @@ def local_minimum(G, f, W, npc, ends, u0, max_iter, smallest):
         cloud(u, scales, directions)
         size = 0.0
         for i in range(11):
-            support_point(G, f, W, npc, ends, directions[i], points[i])
+            support_point(G, f, W, npc, ends, directions[i], points[i], D)
             a = points[i] @ u
             for k in range(6):
                 tangent[i, k] = points[i, k] - a * u[k]
@@ -107,7 +109,7 @@ def local_minimum(G, f, W, npc, ends, u0, max_iter, smallest):
         moved = False
         while angle > 1e-3 * smallest:
             _rotate(u, step, angle, trial)
-            v = support_value(G, f, W, npc, ends, trial)
+            v = support_value(G, f, W, npc, ends, trial, D)
             if v <= value - 1e-4 * angle * gn:
                 u[:] = trial
                 value = v

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .support import OPTIONS, support_point
+from .support import OPTIONS, scratch, support_point
 
 MAX_LINE_STEPS = 20  # Wolfe's fallback steps in a row (roundoff) before it returns its point
 STALL = 10  # Gilbert steps without progress after which the bracket is returned as it is
@@ -130,11 +130,12 @@ def nearest_point_bounds(G, f, W, npc, ends, U0, gap, max_iter):
     """Gilbert's iteration from the start directions ``U0`` (n, 6): certified ``lo <= dist(0,
     W) <= hi`` when the origin lies outside ``W``. Returns (lo, hi, best direction,
     evaluations)."""
+    D = scratch(f)
     n0 = len(U0)
     kept = np.empty((n0 + max_iter, 6))
     lo, best = -np.inf, 0
     for i in range(n0):
-        v = support_point(G, f, W, npc, ends, U0[i], kept[i])
+        v = support_point(G, f, W, npc, ends, U0[i], kept[i], D)
         if -v > lo:
             lo, best = -v, i
     best_u = U0[best].copy()
@@ -151,7 +152,7 @@ def nearest_point_bounds(G, f, W, npc, ends, U0, gap, max_iter):
         if hi - lo <= gap or not hi > 0.0 or stalled >= STALL:
             break
         u[:] = -x / np.sqrt(x @ x)
-        v = support_point(G, f, W, npc, ends, u, kept[count])
+        v = support_point(G, f, W, npc, ends, u, kept[count], D)
         count += 1
         evaluations += 1
         if -v > lo:

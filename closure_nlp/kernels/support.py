@@ -21,109 +21,116 @@ import numpy as np
 from numba import njit
 
 OPTIONS = {"cache": True, "nogil": True, "fastmath": False, "error_model": "numpy"}
+# Thin wrappers, inlined where they are called: a call that passes arrays costs more than a
+# support point's arithmetic (reference counts of every array).
+WRAPPER = {**OPTIONS, "inline": "always"}
+
+
+# Scratch columns per row (:func:`scratch`): ``G^T u`` (4), the square of its largest friction
+# piece, that piece, the row's value, whether its wrench enters the support point.
+D_Q, D_PIECE, D_VALUE, D_CHOSEN = 4, 5, 6, 7
 
 
 @njit(**OPTIONS)
-def row_value(G, f, W, npc, r, u, d):
-    """Value of row ``r`` at ``u``; fills ``d`` (4,) with ``G_r^T u``; returns (value, piece,
-    square of the largest piece)."""
-    for c in range(4):
-        s = 0.0
-        for k in range(6):
-            s += G[r, k, c] * u[k]
-        d[c] = s
-    piece, q = 0, 0.0
-    for k in range(npc[r]):
-        qk = 0.0
+def scratch(f):
+    """The per-row scratch (K, 8) of :func:`set_value`: callers allocate it once, not per
+    direction."""
+    return np.empty((len(f), 8))
+
+
+@njit(**OPTIONS)
+def set_value(G, f, W, npc, ends, u, D, out, slots, rows):
+    """``p(u)`` (eq 26: the sum of the positive slot values, else the largest) of one unit
+    direction ``u`` (6,); ``D`` (K, 8) scratch (:func:`scratch`) holds each row's terms after.
+
+    ``out`` (6,) gets a wrench of the set attaining ``p(u)`` (the sum of the chosen slots'
+    support wrenches: the gradient where unique), ``slots`` (m,) the slot values ``P_i`` (eq
+    36) and ``rows`` (K, 6) every row's support wrench, each unless None (numba compiles a
+    version per combination, the unused branches pruned).
+
+    One flat function, no call per row: in numba a call that passes arrays costs more than a
+    row's arithmetic (reference counts), and this runs for every direction of every search.
+    """
+    K = len(f)
+    for r in range(K):
         for c in range(4):
-            qk += W[r, k, c] * d[c] * d[c]
-        if k == 0 or qk > q:  # the first of equal pieces
-            piece, q = k, qk
-    return f[r] * (d[0] + np.sqrt(max(q, 0.0))), piece, q
-
-
-@njit(**OPTIONS)
-def add_row_wrench(G, f, W, r, d, piece, q, weight, out):
-    """``out += weight * `` the support wrench of row ``r`` from its ``d``, piece and square."""
-    force = np.empty(4)
-    inv = 1.0 / np.sqrt(q) if q > 0.0 else 0.0
-    for c in range(4):
-        force[c] = f[r] * W[r, piece, c] * d[c] * inv
-    force[0] += f[r]
-    for k in range(6):
-        s = 0.0
-        for c in range(4):
-            s += G[r, k, c] * force[c]
-        out[k] += weight * s
-
-
-@njit(**OPTIONS)
-def combine(P):
-    """Eq 26 in O(m): the sum of the positive slot values, else the largest."""
-    total, top = 0.0, -np.inf
-    for v in P:
-        if v > 0.0:
-            total += v
-        if v > top:
-            top = v
-    return total + min(top, 0.0)
-
-
-@njit(**OPTIONS)
-def support_value(G, f, W, npc, ends, u):
-    """``p(u)`` of one direction (6,), without the support point."""
-    d = np.empty(4)
-    m = len(ends) - 1
-    total, top = 0.0, -np.inf
-    for i in range(m):
-        best = -np.inf
-        for r in range(ends[i], ends[i + 1]):
-            v = row_value(G, f, W, npc, r, u, d)[0]
-            if v > best:
-                best = v
-        if best > 0.0:
-            total += best
-        if best > top:
-            top = best
-    return total + min(top, 0.0)
-
-
-@njit(**OPTIONS)
-def support_point(G, f, W, npc, ends, u, out):
-    """``p(u)`` of one direction (6,); fills ``out`` (6,) with a wrench of the set attaining
-    it (the sum of the chosen slots' support wrenches: the gradient where unique)."""
-    d = np.empty(4)
-    m = len(ends) - 1
-    P = np.empty(m)
-    rows = np.empty(m, np.int64)
-    for i in range(m):
+            s = 0.0
+            for k in range(6):
+                s += G[r, k, c] * u[k]
+            D[r, c] = s
+        piece, q = 0, 0.0
+        for k in range(npc[r]):
+            qk = 0.0
+            for c in range(4):
+                qk += W[r, k, c] * D[r, c] * D[r, c]
+            if k == 0 or qk > q:  # the first of equal pieces
+                piece, q = k, qk
+        D[r, D_Q] = q
+        D[r, D_PIECE] = piece
+        D[r, D_VALUE] = f[r] * (D[r, 0] + np.sqrt(max(q, 0.0)))
+        D[r, D_CHOSEN] = 0.0
+    total, top, top_row = 0.0, -np.inf, ends[0]
+    any_positive = False
+    for i in range(len(ends) - 1):
         best, at = -np.inf, ends[i]
         for r in range(ends[i], ends[i + 1]):
-            v = row_value(G, f, W, npc, r, u, d)[0]
-            if v > best:  # the first of equal rows
-                best, at = v, r
-        P[i], rows[i] = best, at
-    out[:] = 0.0
-    any_positive = False
-    top = 0
-    for i in range(m):
-        if P[i] > P[top]:
-            top = i
-        if P[i] > 0.0:
+            if D[r, D_VALUE] > best:  # the first of equal rows
+                best, at = D[r, D_VALUE], r
+        if slots is not None:
+            slots[i] = best
+        if best > 0.0:
+            total += best
             any_positive = True
-    for i in range(m):
-        if P[i] > 0.0 or (not any_positive and i == top):
-            value, piece, q = row_value(G, f, W, npc, rows[i], u, d)
-            add_row_wrench(G, f, W, rows[i], d, piece, q, 1.0, out)
-    return combine(P)
+            D[at, D_CHOSEN] = 1.0
+        if best > top:
+            top, top_row = best, at
+    if not any_positive:
+        D[top_row, D_CHOSEN] = 1.0
+    if out is not None:
+        for k in range(6):
+            out[k] = 0.0
+    if out is not None or rows is not None:
+        for r in range(K):
+            chosen = out is not None and D[r, D_CHOSEN] > 0.0
+            if not chosen and rows is None:
+                continue
+            # the row's support force f (e_n + W[piece] d / sqrt(q)), then G_r times it
+            q, piece = D[r, D_Q], int(D[r, D_PIECE])
+            inv = 1.0 / np.sqrt(q) if q > 0.0 else 0.0
+            for k in range(6):
+                s = 0.0
+                for c in range(4):
+                    force = f[r] * W[r, piece, c] * D[r, c] * inv
+                    if c == 0:
+                        force += f[r]
+                    s += G[r, k, c] * force
+                if rows is not None:
+                    rows[r, k] = s
+                if chosen:
+                    out[k] += s
+    return total + min(top, 0.0)
+
+
+@njit(**WRAPPER)
+def support_value(G, f, W, npc, ends, u, D):
+    """``p(u)`` of one direction (6,), without the support point; ``D`` scratch."""
+    return set_value(G, f, W, npc, ends, u, D, None, None, None)
+
+
+@njit(**WRAPPER)
+def support_point(G, f, W, npc, ends, u, out, D):
+    """``p(u)`` of one direction (6,); fills ``out`` (6,) with a wrench of the set attaining
+    it; ``D`` scratch."""
+    return set_value(G, f, W, npc, ends, u, D, out, None, None)
 
 
 @njit(**OPTIONS)
 def support_many(G, f, W, npc, ends, U):
     """``p`` of every row of ``U`` (N, 6): (N,)."""
     out = np.empty(len(U))
+    D = scratch(f)
     for n in range(len(U)):
-        out[n] = support_value(G, f, W, npc, ends, U[n])
+        out[n] = support_value(G, f, W, npc, ends, U[n], D)
     return out
 
 
@@ -132,52 +139,45 @@ def evaluate_many(G, f, W, npc, ends, U):
     """``p`` and a support point of every row of ``U`` (N, 6): (N,), (N, 6)."""
     values = np.empty(len(U))
     points = np.empty((len(U), 6))
+    D = scratch(f)
     for n in range(len(U)):
-        values[n] = support_point(G, f, W, npc, ends, U[n], points[n])
+        values[n] = support_point(G, f, W, npc, ends, U[n], points[n], D)
     return values, points
 
 
 @njit(**OPTIONS)
-def rows_many(G, f, W, npc, U):
+def rows_many(G, f, W, npc, ends, U):
     """Row values (N, K) and each row's largest friction piece (N, K) int."""
     K = len(f)
     values = np.empty((len(U), K))
     pieces = np.empty((len(U), K), np.int64)
-    d = np.empty(4)
+    D = scratch(f)
     for n in range(len(U)):
+        support_value(G, f, W, npc, ends, U[n], D)
         for r in range(K):
-            v, piece, _ = row_value(G, f, W, npc, r, U[n], d)
-            values[n, r], pieces[n, r] = v, piece
+            values[n, r], pieces[n, r] = D[r, D_VALUE], int(D[r, D_PIECE])
     return values, pieces
 
 
 @njit(**OPTIONS)
-def row_wrenches_many(G, f, W, npc, U):
+def row_wrenches_many(G, f, W, npc, ends, U):
     """Row values (N, K) and each row's support wrench (N, K, 6)."""
     K = len(f)
     values = np.empty((len(U), K))
-    wrenches = np.zeros((len(U), K, 6))
-    d = np.empty(4)
+    wrenches = np.empty((len(U), K, 6))
+    D = scratch(f)
     for n in range(len(U)):
+        set_value(G, f, W, npc, ends, U[n], D, None, None, wrenches[n])
         for r in range(K):
-            v, piece, q = row_value(G, f, W, npc, r, U[n], d)
-            values[n, r] = v
-            add_row_wrench(G, f, W, r, d, piece, q, 1.0, wrenches[n, r])
+            values[n, r] = D[r, D_VALUE]
     return values, wrenches
 
 
 @njit(**OPTIONS)
 def slots_many(G, f, W, npc, ends, U):
     """Slot values ``P_i`` (eq 36) of every row of ``U``: (N, m)."""
-    m = len(ends) - 1
-    out = np.empty((len(U), m))
-    d = np.empty(4)
+    out = np.empty((len(U), len(ends) - 1))
+    D = scratch(f)
     for n in range(len(U)):
-        for i in range(m):
-            best = -np.inf
-            for r in range(ends[i], ends[i + 1]):
-                v = row_value(G, f, W, npc, r, U[n], d)[0]
-                if v > best:
-                    best = v
-            out[n, i] = best
+        set_value(G, f, W, npc, ends, U[n], D, None, out[n], None)
     return out
