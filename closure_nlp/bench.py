@@ -866,13 +866,14 @@ def bench_gap(
 UNITS_GRASPS = {"4 PCwF": (4, "pcwf"), "7 FPC": (7, "fpc")}
 
 
-def bench_units(margins=(0.0, 0.02, 0.05), seed: int = 0) -> dict:
+def bench_units(margins=(0.0, 0.02, 0.05), seed: int = 0, budget: float = 15.0) -> dict:
     """Same part, same answer: pybullet's domino characterized in metres and, from the same
     triangles scaled x1000, in millimetres; elements selected once (``plan`` in metres, seed
-    ``seed``), then placed in both units with the ceiling (CLI defaults, automatic torque
-    scale and mu_s, mu 0.2) under margins of ``margins`` times the part's size (the largest
-    side of its bounding box). Each pair's certified capacities must differ by at most the
-    larger gap times the smaller ceiling (``agree``). Needs pybullet's data (``pybullet_data``)."""
+    ``seed``), then placed in both units on those elements (no neighbour moves; automatic
+    torque scale and mu_s, mu 0.2) with the ceiling over them for ``budget`` seconds or a 2%
+    gap, under margins of ``margins`` times the part's size (the largest side of its bounding
+    box). Each pair's certified capacities must differ by at most the larger gap times the
+    smaller ceiling (``agree``). Needs pybullet's data (``pybullet_data``)."""
     import trimesh
 
     from .characterize import characterize_mesh
@@ -908,9 +909,13 @@ def bench_units(margins=(0.0, 0.02, 0.05), seed: int = 0) -> dict:
                     row[units] = {"error": "an element is too small for the margin"}
                     continue
                 load, t0 = _load(), time.perf_counter()
-                placed = Placer(eligibility)(elements)
+                options = PlacementOptions(
+                    neighbour_moves=0, bound_cells=100_000, time_budget=budget
+                )
+                placed = Placer(eligibility, options)(elements)
                 row[units] = {
                     "margin_length": margin * size,
+                    "exchange_rho": placed.exchange_rho,
                     "rho": placed.rho,
                     "capacity": -placed.bounds[1],
                     "capacity_bound": placed.capacity_bound,

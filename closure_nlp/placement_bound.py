@@ -457,9 +457,13 @@ def _highs(A: np.ndarray, owner: np.ndarray, m: int):
     lp.a_matrix_.value_ = np.r_[np.hstack([-A, np.ones((N, 1))]).ravel(), np.ones(R)]
     solver.passModel(lp)
     solver.run()
-    if solver.getModelStatus() != _OPTIMAL:  # always feasible and bounded: a solver failure
-        status = solver.modelStatusToString(solver.getModelStatus())
-        raise RuntimeError(f"capacity bound: the LP solver failed ({status})")
+    if solver.getModelStatus() != _OPTIMAL:
+        # always feasible and bounded: a numerical failure of this solve, so the same LP once
+        # more from scratch, and scipy's wrapper of HiGHS (its own settings) after that
+        solver.clearSolver()
+        solver.run()
+        if solver.getModelStatus() != _OPTIMAL:
+            return _linprog(A, owner, m)
     solution = solver.getSolution()
     duals = np.asarray(solution.row_dual, float)[:N]
     return np.asarray(solution.col_value, float), duals, -solver.getInfo().objective_function_value

@@ -213,3 +213,21 @@ def test_the_two_lp_solvers_agree():
         for d in (d1, d2):
             y = np.maximum(-d, 0.0)
             assert placement_bound.dual_bound(A, owner, y / y.sum()) == pytest.approx(v1, rel=1e-7)
+
+
+def test_a_failed_highs_solve_falls_back(monkeypatch):
+    """A HiGHS solve that does not end optimal (numerical trouble) is redone, then handed to
+    scipy's linprog: the same LP value, never an exception or a wrong bound."""
+    if placement_bound._Highs is None:
+        pytest.skip("highspy is not installed")
+    rng = np.random.default_rng(6)
+    owner = np.array([0, 0, 1, 1, 2, 2])
+    A = rng.random((40, 6))
+    expected = placement_bound._linprog(A, owner, 3)[2]
+    monkeypatch.setattr(placement_bound, "_OPTIMAL", object())  # no status is "optimal"
+    calls = []
+    linprog = placement_bound._linprog
+    monkeypatch.setattr(placement_bound, "_linprog", lambda *a: calls.append(1) or linprog(*a))
+    result = placement_bound._solve_lp(A, owner, np.zeros((40, 6)))
+    assert calls and result.lp_value == pytest.approx(expected, rel=1e-9)
+    assert result.value == pytest.approx(expected, rel=1e-6)
