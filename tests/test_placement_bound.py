@@ -231,3 +231,33 @@ def test_a_failed_highs_solve_falls_back(monkeypatch):
     result = placement_bound._solve_lp(A, owner, np.zeros((40, 6)))
     assert calls and result.lp_value == pytest.approx(expected, rel=1e-9)
     assert result.value == pytest.approx(expected, rel=1e-6)
+
+
+def test_exchange_runs_keep_to_their_share_of_the_time(monkeypatch):
+    """polish_share caps the time the exchange runs from the best cells take: with a share of
+    zero only the first runs (it starts before any time is spent); with all of it, one per
+    cell as polish_every asks. (The exchange run is replaced by a stand-in that takes 20 ms.)"""
+    import time
+    from types import SimpleNamespace
+
+    def exchange_run(self, elements, weights=None, progress=None):
+        time.sleep(0.02)
+        return SimpleNamespace(bounds=(-0.01, -0.01), rho=-0.01)
+
+    monkeypatch.setattr(Placer, "__call__", exchange_run)
+    model = box_model(1.0)
+    specs = contact_specs(4, type="pcwf", mu=0.5)
+    placer = Placer(Eligibility(model, specs, 1.0), PlacementOptions(neighbour_moves=0))
+    runs = {}
+    for share in (0.0, 1.0):
+        options = BoundOptions(
+            gap=0.0,
+            time_budget=np.inf,
+            max_nodes=9,
+            root_cuts=2,
+            polish_every=1,
+            polish_share=share,
+        )
+        runs[share] = capacity_bound(placer, (0, 1, 2, 3), None, options).polishes
+    assert runs[0.0] == 1
+    assert runs[1.0] >= 3
