@@ -176,5 +176,11 @@ def test_cli_plan_with_seeds_writes_the_spread(tmp_path, capsys):
     assert (out / "seeds.png").stat().st_size > 0
     summary = (out / "summary.md").read_text()
     assert "| seed | rho | verdict |" in summary and "(chosen)" in summary
+    # the ceiling (on by default) of each element set: no placement on it holds more
+    assert "| elements | seeds | best rho | ceiling |" in summary
+    for row in spread["element_sets"]:
+        on = [r for r in spread["runs"] if sorted(r["elements"]) == row["elements"]]
+        assert row["ceiling"] == min(r["capacity_bound"] for r in on)
+        assert row["ceiling"] >= max(-r["bounds"][1] for r in on)
     report = json.loads((out / "report.json").read_text())
     assert report["seeds"]["runs"] == spread["runs"] and report["options"]["seeds"] == 2
