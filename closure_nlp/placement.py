@@ -706,9 +706,13 @@ class Placer:
             directions += U[first_found:]
         return best_w, best, predicted, rounds
 
-    def __call__(self, elements, weights=None, progress: Progress | None = None) -> PlacementResult:
+    def __call__(
+        self, elements, weights=None, progress: Progress | None = None, ceiling: bool = True
+    ) -> PlacementResult:
         """Place one contact on each of ``elements`` (from ``weights``, default the centroids);
-        ``progress`` sees every exchange round, start, neighbour move and the certification."""
+        ``progress`` sees every exchange round, start, neighbour move and the certification.
+        ``ceiling=False`` skips the certified ceiling even when the options ask for one (a plan
+        computes it once, for the placement it returns)."""
         t0 = time.perf_counter()
         model = self.eligibility.model
         elements = list(self.eligibility.check_elements(elements))
@@ -811,7 +815,7 @@ class Placer:
             robust=final.robust,
             shift=final.shift,
         )
-        if not self.options.bound:
+        if not (self.options.bound and ceiling):
             return result
         from .placement_bound import bounded
 

@@ -186,6 +186,7 @@ def plan(
     first = heuristic(eligibility, start=start, seed=seed, options=selection, progress=progress)
     second = recall.iterative(first.elements, "iterative")
     best = recall.placement(second.elements, "placement")
+    best_start = second.elements
     attempts = [_attempt(second.elements, "iterative", second.rho_hat, best)]
     if not _held(best) and alternatives and second.eligible:  # else 50 rounds failed
         candidates = _alternatives(eligibility, seed, selection, second, recall)
@@ -195,9 +196,10 @@ def plan(
             if progress:
                 progress("alternative", len(attempts) - 1, found.rho)
             if _robust_value(found) < _robust_value(best):
-                best = found
+                best, best_start = found, elements
             if _held(found):
                 break
+    best = recall.ceiling(best_start, best)
     return PlanResult(
         first, second, best, time.perf_counter() - t0, tuple(attempts), tuple(recall.reused)
     )
@@ -221,7 +223,12 @@ MEMO_SIZE = 256
 
 class _Recall:
     """The plan's iterative runs and placements, through its ``memo`` when it has one; the
-    names of the steps it took from the memo are in ``reused``."""
+    names of the steps it took from the memo are in ``reused``.
+
+    Placements are the exchange method's alone; the certified ceiling (when the placer's
+    options ask for one) is computed once, for the placement the plan returns
+    (:meth:`ceiling`): the placements on the other element sets tried are dropped, and with
+    them their ceilings (a marginal set's cost as much as the placement itself)."""
 
     def __init__(self, memo, eligibility, selection, placer, progress):
         self.memo, self.eligibility, self.selection = memo, eligibility, selection
@@ -240,8 +247,28 @@ class _Recall:
     def placement(self, elements, name: str) -> PlacementResult:
         return self._recall(
             ("placement", self.eligibility, tuple(elements), self.placer.options),
-            lambda: self.placer(elements, progress=self.progress),
+            lambda: self.placer(elements, progress=self.progress, ceiling=False),
             name,
+        )
+
+    def ceiling(self, elements, placed: PlacementResult) -> PlacementResult:
+        """``placed`` (the exchange method's placement from ``elements``) with the placer's
+        certified ceiling, and the better placement its search found, if any; ``seconds``
+        counts both."""
+        if not self.placer.options.bound:
+            return placed
+        from .placement_bound import bounded
+
+        return self._recall(
+            ("ceiling", self.eligibility, tuple(elements), self.placer.options),
+            lambda: bounded(
+                self.placer,
+                list(elements),
+                placed,
+                time.perf_counter() - placed.seconds,
+                self.progress,
+            ),
+            "ceiling",
         )
 
     def _recall(self, key, compute, name: str):

@@ -27,8 +27,8 @@ class FailingFirst(Placer):
         super().__init__(eligibility, QUICK)
         self.failures, self.calls = failures, []
 
-    def __call__(self, elements, weights=None, progress=None):
-        result = super().__call__(elements, weights, progress)
+    def __call__(self, elements, weights=None, progress=None, **kwargs):
+        result = super().__call__(elements, weights, progress, **kwargs)
         self.calls.append(tuple(elements))
         if len(self.calls) <= self.failures:
             return replace(result, force_closure=False, rho=abs(result.rho) + 1.0)
@@ -101,3 +101,27 @@ def test_the_pool_ranks_unranked_sets_by_their_light_value(hand):
         slots = hand.slots(elements)
         value = signed_distance(light(slots, warm), slots, light.tolerances)
         assert ranked.get(tuple(elements)) == (value if value < 0 else None)
+
+
+@pytest.mark.slow
+def test_the_ceiling_is_computed_once_for_the_placement_returned(hand, monkeypatch):
+    """With the ceiling on, the sets placed before one holds get the exchange method alone: the
+    plan bounds the placement it returns, once, from that placement's start elements."""
+    from closure_nlp import placement_bound
+
+    calls = []
+    real = placement_bound.bounded
+
+    def counting(placer, elements, result, t0, progress=None):
+        calls.append((tuple(elements), result.rho))
+        return real(placer, elements, result, t0, progress)
+
+    monkeypatch.setattr(placement_bound, "bounded", counting)
+    placer = FailingFirst(hand, failures=1)
+    placer.options = replace(QUICK, bound=True, bound_cells=1)
+    result = plan(hand, seed=1, placer=placer, alternatives=4)
+    assert len(result.attempts) == 2 and result.force_closure
+    assert calls == [(result.attempts[1].elements, result.placement.rho)]
+    assert result.placement.capacity_bound is not None
+    assert result.placement.capacity_bound >= -result.placement.bounds[1]  # a ceiling
+    assert result.placement.seconds >= result.placement.bound_seconds > 0

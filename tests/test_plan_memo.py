@@ -26,9 +26,9 @@ class CountingPlacer(Placer):
         super().__init__(eligibility, options)
         self.calls = []
 
-    def __call__(self, elements, weights=None, progress=None):
+    def __call__(self, elements, weights=None, progress=None, **kwargs):
         self.calls.append(tuple(elements))
-        return super().__call__(elements, weights, progress)
+        return super().__call__(elements, weights, progress, **kwargs)
 
 
 @pytest.mark.slow
