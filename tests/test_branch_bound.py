@@ -62,8 +62,8 @@ def test_game_weights_reach_the_lp_value(shape, scale):
 @pytest.mark.parametrize("kind", ["fpc", "pcwf", "sfcl", "sfce", "mixed"])
 def test_cell_bounds_hold_under_the_reference(kind):
     """Every stage of a cell's bound (single support points, Frank-Wolfe combinations with the
-    anchors, the exact game of small cells: target +inf runs all three) lies below the
-    reference support function at random directions of the cell."""
+    anchors, the exact game of small cells: target +inf runs all three, the incumbent's value
+    fewer) lies below the reference support function at random directions of the cell."""
     rng = np.random.default_rng(len(kind))
     types = ["fpc", "pcwf", "sfcl", "sfce"] if kind == "mixed" else [kind] * 4
     cs = random_contact_set(rng, types * (2 if kind == "fpc" else 1))
@@ -76,10 +76,14 @@ def test_cell_bounds_hold_under_the_reference(kind):
     kernels.evaluate_cells(
         *slots.packed, axis, sign, lo, hi, np.ones(6), U, points, values, best, best_u
     )
-    bound = kernels.bound_cells(
-        *slots.packed, axis, sign, lo, hi, np.ones(6), U, points, values, np.inf, 0.0, 12, 10.0,
-        best, best_u, np.empty((kernels.ANCHORS, 6)), np.zeros(7),
-    )  # fmt: skip
+    bounds = [
+        kernels.bound_cells(
+            *slots.packed, axis, sign, lo, hi, np.ones(6), U, points, values, target, 0.0, 12,
+            10.0, best, best_u, np.empty((kernels.ANCHORS, 6)), np.zeros(7),
+        )
+        for target in (np.inf, best[0])
+    ]  # fmt: skip
+    bound = np.maximum(*bounds)
     for n in range(len(pick)):
         y = lo[n] + (hi[n] - lo[n]) * rng.uniform(size=(60, 5))
         x = np.empty((len(y), 6))
