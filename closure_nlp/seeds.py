@@ -29,8 +29,9 @@ from .placement import PlacementOptions, Placer
 from .progress import Progress
 from .validation import MAX_SEED
 
-# The command line's defaults. A plan costs 4-9 s per example on one core today, so 8 seeds take
-# about 20-40 s on 2 cores; the budget stops starting seeds after a minute on a slower machine.
+# The command line's defaults: 8 seeds of a few seconds each fit well within the budget on 2
+# cores (docs/benchmarks.md has the measured times); the budget stops starting seeds after a
+# minute on a slower machine or a larger part.
 DEFAULT_SEEDS = 8
 DEFAULT_BUDGET = 60.0
 MAX_PLAN_SEEDS = 10_000
