@@ -332,7 +332,11 @@ def test_rho_always_carries_bounds_and_certify_changes_nothing():
     assert rho(cs, certify=True).to_dict()["bounds"] == out["bounds"]
     searched = search_rho(cs)
     assert searched.bounds is None and "bounds" not in searched.to_dict()
-    assert certified.rho >= searched.rho  # the certificate can only find a weaker direction
+    # The bare search and the certified path run different local solvers (the search ends with
+    # an IPOPT polish): any direction's value bounds rho from below, and both values agree to
+    # the certificate's tolerance.
+    assert searched.rho <= hi
+    assert abs(certified.rho - searched.rho) <= 1e-6 * abs(searched.rho)
     with pytest.raises(TypeError, match="certify"):
         rho(cs, certify="yes")
 
