@@ -420,7 +420,7 @@ def test_solvers_are_built_once_per_process(tiny, monkeypatch):
 @pytest.mark.slow
 def test_seeds_that_meet_a_known_set_reuse_its_steps(tmp_path):
     """On the box, seeds 0 and 2 (mu 0.4) reach the same set: the later task takes the
-    iterative run and the placement from the earlier one, says so, and its row holds the same
+    iterative run, the placement and its certified ceiling from the earlier one, says so, and its row holds the same
     results (that computing them again gives the same is tests/test_plan_memo.py's)."""
     body = TINY.replace("mu = [0.2, 0.4]", "mu = [0.4]").replace("seeds = 2", "seeds = 4")
     clear_cache()
@@ -429,7 +429,7 @@ def test_seeds_that_meet_a_known_set_reuse_its_steps(tmp_path):
     rows = read_results(tmp_path / "out" / "results")
     assert (rows.status == "ok").all()
     reused = rows[rows.reused != ""]
-    assert len(reused) >= 1 and set(reused.reused) == {"iterative,placement"}
+    assert len(reused) >= 1 and set(reused.reused) == {"iterative,placement,ceiling"}
     computed = rows[rows.reused == ""]
     for _, row in reused.iterrows():
         key = list(row.iterative_elements)
