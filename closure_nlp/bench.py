@@ -502,7 +502,7 @@ def bench_model_size(subdivisions=(3, 4, 5), repeats: int = 3) -> dict:
     }
 
 
-# The former behaviour (full search for every neighbour, every neighbour-move trial to the full
+# The exhaustive options (full search for every neighbour, every neighbour-move trial to the full
 # budget, the default search in every exchange round, no check at a run's end): the baseline
 # that ``bench plan`` runs in the same process, on the same solvers, for its ratios; and the
 # faster placement options. Not in the baseline (no option restores them): the start's
@@ -810,10 +810,10 @@ def _gap_run(placer, elements, today, budget: float, **settings) -> dict:
     }
 
 
-# The ceiling's former settings, for a comparison in the same process (bench gap --compare):
+# The ceiling's exhaustive settings, for a comparison in the same process (bench gap --compare):
 # every exchange run the schedule asks for, every working-set direction a row of every cell's
 # LP (the LP solver itself is the same in both runs).
-FORMER_BOUND = {"polish_share": 1.0, "lp_rows": 0}
+EXHAUSTIVE_BOUND = {"polish_share": 1.0, "lp_rows": 0}
 
 
 def bench_gap(
@@ -829,8 +829,8 @@ def bench_gap(
     ceiling's branch and bound for :data:`GAP_BUDGETS` seconds (target gap 0: it runs the whole
     budget, and the time at which 2% and 5% were reached is reported). ``neighbours``: the
     ceiling covers the neighbours of each element as well (the default placement's domain).
-    ``compare``: the same search with :data:`FORMER_BOUND` too, in the same process, right
-    after (``former`` in each model's entry)."""
+    ``compare``: the same search with :data:`EXHAUSTIVE_BOUND` too, in the same process, right
+    after (``exhaustive`` in each model's entry)."""
     from .scale import resolve
 
     budgets = {**GAP_BUDGETS, **(budgets or {})}
@@ -856,8 +856,8 @@ def bench_gap(
             **_gap_run(placer, planned.iterative.elements, today, budget),
         }
         if compare:
-            entry["former"] = _gap_run(
-                placer, planned.iterative.elements, today, budget, **FORMER_BOUND
+            entry["exhaustive"] = _gap_run(
+                placer, planned.iterative.elements, today, budget, **EXHAUSTIVE_BOUND
             )
         report["models"][name] = entry
     return report
@@ -964,7 +964,7 @@ def main(argv=None) -> int:
     p = sub.add_parser("model-size", help="eligibility and select against the model's size")
     p.add_argument("--subdivisions", type=int, nargs="+", default=[3, 4, 5])
     p.add_argument("--repeats", type=int, default=3)
-    p = sub.add_parser("plan", help="plan on the example models, against the former options")
+    p = sub.add_parser("plan", help="plan on the example models, against the exhaustive options")
     p.add_argument("--seeds", type=int, default=3)
     p.add_argument("--models", default=",".join(PAPER_EXAMPLES), help="e.g. lamp,cup")
     p = sub.add_parser("plans", help="the command line's plan per example, against a checkout")
@@ -980,7 +980,7 @@ def main(argv=None) -> int:
     p.add_argument("--models", default=",".join(PAPER_EXAMPLES), help="e.g. lamp,cup")
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--neighbours", action="store_true", help="the ceiling over neighbours too")
-    p.add_argument("--compare", action="store_true", help="the former settings too, after")
+    p.add_argument("--compare", action="store_true", help="the exhaustive settings too, after")
     p.add_argument("--budget", type=float, help="seconds per model (default: 30, pistol 60)")
     p = sub.add_parser("units", help="pybullet's domino in m and mm, placed under margins")
     p.add_argument("--seed", type=int, default=0)

@@ -104,7 +104,7 @@ class PlacementOptions:
     round_search : bool
         Judge each round's new weights by :data:`ROUND_SEARCH`, started also from the working
         set's directions weakest there (default); ``False``: by the eligibility's own search
-        from the best weights' direction alone (the former behaviour). Measured against it in
+        from the best weights' direction alone. Measured against it in
         one process on 24 placements (lamp, cup, pistol; torque scale 1 and automatic):
         placement 1.2-2.1x faster (median of the six groups 1.37x); the final rho is better on
         9, worse on 12 (the path of a local method changes), by -0.097 to +0.052. Every value
@@ -112,11 +112,11 @@ class PlacementOptions:
     move_rounds : int
         Rounds a neighbour-move trial gets; it runs on to ``max_rounds`` only if it already
         beats the current placement (0: every trial runs to ``max_rounds``, or
-        ``probe_rounds`` when that is set, the former behaviour). A trial starts from the
+        ``probe_rounds`` when that is set). A trial starts from the
         placement's weights with one contact moved, often far worse; the trials that never
         paid off cost most of the placement's rounds on the pistol and the lamp. Measured with
-        the start's deferred certification, against the former code in one process, on 9 sets
-        of the three examples (automatic torque scale): the same rho on all 9, placement
+        the start's deferred certification, against every trial run in full, in one process, on
+        9 sets of the three examples (automatic torque scale): the same rho on all 9, placement
         0.97-1.8x faster (median 1.33x).
     share_directions : bool
         Start each exchange run (every start and neighbour trial of one placement) with the

@@ -70,8 +70,8 @@ class SearchOptions:
         IPOPT runs per basin of the budget, at most. A run that ends in a minimum already found
         explored no new basin: on a placement's round set two runs from warm starts ended in
         one local minimum and the global basin's start, ranked third, got none (rho 8%
-        over-stated; tests/data/l_bracket_round_miss.json). 1: every run counts (the former
-        rule; enough where a certificate follows).
+        over-stated; tests/data/l_bracket_round_miss.json). 1: every run counts (enough
+        where a certificate follows).
     ipopt_polish : bool
         With the ``"auto"`` solver, one IPOPT run from the compiled runs' best direction ends
         the search (the lower value is kept): what a search alone reports is then as accurate

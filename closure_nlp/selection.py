@@ -46,7 +46,7 @@ class SelectionOptions:
         Iterative algorithm: rank the neighbours by a light search (:data:`SCREEN_SEARCH`) and
         give the full search only to those that can still beat the best; the light value is
         never above the full one (the full search starts from its direction), so the choice is
-        the same. ``False``: the full search for every neighbour (the former behaviour).
+        the same. ``False``: the full search for every neighbour.
     """
 
     initial: int = 1

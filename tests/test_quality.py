@@ -283,7 +283,7 @@ def test_a_run_into_a_minimum_already_found_does_not_use_up_the_budget():
     rho -1.4014: both runs started in the warm directions' basins and ended in one local
     minimum, and the global basin's start, whose descent ended higher, got no run. A run that
     finds no new minimum no longer counts against the budget: the search reaches the certified
-    rho. With each run counted (runs_per_basin = 1, the former rule) it misses."""
+    rho. With each run counted (runs_per_basin = 1) it misses."""
     import dataclasses
     import json
     from pathlib import Path
@@ -297,9 +297,9 @@ def test_a_run_into_a_minimum_already_found_does_not_use_up_the_budget():
     lo, hi = rho(contact_set).bounds
     found = quality.search_rho(contact_set, minimizer=judge, warm_start=data["warm_start"])
     assert lo - 1e-6 * abs(lo) <= found.rho <= hi  # the global minimum, to the bracket
-    former = judge.with_search(dataclasses.replace(ROUND_SEARCH, runs_per_basin=1))
-    missed = quality.search_rho(contact_set, minimizer=former, warm_start=data["warm_start"])
-    assert missed.rho < lo - 0.05  # the former rule's answer: 8% over-stated
+    every_run = judge.with_search(dataclasses.replace(ROUND_SEARCH, runs_per_basin=1))
+    missed = quality.search_rho(contact_set, minimizer=every_run, warm_start=data["warm_start"])
+    assert missed.rho < lo - 0.05  # that rule's answer: 8% over-stated
 
 
 @pytest.mark.parametrize("solver", ["ipopt", "compiled"])
@@ -309,7 +309,7 @@ def test_outside_the_set_one_ipopt_run_finds_the_distance(kinds, solver):
     and positive there): the search stops after its first such run, and its value is the
     distance that cvxpy computes on its own, in any units, to the search's accuracy: about 1e-6
     of the wrench scale (s**2 >= q within IPOPT's 1e-12 leaves s short by up to 1e-6 at a cone's
-    apex; all six runs of the former rule agreed with the first to that accuracy)."""
+    apex; all six runs of that rule agreed with the first to that accuracy)."""
     from closure_nlp.certify import tolerance_unit
     from closure_nlp.crosscheck import distance_cvxpy
     from closure_nlp.quality import SupportMinimizer

@@ -420,8 +420,9 @@ def test_solvers_are_built_once_per_process(tiny, monkeypatch):
 @pytest.mark.slow
 def test_seeds_that_meet_a_known_set_reuse_its_steps(tmp_path):
     """On the box, seeds 0 and 2 (mu 0.4) reach the same set: the later task takes the
-    iterative run, the placement and its certified ceiling from the earlier one, says so, and its row holds the same
-    results (that computing them again gives the same is tests/test_plan_memo.py's)."""
+    iterative run, the placement and its certified ceiling from the earlier one, says so, and
+    its row holds the same results (that computing them again gives the same is
+    tests/test_plan_memo.py's)."""
     body = TINY.replace("mu = [0.2, 0.4]", "mu = [0.4]").replace("seeds = 2", "seeds = 4")
     clear_cache()
     study = load_study(write_study(tmp_path, body + PLACEMENT))
