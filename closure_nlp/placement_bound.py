@@ -123,7 +123,9 @@ class BoundOptions:
         Every that many cells, the exchange method is started at the best open cell's LP
         placement (0: never)...
     polish_share : float
-        ... while the exchange runs have taken at most this share of the time spent (1: always).
+        ... and, under a finite ``time_budget``, only while the exchange runs have taken at
+        most this share of the time spent (1: always). Without a time budget the cells alone
+        decide when they run: the same answer on any machine.
     cut_samples : int
         Quasi-random starts (besides ``+-e_k`` and the working set's lowest directions) of a
         cell's cut descent; the root's always has 24. Fewer make cells cheaper and looser:
@@ -633,10 +635,12 @@ def capacity_bound(
         # an exchange run takes seconds: none started in the last quarter of the budget
         late = time.perf_counter() - t0 > 0.75 * options.time_budget
         late |= nodes > 0.75 * options.max_nodes
-        # an exchange run every polish_every cells, while they take at most polish_share of
-        # the time: one costs seconds, as much as hundreds of cells
+        # an exchange run every polish_every cells; under a time budget only while they take
+        # at most polish_share of the time (one costs seconds, as much as hundreds of cells).
+        # A budget of cells alone keeps its answer independent of the machine's speed.
         due = options.polish_every and nodes - polished_at >= options.polish_every
-        due = due and polish_seconds <= options.polish_share * (time.perf_counter() - t0)
+        if np.isfinite(options.time_budget):
+            due = due and polish_seconds <= options.polish_share * (time.perf_counter() - t0)
         if due and not late:
             try_placement(heap[0])
             if done():

@@ -234,9 +234,11 @@ def test_a_failed_highs_solve_falls_back(monkeypatch):
 
 
 def test_exchange_runs_keep_to_their_share_of_the_time(monkeypatch):
-    """polish_share caps the time the exchange runs from the best cells take: with a share of
-    zero only the first runs (it starts before any time is spent); with all of it, one per
-    cell as polish_every asks. (The exchange run is replaced by a stand-in that takes 20 ms.)"""
+    """Under a time budget, polish_share caps the time the exchange runs from the best cells
+    take: with a share of zero only the first runs (it starts before any time is spent); with
+    all of it, one per cell as polish_every asks. Without a time budget the cells alone decide
+    (the same runs on any machine), whatever the share. (The exchange run is replaced by a
+    stand-in that takes 20 ms.)"""
     import time
     from types import SimpleNamespace
 
@@ -249,15 +251,17 @@ def test_exchange_runs_keep_to_their_share_of_the_time(monkeypatch):
     specs = contact_specs(4, type="pcwf", mu=0.5)
     placer = Placer(Eligibility(model, specs, 1.0), PlacementOptions(neighbour_moves=0))
     runs = {}
-    for share in (0.0, 1.0):
-        options = BoundOptions(
-            gap=0.0,
-            time_budget=np.inf,
-            max_nodes=9,
-            root_cuts=2,
-            polish_every=1,
-            polish_share=share,
-        )
-        runs[share] = capacity_bound(placer, (0, 1, 2, 3), None, options).polishes
-    assert runs[0.0] == 1
-    assert runs[1.0] >= 3
+    for budget in (60.0, np.inf):
+        for share in (0.0, 1.0):
+            options = BoundOptions(
+                gap=0.0,
+                time_budget=budget,
+                max_nodes=9,
+                root_cuts=2,
+                polish_every=1,
+                polish_share=share,
+            )
+            runs[budget, share] = capacity_bound(placer, (0, 1, 2, 3), None, options).polishes
+    assert runs[60.0, 0.0] == 1
+    assert runs[60.0, 1.0] >= 3
+    assert runs[np.inf, 0.0] == runs[np.inf, 1.0] == runs[60.0, 1.0]
