@@ -63,7 +63,7 @@ class SeedRun:
             "marginal": p.marginal,
             "selected": list(r.iterative.elements),
             "elements": list(p.elements),
-            "capacity_bound": getattr(p, "capacity_bound", None),
+            "capacity_bound": p.capacity_bound,
             "attempts": len(r.attempts),
             "reused": list(r.reused),
             "seconds": self.seconds,
@@ -111,7 +111,7 @@ class SeedSpread:
                 placed = run.result.placement
                 key = tuple(sorted(placed.elements))
                 met.setdefault(key, []).append(
-                    (placed.rho, getattr(placed, "capacity_bound", None))
+                    (placed.rho, placed.capacity_bound)
                 )
         rows = []
         for key, found in met.items():
@@ -252,7 +252,6 @@ def plan_seeds(
     if placer is not None and placer.eligibility is not eligibility:
         raise ValueError("placer: must be built on the same Eligibility as the plan")
     options = placement if placer is None else placer.options
-    kwargs = plan_options
     t0 = time.perf_counter()
     if workers == 1:
         placer = placer or Placer(eligibility, options)
@@ -261,11 +260,11 @@ def plan_seeds(
         for k in range(seeds):
             if outcomes and budget is not None and time.perf_counter() - t0 >= budget:
                 break
-            outcomes.append(_run_one(eligibility, placer, memo, progress, kwargs, seed + k))
+            outcomes.append(_run_one(eligibility, placer, memo, progress, plan_options, seed + k))
             _report(progress, outcomes)
     else:
         outcomes = _in_processes(
-            eligibility, options, kwargs, seed, seeds, workers, budget, t0, progress
+            eligibility, options, plan_options, seed, seeds, workers, budget, t0, progress
         )
     runs = tuple(run for run, _ in outcomes)
     if not any(run.ok for run in runs):
