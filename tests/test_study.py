@@ -231,26 +231,32 @@ def test_a_local_cluster_runs_every_task_once_in_its_workers(tiny, tmp_path):
     assert (tmp_path / "summary.md").stat().st_size > 0
 
 
-def test_a_real_task_row_holds_the_plan(tmp_path):
-    """One real task in this process (without the placement's ceiling, most of a task's time):
-    its row holds what plan gives with the task's options, with the certified brackets (every
-    task of the tiny study, with the ceiling, on a cluster: the slow tests)."""
+def plan_of(task):
+    """What ``plan`` gives for a study task's model, contacts, seed and options, in this
+    process."""
     from closure_nlp.elements import load_model
     from closure_nlp.eligibility import Eligibility
     from closure_nlp.planning import plan
 
-    task = load_study(write_study(tmp_path, TINY + PLACEMENT + "bound = false\n")).tasks[1]
-    assert not task.placement_options().bound
-    clear_cache()
-    row = run_task(task)
-    clear_cache()
     eligibility = Eligibility(load_model(task.model_file), task.specs(), task.torque_scale)
-    result = plan(
+    return plan(
         eligibility,
         seed=task.seed,
         selection=task.selection_options(),
         placement=task.placement_options(),
     )
+
+
+def test_a_real_task_row_holds_the_plan(tmp_path):
+    """One real task in this process (without the placement's ceiling, most of a task's time):
+    its row holds what plan gives with the task's options, with the certified brackets (every
+    task of the tiny study, with the ceiling, on a cluster: the slow tests)."""
+    task = load_study(write_study(tmp_path, TINY + PLACEMENT + "bound = false\n")).tasks[1]
+    assert not task.placement_options().bound
+    clear_cache()
+    row = run_task(task)
+    clear_cache()
+    result = plan_of(task)
     assert row["status"] == "ok" and row["seed"] == task.seed
     assert row["elements"] == list(result.placement.elements)
     assert row["iterative_elements"] == list(result.iterative.elements)
@@ -324,18 +330,8 @@ def same_rows(a, b) -> None:
 
 @pytest.mark.slow
 def test_serial_run_matches_plan(tiny, serial_rows):
-    from closure_nlp.elements import load_model
-    from closure_nlp.eligibility import Eligibility
-    from closure_nlp.planning import plan
-
     task = load_study(tiny).tasks[3]
-    eligibility = Eligibility(load_model(task.model_file), task.specs(), task.torque_scale)
-    result = plan(
-        eligibility,
-        seed=task.seed,
-        selection=task.selection_options(),
-        placement=task.placement_options(),
-    )
+    result = plan_of(task)
     row = serial_rows.loc[task.task_id]
     assert list(row.elements) == list(result.placement.elements)
     assert abs(row.rho - result.placement.rho) <= 1e-9
