@@ -776,7 +776,7 @@ def bench_seeds(
 GAP_BUDGETS = {"lamp": 30.0, "cup": 30.0, "pistol": 60.0}
 
 
-def _gap_run(placer, elements, today, budget: float, **settings) -> dict:
+def _gap_run(placer, elements, exchange, budget: float, **settings) -> dict:
     """One search of the ceiling for ``bench_gap``: its JSON entry."""
     from .placement_bound import BoundOptions, capacity_bound, relative_gap
 
@@ -784,7 +784,7 @@ def _gap_run(placer, elements, today, budget: float, **settings) -> dict:
     found = capacity_bound(
         placer,
         elements,
-        today,
+        exchange,
         BoundOptions(gap=0.0, time_budget=budget, **settings),
     )
     reached = {}
@@ -794,9 +794,9 @@ def _gap_run(placer, elements, today, budget: float, **settings) -> dict:
         ]
         reached[f"seconds_to_{target:g}"] = times[0] if times else None
     return {
-        "exchange_gap": relative_gap(found.value, -today.bounds[1]),
-        "final_rho": today.rho if found.placement is None else found.placement.rho,
-        "improvement": (found.capacity + today.bounds[1]) / -today.bounds[1],
+        "exchange_gap": relative_gap(found.value, -exchange.bounds[1]),
+        "final_rho": exchange.rho if found.placement is None else found.placement.rho,
+        "improvement": (found.capacity + exchange.bounds[1]) / -exchange.bounds[1],
         "root_bound": found.root_value,
         "capacity_bound": found.value,
         "gap": found.gap,
@@ -844,20 +844,20 @@ def bench_gap(
         moves = 20 if neighbours else 0
         placer = Placer(eligibility, PlacementOptions(bound=False, neighbour_moves=moves))
         planned = plan(eligibility, seed=seed, placer=placer, alternatives=0)
-        today = planned.placement
+        exchange = planned.placement
         budget = budgets.get(name, 30.0)
 
         entry = {
             "type": setup["type"],
             "contacts": setup["m"],
             "elements": list(planned.iterative.elements),
-            "exchange_rho": today.rho,
-            "exchange_seconds": today.seconds,
-            **_gap_run(placer, planned.iterative.elements, today, budget),
+            "exchange_rho": exchange.rho,
+            "exchange_seconds": exchange.seconds,
+            **_gap_run(placer, planned.iterative.elements, exchange, budget),
         }
         if compare:
             entry["exhaustive"] = _gap_run(
-                placer, planned.iterative.elements, today, budget, **EXHAUSTIVE_BOUND
+                placer, planned.iterative.elements, exchange, budget, **EXHAUSTIVE_BOUND
             )
         report["models"][name] = entry
     return report
