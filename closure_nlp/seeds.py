@@ -23,10 +23,12 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from .certify import tolerance_unit
 from .eligibility import Eligibility
 from .interrupts import leave_to_parent
 from .placement import PlacementOptions, Placer
 from .progress import Progress
+from .tolerances import DEFAULT_TOLERANCES
 from .validation import MAX_SEED
 
 # The command line's defaults: 8 seeds of a few seconds each fit well within the budget on 2
@@ -45,6 +47,7 @@ class SeedRun:
     result: object | None  # PlanResult
     error: str | None = None
     seconds: float = 0.0
+    unit: float | None = None  # wrench_unit of the placement (choose's tie tolerance)
 
     @property
     def ok(self) -> bool:
@@ -66,6 +69,7 @@ class SeedRun:
             "capacity_bound": p.capacity_bound,
             "attempts": len(r.attempts),
             "reused": list(r.reused),
+            "rho_unit": self.unit,
             "seconds": self.seconds,
         }
 
@@ -79,8 +83,8 @@ class SeedSpread:
     runs : tuple of SeedRun
         In seed order; only the seeds started before the budget was spent.
     chosen : int
-        Index in ``runs`` of the returned plan: force closure first, then the lowest rho, then
-        the lowest seed.
+        Index in ``runs`` of the returned plan (:func:`choose`: force closure first, then the
+        lowest rho, rhos within the certified accuracy tied and broken by the lowest seed).
     requested : int
         Seeds asked for; ``len(runs)`` is fewer when the budget stopped new ones.
     workers : int
@@ -124,7 +128,7 @@ class SeedSpread:
                     "ceiling": min(ceilings) if ceilings else None,
                 }
             )
-        return sorted(rows, key=lambda row: (-row["seeds"], row["best_rho"]))
+        return sorted(rows, key=lambda row: (-row["seeds"], row["best_rho"], row["elements"]))
 
     def to_dict(self) -> dict:
         rhos = self.rhos
@@ -135,7 +139,7 @@ class SeedSpread:
             "workers": self.workers,
             "budget": self.budget,
             "chosen_seed": self.runs[self.chosen].seed,
-            "best_rho": float(rhos.min()),
+            "best_rho": self.runs[self.chosen].result.placement.rho,
             "median_rho": float(np.median(rhos)),
             "worst_rho": float(rhos.max()),
             "force_closure": sum(run.result.force_closure for run in ok),
@@ -160,22 +164,56 @@ class SeedSpread:
         )
 
 
-def rank(force_closure: bool, rho: float, seed: int) -> tuple:
-    """The order in which a plan of several seeds prefers them (lowest first): force closure
-    first, then the lowest rho, then the lowest seed."""
-    return (not force_closure, rho, seed)
+def wrench_unit(eligibility: Eligibility, elements) -> float:
+    """The wrench scale rho is measured against for contacts on ``elements``
+    (:func:`~closure_nlp.certify.tolerance_unit` of their slots): it follows ``f_max``, the
+    length unit and the torque scale alike."""
+    return float(tolerance_unit(eligibility.slots(elements)))
 
 
-def best_index(runs) -> int:
-    """The run a multi-seed plan returns (:func:`rank`; runs without a result never)."""
-    ranked = [
-        (*rank(run.result.force_closure, run.result.placement.rho, run.seed), i)
-        for i, run in enumerate(runs)
-        if run.ok
-    ]
-    if not ranked:
+def choose(entries, tolerance: float = DEFAULT_TOLERANCES.certify) -> int:
+    """Index of the entry a plan of several seeds returns.
+
+    Force closure first; among those (or among all, when none is), every entry whose rho lies
+    within ``tolerance * max(|best rho|, unit)`` of the lowest ties (the certified rho is known
+    to that accuracy, relative to the wrench scale ``unit``, the largest of the entries'), and
+    the lowest seed among the tied wins. The choice depends on the entries' values alone, never
+    on their order or on round-off far below the certified accuracy (parallel and serial runs
+    of the same seeds return the same seed).
+
+    Parameters
+    ----------
+    entries : sequence of (seed, force_closure, rho, unit)
+        ``unit``: :func:`wrench_unit` of the entry's placement (None or NaN: not known; the
+        others' then, else 1).
+    tolerance : float
+        Relative accuracy of a certified rho (``Tolerances.certify``).
+
+    Raises
+    ------
+    ValueError
+        When ``entries`` is empty.
+    """
+    entries = [(int(s), bool(fc), float(r), u) for s, fc, r, u in entries]
+    if not entries:
         raise ValueError("no seed ended with a placement")
-    return min(ranked)[-1]
+    pool = [i for i, e in enumerate(entries) if e[1]] or list(range(len(entries)))
+    units = [float(entries[i][3]) for i in pool if entries[i][3] is not None]
+    units = [u for u in units if math.isfinite(u) and u > 0]
+    lowest = min(entries[i][2] for i in pool)
+    tie = tolerance * max(abs(lowest), max(units, default=1.0))
+    tied = [i for i in pool if entries[i][2] <= lowest + tie]
+    return min(tied, key=lambda i: entries[i][0])
+
+
+def best_index(runs, tolerance: float = DEFAULT_TOLERANCES.certify) -> int:
+    """The run a multi-seed plan returns (:func:`choose`; runs without a result never)."""
+    ok = [i for i, run in enumerate(runs) if run.ok]
+    entries = [
+        (runs[i].seed, runs[i].result.force_closure, runs[i].result.placement.rho, runs[i].unit)
+        for i in ok
+    ]
+    return ok[choose(entries, tolerance)]
 
 
 def check_seed_options(seeds, workers, budget) -> tuple[int, int | None, float | None]:
@@ -269,7 +307,7 @@ def plan_seeds(
     runs = tuple(run for run, _ in outcomes)
     if not any(run.ok for run in runs):
         raise outcomes[0][1]
-    chosen = best_index(runs)
+    chosen = best_index(runs, eligibility.minimizer.tolerances.certify)
     spread = SeedSpread(runs, chosen, seeds, workers, budget)
     return replace(runs[chosen].result, seconds=time.perf_counter() - t0, seeds=spread)
 
@@ -283,7 +321,8 @@ def _run_one(eligibility, placer, memo, progress, kwargs, seed: int):
         result = plan(eligibility, seed=seed, placer=placer, memo=memo, progress=progress, **kwargs)
     except Exception as exc:  # noqa: BLE001 - recorded; raised when every seed fails
         return SeedRun(seed, None, f"{type(exc).__name__}: {exc}", time.perf_counter() - t), exc
-    return SeedRun(seed, result, None, time.perf_counter() - t), None
+    unit = wrench_unit(eligibility, result.placement.elements)
+    return SeedRun(seed, result, None, time.perf_counter() - t, unit), None
 
 
 def _report(progress, outcomes) -> None:
@@ -362,6 +401,7 @@ __all__ = [
     "available_cores",
     "best_index",
     "check_seed_options",
+    "choose",
     "plan_seeds",
-    "rank",
+    "wrench_unit",
 ]

@@ -176,6 +176,25 @@ def test_the_summary_gives_what_plan_with_seeds_would_return(tiny, tmp_path):
     assert "best_of_8_rho" in (tmp_path / "summary.md").read_text()
 
 
+def test_the_summary_breaks_a_tie_as_plan_with_seeds_does(tmp_path):
+    """Seeds 1 and 2 tie within the certified accuracy (2 lower by round-off): seed 1, as
+    plan --seeds chooses (closure_nlp.seeds.choose, tests/test_seeds.py)."""
+    rhos = {0: (-0.5, True), 1: (-1.035491704129848, True), 2: (-1.0354917041300218, True)}
+
+    def runner(task, model_text):
+        row = task_row(task)
+        rho, closure = rhos[task.seed]
+        row.update(status="ok", elements=[0, 1], rho=rho, force_closure=closure, rho_unit=1.0)
+        row.update(seconds=0.01, iterative_rho_hat=-1.0, converged=True)
+        return row
+
+    study = load_study(write_study(tmp_path, TINY.replace("seeds = 2", "seeds = 3") + PLACEMENT))
+    result = run_study(study, tmp_path / "out", serial=True, runner=runner)
+    for row in result.summary:
+        assert (row["best_of_8_rho"], row["best_of_8_seed"]) == (rhos[1][0], 1)
+        assert row["rho_best"] == rhos[2][0]
+
+
 def test_failing_task_is_recorded_and_the_study_goes_on(tiny, tmp_path):
     study = load_study(tiny)
     seen = []
@@ -263,6 +282,7 @@ def test_a_real_task_row_holds_the_plan(tmp_path):
     assert abs(row["rho"] - result.placement.rho) <= 1e-9
     assert (row["rho_lo"], row["rho_hi"]) == pytest.approx(result.placement.bounds, abs=1e-9)
     assert row["rho_lo"] <= row["rho"] <= row["rho_hi"] < 0 and row["force_closure"]
+    assert np.isfinite(row["rho_unit"]) and row["rho_unit"] > 0
 
 
 # --- real tasks: serial against a 2-worker cluster ----------------------------------------------

@@ -40,7 +40,8 @@ deterministic; ``plan``'s ``memo``).
 A result row (:data:`ROW_COLUMNS`) holds the task's inputs, ``status`` (``ok`` or ``error``) and
 ``error``; per selection step its ``elements``, ``rho_hat`` with its certified bounds
 ``rho_hat_lo`` and ``rho_hat_hi``, ``eligible``, ``evaluations`` and ``seconds``; the
-placement's ``elements``, ``rho`` with its bounds ``rho_lo`` and ``rho_hi``, ``force_closure``,
+placement's ``elements``, ``rho`` with its bounds ``rho_lo`` and ``rho_hi``, ``rho_unit`` (the
+wrench scale by which ``plan --seeds`` tells ties apart), ``force_closure``,
 ``marginal``, ``converged`` (the bracket reached 1e-6), ``start_rho``, rounds, moves, seconds
 and the placed contacts (JSON); the task's ``seconds`` (the three steps, as this task spent
 them), ``reused`` (the steps taken from an earlier task of the worker, comma-separated, e.g.

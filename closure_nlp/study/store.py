@@ -38,6 +38,7 @@ def _columns() -> list[tuple[str, str]]:
         ("rho", "real"),
         ("rho_lo", "real"),
         ("rho_hi", "real"),
+        ("rho_unit", "real"),
         ("force_closure", "flag"),
         ("robust", "flag"),
         ("marginal", "flag"),

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from ..files import write_atomic
-from ..seeds import DEFAULT_SEEDS, rank
+from ..seeds import DEFAULT_SEEDS, choose
 from .grid import Study, group_keys, task_groups
 from .plots import plot_study
 
@@ -54,15 +54,19 @@ def summarize(study: Study, frame):
 
 def best_of_seeds(ok, seeds) -> dict:
     """``best_of_8_rho`` and ``best_of_8_seed``: the task among the group's first seeds that
-    ``plan --seeds 8`` with the tasks' options returns (:func:`closure_nlp.seeds.rank`), over
-    the tasks of those seeds done without error."""
-    rows = ok[ok.seed.isin(list(seeds))]
-    if not len(rows):
+    ``plan --seeds 8`` with the tasks' options returns (:func:`closure_nlp.seeds.choose`, by
+    the rows' ``rho_unit``), over the tasks of those seeds done without error."""
+    rows = ok[ok.seed.isin(list(seeds))].to_dict("records")
+    if not rows:
         return {BEST_RHO: float("nan"), BEST_SEED: None}
-    best = min(
-        rows.to_dict("records"),
-        key=lambda r: rank(bool(r["force_closure"]), float(r["rho"]), int(r["seed"])),
-    )
+    best = rows[
+        choose(
+            [
+                (r["seed"], bool(r["force_closure"]), r["rho"], r.get("rho_unit"))
+                for r in rows
+            ]
+        )
+    ]
     return {BEST_RHO: float(best["rho"]), BEST_SEED: int(best["seed"])}
 
 
@@ -109,7 +113,8 @@ def summary_markdown(study: Study, summary, frame) -> str:
         "gap = the placement's certified gap to the best placement on its elements (median of "
         "the force-closure rows); "
         f"best of {DEFAULT_SEEDS} = the task of the first {DEFAULT_SEEDS} seeds that `plan --seeds "
-        f"{DEFAULT_SEEDS}` returns (force closure first, then the lowest rho).",
+        f"{DEFAULT_SEEDS}` returns (force closure first, then the lowest rho; rhos within the "
+        "certified accuracy tie, and the lowest seed wins).",
         "",
         "| " + " | ".join(summary.columns) + " |",
         "|" + "---|" * len(summary.columns),

@@ -25,6 +25,7 @@ from ..files import parse_json, read_input
 from ..placement import PlacementOptions, Placer
 from ..planning import plan
 from ..quality import SupportMinimizer
+from ..seeds import wrench_unit
 from ..selection import SelectionOptions
 from ..solver_cache import PerThread
 from .store import ROW_COLUMNS
@@ -244,6 +245,7 @@ def run_task(task: Task, model_text: str | None = None) -> dict:
         rho=float(placed.rho),
         rho_lo=rho_lo,
         rho_hi=rho_hi,
+        rho_unit=wrench_unit(eligibility, placed.elements),
         force_closure=bool(placed.force_closure),
         robust=bool(placed.force_closure if placed.robust is None else placed.robust),
         marginal=bool(placed.marginal),
