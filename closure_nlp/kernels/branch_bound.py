@@ -26,6 +26,9 @@ MAX_PIVOTS = 300
 # Optimality and pivot tolerance of the games, on games scaled to [0, 1]: weights within about
 # this of the value times the spread of the entries, tiny in the small cells near a minimum.
 GAME_EPS = 1e-6
+# A cell's game stops once its bound clears the drop threshold by this share of the gap: more
+# would only widen the cell's bound past what drops it; less would leave the bracket at the gap.
+GAME_HEADROOM = 0.5
 
 
 @njit(**OPTIONS)
@@ -201,11 +204,13 @@ def frank_wolfe(points, n, c, delta, steps, lam, wbar):
 
 
 @njit(**OPTIONS)
-def game_weights(M, lam):
+def game_weights(M, lam, stop=np.inf):
     """Convex weights ``lam`` (K,) maximising ``min_c (M lam)_c`` for ``M`` (C, K): the value
     of a small matrix game by a dense primal simplex (Dantzig's rule) on the game scaled to
     [0, 1]; every iterate is feasible, so capped weights still give a valid bound (callers
-    recompute the bound from the weights). Returns the pivots taken."""
+    recompute the bound from the weights). Pivoting ends early once the iterate's value
+    reaches ``stop`` (a cell's bound needs no more than its target). Returns the pivots
+    taken."""
     C, K = M.shape
     low, high = np.inf, -np.inf
     for i in range(C):
@@ -239,6 +244,8 @@ def game_weights(M, lam):
     eps = GAME_EPS
     pivots = 0
     for _ in range(MAX_PIVOTS):
+        if low + span * T[C + 1, V] >= stop:  # t <= (M' lam)_c with M' = (M - low) / span
+            break
         j, low_obj = 0, np.inf
         for k in range(V):
             if T[C + 1, k] < low_obj:
@@ -279,9 +286,12 @@ def game_weights(M, lam):
 
 
 @njit(**OPTIONS)
-def exact_bound(points, n, corners, unit, nearest):
+def exact_bound(points, n, corners, unit, nearest, stop):
     """The corner bound of the best convex combination of ``points[:n]`` against the cell's
-    unit corners (a matrix game)."""
+    unit corners (a matrix game), or of one whose game value reaches ``stop``. Valid for any
+    weights the game returns: the bound is :func:`box_bound` of their combination ``wbar``,
+    and ``p(u) >= wbar . u`` for every convex combination of support points, so stopping
+    early can only weaken it."""
     M = np.empty((CORNERS, n))
     for q in range(CORNERS):
         for i in range(n):
@@ -290,7 +300,7 @@ def exact_bound(points, n, corners, unit, nearest):
                 s += unit[q, k] * points[i, k]
             M[q, i] = s
     lam = np.empty(n)
-    game_weights(M, lam)
+    game_weights(M, lam, stop)
     wbar = np.zeros(6)
     for i in range(n):
         for k in range(6):
@@ -365,7 +375,7 @@ def evaluate_cells(G, f, W, npc, ends, axis, sign, lo, hi, metric, U, points, va
 
 @njit(**OPTIONS)
 def bound_cells(
-    G, f, W, npc, ends, axis, sign, lo, hi, metric, U, points, values, target, margin,
+    G, f, W, npc, ends, axis, sign, lo, hi, metric, U, points, values, target, stop, margin,
     fw_steps, refine_below, best, best_u, anchor, anchor_at,
 ):  # fmt: skip
     """Lower bounds of ``p`` over every cell (N,), from its evaluated samples
@@ -413,7 +423,7 @@ def bound_cells(
                 more[:CORNERS] = unit
                 cloud(U[n, np.argmin(values[n])], refine * delta, more[CORNERS:])
                 consider(G, f, W, npc, ends, more, pool[size:], best, best_u)
-                exact = exact_bound(pool, pool_size, corners, unit, nearest)
+                exact = exact_bound(pool, pool_size, corners, unit, nearest, stop + 2 * margin)
                 bound = max(bound, exact - margin)
         out[n] = bound
     return out
@@ -470,8 +480,9 @@ def advance(
             tally[LOWER] = -np.inf
             return BELOW_ZERO, axis, sign, lo, hi, U, points, values
         target = best[0] - gap  # the round's: refinements may lower the incumbent meanwhile
+        stop = target + GAME_HEADROOM * gap
         bound = bound_cells(
-            G, f, W, npc, ends, axis, sign, lo, hi, metric, U, points, values, target, margin,
+            G, f, W, npc, ends, axis, sign, lo, hi, metric, U, points, values, target, stop, margin,
             int(settings[FW_STEPS]), settings[REFINE_BELOW], best, best_u, anchor, anchor_at,
         )  # fmt: skip
         alive, lowest_live = 0, np.inf
