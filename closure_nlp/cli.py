@@ -500,6 +500,13 @@ def _add_place(sub, common) -> None:
     _add_placement_options(p)
     p.add_argument("--seed", type=_seed, default=0, help="random start weights after the first")
     p.add_argument("--out", metavar="FILE", help="write the placed contacts as a contact-set file")
+    _add_margin_option(p)
+    _add_bound_options(p)
+    _add_contact_options(p)
+    p.set_defaults(run=_cmd_place)
+
+
+def _add_margin_option(p) -> None:
     p.add_argument(
         "--margin",
         type=_bounded_float(0.0, float("inf"), "the margin"),
@@ -508,9 +515,41 @@ def _add_place(sub, common) -> None:
         help="keep every contact at least D (model units) from its element's boundary "
         "(default 0); the ceiling covers the same region",
     )
-    _add_bound_options(p)
-    _add_contact_options(p)
-    p.set_defaults(run=_cmd_place)
+
+
+def _with_margin(args, eligibility: Eligibility, ids=()) -> Eligibility:
+    """``eligibility`` on the model shrunk by ``--margin`` (itself when the margin is 0);
+    ``ids``: elements the command names, refused when too small for the margin."""
+    from .margin import with_margin
+
+    if not args.margin:
+        return eligibility
+    model, dropped = with_margin(eligibility.model, args.margin)
+    small = sorted(set(ids) & set(dropped))
+    if small:
+        raise InputError(
+            "--margin",
+            f"element(s) {_join(small)} too small for a margin of {args.margin:g}: "
+            "no point of them is that far from their boundary",
+        )
+    if len(model.unusable) == len(model):
+        raise InputError(
+            "--margin", f"every element is too small for a margin of {args.margin:g}"
+        )
+    specs, scale = eligibility.specs, eligibility.torque_scale
+    return Eligibility(model, specs, scale, tolerance=eligibility.tolerance)
+
+
+def _margin_text(args, model) -> str:
+    """The margin's line of a command's text (empty without a margin)."""
+    if not args.margin:
+        return ""
+    text = f"\n  every contact at least {args.margin:g} from its element's boundary"
+    left = model.unusable
+    if left:
+        listed = _join(left) if len(left) <= 12 else f"{_join(left[:12])},..."
+        text += f"; {len(left)} element(s) too small for it left out ({listed})"
+    return text
 
 
 def _placement_options(args, seeded: bool) -> PlacementOptions:
@@ -558,7 +597,7 @@ def _placement_text(result, model) -> str:
 
 
 def _cmd_place(args) -> None:
-    from .margin import on_original, with_margin
+    from .margin import on_original
 
     ids = _ids(args.elements, "--elements")
     eligibility = _eligibility(args, len(ids), "--elements")
@@ -566,18 +605,7 @@ def _cmd_place(args) -> None:
     with _reading(args.model):
         ids = eligibility.check_elements(ids, "--elements")
         require_closure_count(eligibility.specs, "--elements")
-        if args.margin:
-            model, dropped = with_margin(original, args.margin)
-            small = sorted(set(ids) & set(dropped))
-            if small:
-                raise InputError(
-                    "--margin",
-                    f"element(s) {_join(small)} too small for a margin of {args.margin:g}: "
-                    "no point of them is that far from their boundary",
-                )
-            eligibility = Eligibility(
-                model, eligibility.specs, eligibility.torque_scale, tolerance=model.tolerance
-            )
+        eligibility = _with_margin(args, eligibility, ids)
     options, progress, close = _placement_setup(args, True, check_output_file)
     try:
         result = Placer(eligibility, options)(ids, progress=progress)
@@ -588,8 +616,7 @@ def _cmd_place(args) -> None:
     placed = _placement_text(result, original)
     payload, text = result.to_dict(), f"{_shown(args.model)}: {placed}"
     payload["margin"] = args.margin
-    if args.margin:
-        text += f"\n  every contact at least {args.margin:g} from its element's boundary"
+    text += _margin_text(args, eligibility.model)
     if args.out:
         _check_finite(payload, args.model)  # before anything is written
         model = eligibility.model
@@ -654,14 +681,19 @@ def _add_plan(sub, common) -> None:
     p.add_argument(
         "--up", choices=["x", "y", "z"], help="model axis drawn upwards (default: the model's)"
     )
-
+    _add_margin_option(p)
     _add_bound_options(p)
     _add_contact_options(p)
     p.set_defaults(run=_cmd_plan)
 
 
 def _cmd_plan(args) -> None:
+    from .margin import on_original
+
     eligibility = _eligibility(args, args.contacts, closure=True)
+    original = eligibility.model
+    with _reading(args.model):
+        eligibility = _with_margin(args, eligibility)
     placement_options, progress, close = _placement_setup(args, False, check_output_dir)
     try:
         if args.seed + args.seeds - 1 > MAX_SEED:
@@ -680,7 +712,10 @@ def _cmd_plan(args) -> None:
         )
     finally:
         close()
+    if args.margin:  # contacts' weights on the file's elements: the same positions
+        result = dataclasses.replace(result, placement=on_original(result.placement, original))
     payload = result.to_dict()
+    payload["margin"] = args.margin
     _check_finite(payload, args.model)  # before anything is written
     if args.out:
         options = {
@@ -695,9 +730,10 @@ def _cmd_plan(args) -> None:
             "placement": vars(placement_options),
             "alternatives": args.alternatives,
             "up": args.up or eligibility.model.up,
+            "margin": args.margin,
         }
         with staged_folder(args.out) as staged:  # all files of this run, or none
-            written = write_report(eligibility.model, result, staged, options)
+            written = write_report(original, result, staged, options)
         payload["out"] = {name: os.path.join(args.out, name) for name in written}
     h, it = result.heuristic, result.iterative
     text = (
@@ -711,7 +747,8 @@ def _cmd_plan(args) -> None:
             f"{' (force closure)' if a.force_closure else ''} ({a.seconds:.2f} s)\n"
             for a in result.attempts[1:]
         )
-        + f"{_placement_text(result.placement, eligibility.model)}\n"
+        + f"{_placement_text(result.placement, original)}"
+        + f"{_margin_text(args, eligibility.model)}\n"
         + ("" if result.seeds is None else result.seeds.line() + "\n")
         + f"total {result.seconds:.2f} s"
         + (f"; report in {_shown(args.out)}" if args.out else "")

@@ -286,6 +286,10 @@ class Model:
     tolerance : ModelTolerance
         How far the real part's contact points and normals may lie from the elements'
         (``characterize`` measures it against the mesh; none by default).
+    unusable : tuple of int
+        Ids of elements no contact may sit on (too small for a margin, see
+        :func:`closure_nlp.margin.with_margin`): they keep their ids, but selection never picks
+        them, they are nobody's neighbour, and a contact set naming one is refused.
     """
 
     elements: tuple[Element, ...]
@@ -299,6 +303,7 @@ class Model:
     reference_point: np.ndarray | None = None
     up: str = "z"
     tolerance: ModelTolerance = NO_TOLERANCE
+    unusable: tuple[int, ...] = ()
 
     def __post_init__(self) -> None:
         if not isinstance(self.tolerance, ModelTolerance):
@@ -321,14 +326,26 @@ class Model:
         for k, pair in enumerate(self.adjacency):
             pairs.append(_as_pair(pair, f"adjacency[{k}]", len(elements)))
         object.__setattr__(self, "adjacency", tuple(pairs))
+        ids = {_as_id(e, f"unusable[{k}]", len(elements)) for k, e in enumerate(self.unusable)}
+        unusable = tuple(sorted(ids))
+        object.__setattr__(self, "unusable", unusable)
         neighbours: list[set[int]] = [set() for _ in elements]
         for a, b in pairs:
+            if a in unusable or b in unusable:
+                continue
             neighbours[a].add(b)
             neighbours[b].add(a)
         object.__setattr__(self, "_neighbours", tuple(tuple(sorted(s)) for s in neighbours))
 
     def __len__(self) -> int:
         return len(self.elements)
+
+    @property
+    def usable(self) -> np.ndarray:
+        """(n,) bool: the elements a contact may sit on."""
+        mask = np.ones(len(self.elements), bool)
+        mask[list(self.unusable)] = False
+        return mask
 
     def neighbours(self, element_id: int) -> tuple[int, ...]:
         """Ids of the elements adjacent to ``element_id``, ascending."""
@@ -420,16 +437,20 @@ def _about(element: Element, point: np.ndarray) -> Element:
     return out
 
 
+def _as_id(value, field: str, count: int) -> int:
+    if not is_whole(value):
+        raise TypeError(f"{field}: expected an element id, got {value!r}")
+    if not 0 <= value < count:
+        raise ValueError(f"{field}: element id {value} out of range 0..{count - 1}")
+    return int(value)
+
+
 def _as_pair(pair, field: str, count: int) -> tuple[int, int]:
     if not isinstance(pair, (list, tuple)) or len(pair) != 2:
         raise ValueError(f"{field}: expected a pair of element ids, got {pair!r}")
-    ids = []
-    for v in pair:
-        if not is_whole(v):
-            raise TypeError(f"{field}: expected a pair of element ids, got {pair!r}")
-        if not 0 <= v < count:
-            raise ValueError(f"{field}: element id {v} out of range 0..{count - 1}")
-        ids.append(int(v))
+    if not all(is_whole(v) for v in pair):
+        raise TypeError(f"{field}: expected a pair of element ids, got {pair!r}")
+    ids = [_as_id(v, field, count) for v in pair]
     if ids[0] == ids[1]:
         raise ValueError(f"{field}: an element is not its own neighbour ({ids[0]})")
     return ids[0], ids[1]

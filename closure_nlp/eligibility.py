@@ -160,7 +160,8 @@ class Eligibility:
             raise ValueError(
                 f"{field}: expected {wanted} element ids (one per contact), got {len(elements)}"
             )
-        return tuple(self.model.check_id(e, f"{field}[{k}]") for k, e in enumerate(elements))
+        ids = tuple(self.model.check_id(e, f"{field}[{k}]") for k, e in enumerate(elements))
+        return check_usable(self.model, ids, field)
 
     def slots(self, elements) -> WrenchSlots:
         """The slots of What_c^M: contact ``i`` on element ``elements[i]``, one row per vertex."""
@@ -227,6 +228,17 @@ class Eligibility:
                 (G, spec.type, spec.mu, spec.mu_s, spec.f_max) for G in self._vertex_G
             )
         return self._all[spec].slot_values(np.asarray(u, dtype=float)[None])[0]
+
+
+def check_usable(model: Model, ids: tuple[int, ...], field: str) -> tuple[int, ...]:
+    """``ids``, or a ``ValueError`` naming those no contact may sit on (``model.unusable``)."""
+    bad = sorted(set(ids) & set(model.unusable))
+    if bad:
+        listed = ",".join(str(e) for e in bad)
+        raise ValueError(
+            f"{field}: element(s) {listed} may hold no contact (too small for the margin)"
+        )
+    return ids
 
 
 def rho_hat(

@@ -65,7 +65,8 @@ def shrunk(element: Element, margin: float) -> Element | None:
 
 def with_margin(model: Model, margin: float) -> tuple[Model, tuple[int, ...]]:
     """``model`` with every element shrunk by ``margin`` (model units), and the ids of the
-    elements too small for it (kept as they are in the model, but no contact may use them)."""
+    elements too small for it (kept as they are, and marked ``unusable``: no contact may use
+    them, selection never picks them, they are nobody's neighbour)."""
     if isinstance(margin, bool) or not isinstance(margin, (int, float)):
         raise TypeError(f"margin: expected a length, got {margin!r}")
     if not (0.0 <= margin < np.inf):
@@ -77,7 +78,8 @@ def with_margin(model: Model, margin: float) -> tuple[Model, tuple[int, ...]]:
             dropped.append(i)
             s = e
         elements.append(s)
-    return replace(model, elements=tuple(elements)), tuple(dropped)
+    unusable = tuple(sorted(set(model.unusable) | set(dropped)))
+    return replace(model, elements=tuple(elements), unusable=unusable), tuple(dropped)
 
 
 def on_original(result, model: Model):

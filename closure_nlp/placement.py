@@ -552,9 +552,12 @@ def nearest_weights(vertices: np.ndarray, point: np.ndarray) -> np.ndarray:
     k = len(vertices)
     if k == 1:
         return np.ones(1)
-    scale = max(1.0, float(np.abs(vertices).max()))
-    A = np.vstack([vertices.T / scale, 1e3 * np.ones((1, k))])  # sum-to-one as a stiff row
-    b = np.concatenate([point / scale, [1e3]])
+    # about the centroid, over the element's size: the same weights in any unit and anywhere
+    centre = vertices.mean(axis=0)
+    size = float(np.max(np.linalg.norm(vertices - centre, axis=1)))
+    size = size if size > 0.0 else 1.0
+    A = np.vstack([(vertices - centre).T / size, 1e3 * np.ones((1, k))])  # sum-to-one, stiff
+    b = np.concatenate([(point - centre) / size, [1e3]])
     w, _ = nnls(A, b)
     return w / w.sum()
 
@@ -842,7 +845,7 @@ class Placer:
                 target = model.elements[n]
                 w_n = nearest_weights(target.vertices, here)
                 gap = np.linalg.norm(target.position(w_n) - here)
-                if gap > 1e3 * tol * max(1.0, element.size, target.size):
+                if gap > 1e3 * tol * max(element.size, target.size):  # relative: any unit
                     continue  # the neighbour does not touch this contact
                 trial = list(elements)
                 trial[i] = n

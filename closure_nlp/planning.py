@@ -427,6 +427,12 @@ def summary_markdown(model, result: PlanResult, options: dict) -> str:
         from .placement_bound import gap_text
 
         rows += [f"Placement quality: {gap_text(pl)}.", ""]
+    if options.get("margin"):
+        rows += [
+            f"Every contact at least {options['margin']:g} from its element's boundary "
+            "(the ceiling covers the same region).",
+            "",
+        ]
     if "torque_scale" in options and "reference_point" in options:  # the CLI's scale (scale.py)
         unit = f" {options.get('units')}" if options.get("units") else ""
         point = ", ".join(f"{x:.6g}" for x in options["reference_point"])
@@ -518,6 +524,8 @@ def write_report(model, result: PlanResult, out_dir, options: dict) -> dict:
     out = Path(out_dir)
     paths = {}
     contacts = result.placement.contact_file(model.name, model.units)
+    if "margin" in options:  # how far every contact keeps from its element's boundary
+        contacts["margin"] = options["margin"]
     report = {
         "model": model.name,
         **result.to_dict(),

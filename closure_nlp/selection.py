@@ -15,7 +15,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .contact_count import require_closure_count
-from .eligibility import Eligibility, EligibilityResult, element_set_keys
+from .eligibility import Eligibility, EligibilityResult, check_usable, element_set_keys
 from .errors import MethodError
 from .progress import Progress
 from .quality import SearchOptions, signed_distance
@@ -167,7 +167,8 @@ def heuristic(
     """
     require_closure_count(eligibility.specs)
     t0 = time.perf_counter()
-    m, n = eligibility.m, len(eligibility.model)
+    m = eligibility.m
+    usable = np.flatnonzero(eligibility.model.usable)
     evaluations0 = eligibility.evaluations
     rng = np.random.default_rng(seed)
     given = None if start is None else _check_start(eligibility, start)
@@ -178,7 +179,7 @@ def heuristic(
         if given and round_ == 1:
             chosen = list(given)
         else:
-            chosen = rng.integers(0, n, options.initial).tolist()
+            chosen = usable[rng.integers(0, len(usable), options.initial)].tolist()
         history = []
         # A complete set is certified at once: the certificate's light seed search replaces the
         # full one, and the verdict that ends the rounds is the certified one.
@@ -186,6 +187,7 @@ def heuristic(
         history.append((0, found.rho_hat))
         while len(chosen) < m:
             values = eligibility.element_values(len(chosen), found.direction)
+            values[~eligibility.model.usable] = -np.inf
             chosen.append(int(np.argmax(values)))
             found = eligibility(chosen, found.direction, partial=True, certify=len(chosen) == m)
             history.append((len(history), found.rho_hat))
@@ -379,7 +381,8 @@ def _check_start(eligibility: Eligibility, start) -> tuple[int, ...]:
     start = as_id_list(start, "start")
     if not 1 <= len(start) <= eligibility.m:
         raise ValueError(f"start: expected 1 to {eligibility.m} element ids, got {len(start)}")
-    return tuple(eligibility.model.check_id(e, f"start[{k}]") for k, e in enumerate(start))
+    ids = tuple(eligibility.model.check_id(e, f"start[{k}]") for k, e in enumerate(start))
+    return check_usable(eligibility.model, ids, "start")
 
 
 __all__ = [

@@ -12,7 +12,7 @@ import pytest
 from closure_nlp.contacts import contact_specs
 from closure_nlp.elements import model_from_dict
 from closure_nlp.eligibility import Eligibility
-from closure_nlp.placement import PlacementOptions, Placer
+from closure_nlp.placement import PlacementOptions, Placer, nearest_weights
 from closure_nlp.scale import resolve
 from tests.shapes import box_facets
 
@@ -87,3 +87,14 @@ def test_a_box_in_metres_and_millimetres_agrees_within_the_gap():
     millimetres = model_from_dict({**_scaled(data, 1000.0), "units": "mm"})
     ids = [2, 3, 4, 5]
     _agree(_placed(metres, "sfce", ids), _placed(millimetres, "sfce", ids))
+
+
+@pytest.mark.parametrize("factor", [1e-3, 1.0, 1e3])
+def test_nearest_weights_are_the_same_in_any_unit(factor):
+    # a 3 cm triangle 0.37 m from the origin, a point beyond its edge (0, 1) and off its
+    # plane: the nearest point is on that edge, at a fraction known in closed form
+    triangle = np.array([[0.0, 0.0, 0.0], [0.03, 0.0, 0.0], [0.0, 0.02, 0.0]])
+    offset = np.array([0.3, -0.1, 0.2])
+    point = np.array([0.012, -0.004, 0.005])
+    w = nearest_weights((triangle + offset) * factor, (point + offset) * factor)
+    np.testing.assert_allclose(w, [0.6, 0.4, 0.0], atol=1e-9)
