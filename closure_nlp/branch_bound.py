@@ -18,8 +18,10 @@ where ``p`` has a kink (a contact switching on, a cone's apex), and minima sit o
 best combination of the support points from both sides of the kink is second-order accurate
 there as on smooth minima, so few cells survive per level.
 
-Support points. Besides the cell's own eleven, every cell may combine the support points of a
-tiny cloud around the incumbent (they hold every piece of ``p`` that meets at the minimum), and a
+Support points. Besides the cell's own eleven, every cell may combine the point of ``W`` whose
+bound its parent kept (a halved cell is first bounded by that point alone, and dropped before
+its samples are taken when that suffices), the support points of a tiny cloud around the
+incumbent (they hold every piece of ``p`` that meets at the minimum), and a
 cell that survives near the minimum gets those of its corners and of a cloud around its lowest
 sample, with a longer search of the weights.
 
@@ -121,7 +123,7 @@ class SphereBounds:
     converged : bool
         Every cell was dropped: ``upper - lower`` is within the gap asked for.
     cells : int
-        Cells bounded.
+        Cells sampled and bounded (not those a halved cell's inherited point dropped first).
     evaluations : int
         Directions at which ``p`` and a support point were evaluated.
     rounds : int

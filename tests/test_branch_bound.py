@@ -100,19 +100,52 @@ def test_cell_bounds_hold_under_the_reference(kind):
         kernels.bound_cells(
             *slots.packed, axis, sign, lo, hi, np.ones(6), U, points, values, target, target,
             0.0, 12, 10.0, best, best_u, np.empty((kernels.ANCHORS, 6)), np.zeros(7),
+            np.full((len(pick), 6), np.nan),
         )
         for target in (np.inf, best[0])
     ]  # fmt: skip
     bound = np.maximum(*bounds)
     for n in range(len(pick)):
-        y = lo[n] + (hi[n] - lo[n]) * rng.uniform(size=(60, 5))
-        x = np.empty((len(y), 6))
-        x[:, axis[n]] = sign[n]  # the cube face; the box's five free coordinates
-        free = [j for j in range(6) if j != axis[n]]
-        x[:, free] = y
-        U = x / np.linalg.norm(x, axis=1, keepdims=True)
-        low = min(reference.support(u, ref) for u in U)
+        low = min(reference.support(u, ref) for u in _cell_directions(rng, axis, sign, lo, hi, n))
         assert bound[n] <= low + 1e-12 * max(1.0, abs(low)), (n, bound[n], low)
+
+
+def _cell_directions(rng, axis, sign, lo, hi, n, count=60):
+    """Random unit directions (count, 6) of cell ``n``."""
+    y = lo[n] + (hi[n] - lo[n]) * rng.uniform(size=(count, 5))
+    x = np.empty((len(y), 6))
+    x[:, axis[n]] = sign[n]  # the cube face; the box's five free coordinates
+    x[:, [j for j in range(6) if j != axis[n]]] = y
+    return x / np.linalg.norm(x, axis=1, keepdims=True)
+
+
+def test_cells_screened_by_an_inherited_point_hold_the_target():
+    """A halved cell is first bounded by the point of the set its parent's bound used: the
+    cells that bound drops lie at or above the target under the reference support function,
+    and the least of their bounds (``tally[LOWER]``) below every value seen in them."""
+    rng = np.random.default_rng(11)
+    cs = random_contact_set(rng, ["pcwf", "sfce", "sfcl", "fpc"])
+    slots, ref = WrenchSlots.from_contacts(cs), reference.from_contact_set(cs)
+    axis, sign, lo, hi = _initial_cells(2)
+    pick = rng.choice(len(lo), 120, replace=False)
+    axis, sign, lo, hi = axis[pick], sign[pick], lo[pick], hi[pick]
+    # each cell's point: the support point of its parent's centre (the cell doubled in size)
+    parent_lo, parent_hi = lo - 0.5 * (hi - lo), hi + 0.5 * (hi - lo)
+    x = np.zeros((len(pick), 6))
+    x[np.arange(len(pick)), axis] = sign
+    free = np.array([[j for j in range(6) if j != a] for a in axis])
+    np.put_along_axis(x, free, 0.5 * (parent_lo + parent_hi), axis=1)
+    lin = slots.support_points(x / np.linalg.norm(x, axis=1, keepdims=True))
+    values = slots.support(x / np.linalg.norm(x, axis=1, keepdims=True))
+    target = float(np.median(values))
+    tally = np.array([np.inf, 0, 0, -1, 0, 0], dtype=float)
+    live = kernels.screen(axis, sign, lo, hi, np.ones(6), lin, target, 0.0, tally)
+    dropped = np.setdiff1d(np.arange(len(pick)), live)
+    assert 0 < len(dropped) < len(pick)
+    for n in dropped:
+        low = min(reference.support(u, ref) for u in _cell_directions(rng, axis, sign, lo, hi, n))
+        assert low >= target - 1e-12 * max(1.0, abs(target)), (n, low, target)
+        assert tally[kernels.LOWER] <= low
 
 
 def _min_over_sphere(contact_set, max_cells, **budget):

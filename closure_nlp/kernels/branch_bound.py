@@ -286,12 +286,12 @@ def game_weights(M, lam, stop=np.inf):
 
 
 @njit(**OPTIONS)
-def exact_bound(points, n, corners, unit, nearest, stop):
+def exact_bound(points, n, corners, unit, nearest, stop, wbar):
     """The corner bound of the best convex combination of ``points[:n]`` against the cell's
-    unit corners (a matrix game), or of one whose game value reaches ``stop``. Valid for any
-    weights the game returns: the bound is :func:`box_bound` of their combination ``wbar``,
-    and ``p(u) >= wbar . u`` for every convex combination of support points, so stopping
-    early can only weaken it."""
+    unit corners (a matrix game), or of one whose game value reaches ``stop``; the
+    combination into ``wbar`` (6,). Valid for any weights the game returns: the bound is
+    :func:`box_bound` of their combination, and ``p(u) >= wbar . u`` for every convex
+    combination of support points, so stopping early can only weaken it."""
     M = np.empty((CORNERS, n))
     for q in range(CORNERS):
         for i in range(n):
@@ -301,7 +301,7 @@ def exact_bound(points, n, corners, unit, nearest, stop):
             M[q, i] = s
     lam = np.empty(n)
     game_weights(M, lam, stop)
-    wbar = np.zeros(6)
+    wbar[:] = 0.0
     for i in range(n):
         for k in range(6):
             wbar[k] += lam[i] * points[i, k]
@@ -376,17 +376,22 @@ def evaluate_cells(G, f, W, npc, ends, axis, sign, lo, hi, metric, U, points, va
 @njit(**OPTIONS)
 def bound_cells(
     G, f, W, npc, ends, axis, sign, lo, hi, metric, U, points, values, target, stop, margin,
-    fw_steps, refine_below, best, best_u, anchor, anchor_at,
+    fw_steps, refine_below, best, best_u, anchor, anchor_at, lin,
 ):  # fmt: skip
     """Lower bounds of ``p`` over every cell (N,), from its evaluated samples
     (:func:`evaluate_cells`): each cheaper bound first, the next only for the cells it leaves
-    below ``target``. Single support points of the samples (exact on a linear piece of
-    ``p``); Frank-Wolfe combinations with the incumbent's anchors (second order at a kink,
-    approximately); in small cells, the exact best combination of more support points (the
-    corners and a cloud around the lowest sample)."""
+    below ``target``. Single support points of the samples and the cell's inherited wrench
+    ``lin`` (exact on a linear piece of ``p``); Frank-Wolfe combinations of these with the
+    incumbent's anchors (second order at a kink, approximately); in small cells, the best
+    combination of more support points (the corners and a cloud around the lowest sample) by
+    a matrix game, pivoted until its bound reaches ``stop`` (at least ``target``).
+
+    ``lin`` (N, 6): on entry a point of the set per cell (its parent's, see :func:`screen`),
+    or NaN for none; on return the point whose linear bound is the cell's."""
     N = len(axis)
     out = np.empty(N)
-    pool_size = SAMPLES + ANCHORS + CORNERS + 21
+    size = SAMPLES + 1 + ANCHORS  # the samples, the inherited point, the anchors
+    pool_size = size + CORNERS + 21
     pool = np.empty((pool_size, 6))
     centre = np.empty(6)
     corners = np.empty((CORNERS, 6))
@@ -401,9 +406,14 @@ def bound_cells(
         delta, nearest = cell_geometry(
             axis[n], sign[n], lo[n], hi[n], metric, centre, corners, unit
         )
-        bound = -np.inf
-        for s in range(SAMPLES):
-            bound = max(bound, box_bound(points[n, s], corners, unit, nearest))
+        pool[:SAMPLES] = points[n]
+        pool[SAMPLES] = points[n, 0] if np.isnan(lin[n, 0]) else lin[n]
+        bound, at = -np.inf, 0
+        for s in range(SAMPLES + 1):
+            b = box_bound(pool[s], corners, unit, nearest)
+            if b > bound:
+                bound, at = b, s
+        lin[n] = pool[at]
         bound -= margin
         if bound < target:
             if not anchored and (anchor_at[6] == 0.0 or not np.array_equal(anchor_at[:6], best_u)):
@@ -413,20 +423,46 @@ def bound_cells(
                 anchor_at[6] = 1.0
                 consider(G, f, W, npc, ends, directions, anchor, best, best_u)
             anchored = True
-            size = SAMPLES + ANCHORS
-            pool[:SAMPLES] = points[n]
-            pool[SAMPLES:size] = anchor
+            pool[SAMPLES + 1 : size] = anchor
             cap = frank_wolfe(pool, size, centre, delta, fw_steps, lam, wbar)
             box = box_bound(wbar, corners, unit, nearest)
-            bound = max(bound, max(cap, box) - margin)
+            if max(cap, box) - margin > bound:
+                bound = max(cap, box) - margin
+                lin[n] = wbar
             if bound < target and delta < refine_below:
                 more[:CORNERS] = unit
                 cloud(U[n, np.argmin(values[n])], refine * delta, more[CORNERS:])
                 consider(G, f, W, npc, ends, more, pool[size:], best, best_u)
-                exact = exact_bound(pool, pool_size, corners, unit, nearest, stop + 2 * margin)
-                bound = max(bound, exact - margin)
+                exact = exact_bound(
+                    pool, pool_size, corners, unit, nearest, stop + 2 * margin, wbar
+                )
+                if exact - margin > bound:
+                    bound = exact - margin
+                    lin[n] = wbar
         out[n] = bound
     return out
+
+
+@njit(**OPTIONS)
+def screen(axis, sign, lo, hi, metric, lin, target, margin, tally):
+    """Which cells (indices) the linear bound of their inherited point ``lin`` (N, 6) leaves
+    below ``target``; the others are dropped before their samples are taken, their bounds
+    entered in ``tally[LOWER]``. A cell's parent's bounding point is a point of the set,
+    and over the smaller cell its bound can only rise."""
+    centre = np.empty(6)
+    corners = np.empty((CORNERS, 6))
+    unit = np.empty((CORNERS, 6))
+    keep = np.empty(len(axis), np.int64)
+    alive = 0
+    for n in range(len(axis)):
+        _, nearest = cell_geometry(axis[n], sign[n], lo[n], hi[n], metric, centre, corners, unit)
+        bound = box_bound(lin[n], corners, unit, nearest) - margin
+        if bound < target:
+            keep[alive] = n
+            alive += 1
+        else:
+            tally[LOWER] = min(tally[LOWER], bound)
+    return keep[:alive]
 
 
 def no_samples():
@@ -456,12 +492,15 @@ def advance(
     lowered the incumbent by more than the gap since the last polish and a polish is left
     (``POLISH``: the caller runs its local solver and calls again with the same cells,
     ``evaluated`` true). ``tally[LOWER]`` holds the least bound of the dropped cells, and once
-    stopped unconverged, of the live ones too.
+    stopped unconverged, of the live ones too. Halved cells inherit their parent's bounding
+    point and are first :func:`screen`-ed by it: the cells it drops cost no samples (and do
+    not count in ``tally[CELLS]``, the budget of sampled cells).
 
     Returns (status, axis, sign, lo, hi, U, points, values): the live cells and their
     samples."""
     gap, margin = settings[GAP], settings[MARGIN]
     max_cells, extended = settings[MAX_CELLS], settings[EXTENDED_CELLS]
+    lin = np.full((len(axis), 6), np.nan)  # none inherited on entry
     while True:
         if not evaluated:
             N = len(axis)
@@ -484,6 +523,7 @@ def advance(
         bound = bound_cells(
             G, f, W, npc, ends, axis, sign, lo, hi, metric, U, points, values, target, stop, margin,
             int(settings[FW_STEPS]), settings[REFINE_BELOW], best, best_u, anchor, anchor_at,
+            lin,
         )  # fmt: skip
         alive, lowest_live = 0, np.inf
         keep = np.empty(len(axis), np.int64)
@@ -513,6 +553,13 @@ def advance(
         axis, sign, lo, hi = halve(
             axis[keep], sign[keep], lo[keep], hi[keep], int(settings[CELLS_PER_ROUND])
         )
+        inherited = np.empty((len(axis), 6))
+        for c in range(len(axis)):  # halve's child c + k * alive has parent c
+            inherited[c] = lin[keep[c % alive]]
+        live = screen(axis, sign, lo, hi, metric, inherited, best[0] - gap, margin, tally)
+        if len(live) == 0:
+            return CONVERGED, axis[live], sign[live], lo[live], hi[live], U, points, values
+        axis, sign, lo, hi, lin = axis[live], sign[live], lo[live], hi[live], inherited[live]
 
 
 @njit(**OPTIONS)
