@@ -693,6 +693,8 @@ def _seed_entry(result, wall: float) -> dict:
         "wall_s": wall,
         "seeds_run": spread["run"],
         "workers": spread["workers"],
+        "chosen_seed": spread["chosen_seed"],
+        "seeds_each": [r["seed"] for r in spread["runs"] if "rho" in r],
         "best_rho": spread["best_rho"],
         "single_seed_median_rho": float(np.median(rhos)),
         "worst_rho": spread["worst_rho"],
@@ -705,6 +707,39 @@ def _seed_entry(result, wall: float) -> dict:
     }
 
 
+def _spin(n: int) -> int:
+    total = 0
+    for i in range(n):
+        total += i * i
+    return total
+
+
+def control_speedup(workers: int, tasks: int = 8, n: int = 4_000_000) -> dict:
+    """The machine's parallelism now: ``tasks`` equal pure-Python loops one by one, then over
+    ``workers`` forked processes (how the seeds run). Whatever the code, the seeds cannot run
+    faster in parallel than this ratio: under Linux's autogroup scheduling, a busy session of
+    another user takes its share of the cores from all of this session's processes together."""
+    import multiprocessing
+
+    load = _load()
+    t0 = time.perf_counter()
+    for _ in range(tasks):
+        _spin(n)
+    serial = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    with multiprocessing.get_context("fork").Pool(workers) as pool:
+        pool.map(_spin, [n] * tasks, chunksize=1)
+    parallel = time.perf_counter() - t0
+    return {
+        "workers": workers,
+        "serial_s": serial,
+        "parallel_s": parallel,
+        "speedup": serial / parallel,
+        "load_before": load,
+        "load_after": _load(),
+    }
+
+
 def bench_seeds(
     seeds: int = 8,
     root=MODELS_DIR.parent,
@@ -713,7 +748,8 @@ def bench_seeds(
 ) -> dict:
     """Plans of several seeds. ``efficiency``: ``seeds`` seeds of one example one by one
     (one process, one memo) and over the available cores, in the same run; the ratio of their
-    wall times, with the load before and after. ``fixtures``: the command line's default plan
+    wall times, with the load before and after, and ``control`` (:func:`control_speedup` right
+    after: the parallelism the machine offered). ``fixtures``: the command line's default plan
     (:data:`~closure_nlp.seeds.DEFAULT_SEEDS` seeds, :data:`~closure_nlp.seeds.DEFAULT_BUDGET`)
     on the fixture study's pistol and stepped shaft 7-FPC groups, against the study's best of
     20 seeds. ``examples``: best of ``seeds`` against the median single seed of the same runs,
@@ -732,6 +768,8 @@ def bench_seeds(
             entry[f"load_after_{mode}"] = _load()
         entry["same_answer"] = entry["serial"]["rho_each"] == entry["parallel"]["rho_each"]
         entry["speedup"] = entry["serial"]["wall_s"] / entry["parallel"]["wall_s"]
+        entry["control"] = control_speedup(available_cores())
+        entry["speedup_over_control"] = entry["speedup"] / entry["control"]["speedup"]
         report["efficiency"] = entry
     if "fixtures" in parts:
         report["fixtures"] = {}

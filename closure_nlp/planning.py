@@ -281,6 +281,28 @@ class _Recall:
         return cached(self.memo, key, compute, MEMO_SIZE)
 
 
+def memo_entries(memo: dict, eligibility: Eligibility, skip=frozenset()) -> dict:
+    """The entries of a plan memo on ``eligibility`` (keys not in ``skip``), keyed without it:
+    what another process's memo on a copy of that eligibility can take (:func:`adopt_memo`).
+
+    A memo key holds the eligibility itself (:class:`_Recall`), whose identity does not cross
+    processes; the step, the element ids and the options do."""
+    return {
+        (key[0], *key[2:]): value
+        for key, value in list(memo.items())
+        if key not in skip and key[1] is eligibility
+    }
+
+
+def adopt_memo(memo: dict, eligibility: Eligibility, entries: dict) -> None:
+    """Add :func:`memo_entries` (from a copy of ``eligibility``) to ``memo``, keeping its own
+    entries and its size limit."""
+    for (step, *rest), value in entries.items():
+        key = (step, eligibility, *rest)
+        if key not in memo:
+            cached(memo, key, lambda value=value: value, MEMO_SIZE)
+
+
 def _attempt(elements, source: str, rho_hat: float, placed: PlacementResult) -> Attempt:
     return Attempt(
         tuple(elements), source, rho_hat, placed.rho, placed.force_closure, placed.seconds
@@ -637,7 +659,9 @@ def _seeds_figure(result: PlanResult, path: Path) -> Path:
 __all__ = [
     "Attempt",
     "PlanResult",
+    "adopt_memo",
     "load_contacts",
+    "memo_entries",
     "plan",
     "summary_markdown",
     "versions",

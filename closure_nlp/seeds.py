@@ -4,11 +4,13 @@ One plan is one seed of the heuristic, and seeds differ a lot (fixture study, 20
 pistol 7 FPC median rho -0.2748, best -0.6494; stepped shaft 7 FPC median -0.2724, best -0.7125,
 5 seeds marginal). :func:`plan_seeds` runs N seeds and returns the best placement with every
 seed's outcome and their spread. Seeds run in worker processes when ``workers > 1``; each worker
-keeps one plan memo (:func:`~closure_nlp.planning.plan`) for the seeds it runs, so a seed that
-meets an element set an earlier seed of that worker met takes its iterative run and placement
-from it (with ``workers=1`` one memo serves every seed). The memo returns what computing again
-gives, and each seed's plan is deterministic, so the answer does not depend on the workers: N
-seeds over K processes give what the N seeds give one by one (all but timings and ``reused``).
+keeps one plan memo (:func:`~closure_nlp.planning.plan`), and every seed's new entries are
+shipped to the seeds started after it, whichever worker runs them, so a seed that meets an
+element set an earlier seed met takes its iterative run and placement from it (with
+``workers=1`` one memo serves every seed). The memo returns what computing again gives, and
+each seed's plan is deterministic, so the answer does not depend on the workers: N seeds over K
+processes give what the N seeds give one by one (all but timings and ``reused``); the best is
+chosen from the values alone (:func:`choose`), never by the order in which seeds finish.
 """
 
 from __future__ import annotations
@@ -344,9 +346,25 @@ def _start_worker(eligibility, options, kwargs) -> None:
     )
 
 
-def _worker_seed(k: int, seed: int):
+def _worker_seed(k: int, seed: int, shared: dict):
+    """Seed ``seed`` in this worker, its memo first given the steps the other workers shipped
+    (``shared``); returns the steps this seed added, for the others."""
+    from .planning import adopt_memo, memo_entries
+
     w = _WORKER
-    return k, _run_one(w["eligibility"], w["placer"], w["memo"], None, w["kwargs"], seed)
+    adopt_memo(w["memo"], w["eligibility"], shared)
+    before = set(w["memo"])
+    outcome = _run_one(w["eligibility"], w["placer"], w["memo"], None, w["kwargs"], seed)
+    return k, outcome, memo_entries(w["memo"], w["eligibility"], skip=before)
+
+
+def _share(shared: dict, entries: dict) -> None:
+    """``shared`` with a seed's new memo entries; the oldest dropped beyond the memo's size."""
+    from .planning import MEMO_SIZE
+
+    shared.update(entries)
+    while len(shared) > MEMO_SIZE:
+        del shared[next(iter(shared))]
 
 
 def _context():
@@ -363,6 +381,7 @@ def _in_processes(eligibility, options, kwargs, seed, seeds, workers, budget, t0
     budget stops new ones), gathered in seed order. An interrupt or error ends the workers at
     once."""
     done: dict[int, tuple] = {}
+    shared: dict = {}  # the steps the seeds computed, shipped to every seed started after
     finished: queue.SimpleQueue = queue.SimpleQueue()
     pool = _context().Pool(workers, _start_worker, (eligibility, options, kwargs))
     try:
@@ -375,7 +394,10 @@ def _in_processes(eligibility, options, kwargs, seed, seeds, workers, budget, t0
                     seeds = k
                     break
                 pool.apply_async(
-                    _worker_seed, (k, seed + k), callback=finished.put, error_callback=finished.put
+                    _worker_seed,
+                    (k, seed + k, dict(shared)),  # a copy: pickled later, in the pool's thread
+                    callback=finished.put,
+                    error_callback=finished.put,
                 )
                 k, running = k + 1, running + 1
             if not running:
@@ -385,6 +407,7 @@ def _in_processes(eligibility, options, kwargs, seed, seeds, workers, budget, t0
             if isinstance(item, BaseException):  # the worker itself failed (not a seed's error)
                 raise item
             done[item[0]] = item[1]
+            _share(shared, item[2])
             _report(progress, [done[i] for i in sorted(done)])
         pool.close()
     finally:

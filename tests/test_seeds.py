@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import multiprocessing
 import time
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -229,3 +230,47 @@ def test_a_tie_goes_to_the_lowest_seed_whatever_the_order_the_seeds_finish(
     assert spread["best_rho"] == TIE[0]
     assert [r["seed"] for r in spread["runs"]] == [0, 1, 2]  # in seed order, not finishing order
     assert all(r["rho_unit"] > 0 for r in spread["runs"])
+
+
+SLEEP = {0: 0.1, 1: 0.4, 2: 0.8, 3: 0.0}
+
+
+def memo_plan(eligibility, *, seed, memo, **kwargs):
+    """Adds one step to the memo, keyed as plan keys it, and tells the earlier seeds' steps it
+    found there (as ``reused``). Seed 0 ends first, in one worker, which then runs seed 2;
+    seed 3 starts when seed 1 ends, in the other worker."""
+    time.sleep(SLEEP[seed])
+    found = sorted(key[2][0] for key in memo if key[1] is eligibility)
+    memo[("placement", eligibility, (seed,), None)] = seed
+    result = fake_result(-0.1 - seed, True, False, [0, 1, 2, 3])
+    return replace(result, reused=tuple(f"seed {k}" for k in found))
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_seed_takes_the_steps_every_earlier_seed_computed_in_any_process(
+    monkeypatch, workers
+):
+    patch_plan(monkeypatch, memo_plan)
+    from closure_nlp.seeds import plan_seeds
+
+    spread = plan_seeds(hand(), seed=0, seeds=4, workers=workers).seeds
+    reused = {run.seed: run.result.reused for run in spread.runs}
+    assert "seed 0" in reused[3]  # computed in the other process
+    assert reused[0] == ()
+
+
+def test_memo_entries_cross_to_a_copy_of_the_eligibility():
+    import pickle
+
+    from closure_nlp.planning import adopt_memo, memo_entries
+
+    here, other = hand(), hand()
+    memo = {("placement", here, (0, 1, 2, 3), QUICK): "placed", ("x", other, (), None): "no"}
+    entries = pickle.loads(pickle.dumps(memo_entries(memo, here)))
+    assert entries == {("placement", (0, 1, 2, 3), QUICK): "placed"}
+    theirs = {("placement", other, (0, 1, 2, 3), QUICK): "their own"}
+    adopt_memo(theirs, other, {**entries, ("iterative", (1,), FEW): "run"})
+    assert theirs == {
+        ("placement", other, (0, 1, 2, 3), QUICK): "their own",  # kept, not overwritten
+        ("iterative", other, (1,), FEW): "run",
+    }
