@@ -86,7 +86,7 @@ def descend(
     """
 
     if tau is None:  # compiled: the same steps on p itself
-        U = np.ascontiguousarray(U, dtype=float)
+        U = np.array(U, dtype=float)  # writeable: a read-only array is another compile
         return kernels.descend_many(*slots.packed, U, int(iterations), float(stop))
 
     def evaluate(V):

@@ -213,8 +213,10 @@ class WrenchSlots:
 
 
 def _directions(U) -> np.ndarray:
-    """Directions as the kernels take them: (N, 6) float64, C-contiguous."""
-    return np.ascontiguousarray(np.atleast_2d(U), dtype=float)
+    """Directions as the kernels take them: (N, 6) float64, C-contiguous, writeable (numba
+    compiles a read-only array as another type: a second compile of every kernel)."""
+    U = np.ascontiguousarray(np.atleast_2d(U), dtype=float)
+    return U if U.flags.writeable else U.copy()
 
 
 def as_slots(value) -> WrenchSlots:

@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .arrays import copy_into, copy_rows
 from .support import OPTIONS, scratch, set_value, support_point
 
 SAMPLES = 11  # a cell's centre and the ends of its five axes
@@ -328,7 +329,7 @@ def cloud(u, scales, out):
     Their support points hold every piece of ``p`` that meets at ``u``."""
     E = np.empty((5, 6))
     tangent_basis(u, E)
-    out[0] = u
+    copy_into(out[0], u)
     at = 1
     for eps in scales:
         for sgn in (1.0, -1.0):
@@ -352,7 +353,7 @@ def consider(G, f, W, npc, ends, U, points, best, best_u):
     best[1] += len(U)
     if low < best[0]:
         best[0] = low
-        best_u[:] = U[at]
+        copy_into(best_u, U[at])
     return at
 
 
@@ -369,7 +370,7 @@ def evaluate_cells(G, f, W, npc, ends, axis, sign, lo, hi, metric, U, points, va
             values[n, s] = v
             if v < best[0]:
                 best[0] = v
-                best_u[:] = U[n, s]
+                copy_into(best_u, U[n, s])
     best[1] += SAMPLES * len(axis)
 
 
@@ -399,6 +400,7 @@ def bound_cells(
     lam = np.empty(pool_size)
     wbar = np.empty(6)
     refine = np.array([0.25, 0.01])
+    anchor_scales = ANCHOR_SCALES.copy()  # a global is read-only: another compile of cloud
     more = np.empty((CORNERS + 21, 6))
     directions = np.empty((ANCHORS, 6))
     anchored = False
@@ -406,31 +408,31 @@ def bound_cells(
         delta, nearest = cell_geometry(
             axis[n], sign[n], lo[n], hi[n], metric, centre, corners, unit
         )
-        pool[:SAMPLES] = points[n]
-        pool[SAMPLES] = points[n, 0] if np.isnan(lin[n, 0]) else lin[n]
+        copy_rows(pool, 0, points[n])
+        copy_into(pool[SAMPLES], points[n, 0] if np.isnan(lin[n, 0]) else lin[n])
         bound, at = -np.inf, 0
         for s in range(SAMPLES + 1):
             b = box_bound(pool[s], corners, unit, nearest)
             if b > bound:
                 bound, at = b, s
-        lin[n] = pool[at]
+        copy_into(lin[n], pool[at])
         bound -= margin
         if bound < target:
             if not anchored and (anchor_at[6] == 0.0 or not np.array_equal(anchor_at[:6], best_u)):
                 # the incumbent's anchors: taken once per round, when first needed
-                cloud(best_u, ANCHOR_SCALES, directions)
-                anchor_at[:6] = best_u
+                cloud(best_u, anchor_scales, directions)
+                copy_into(anchor_at, best_u)
                 anchor_at[6] = 1.0
                 consider(G, f, W, npc, ends, directions, anchor, best, best_u)
             anchored = True
-            pool[SAMPLES + 1 : size] = anchor
+            copy_rows(pool, SAMPLES + 1, anchor)
             cap = frank_wolfe(pool, size, centre, delta, fw_steps, lam, wbar)
             box = box_bound(wbar, corners, unit, nearest)
             if max(cap, box) - margin > bound:
                 bound = max(cap, box) - margin
-                lin[n] = wbar
+                copy_into(lin[n], wbar)
             if bound < target and delta < refine_below:
-                more[:CORNERS] = unit
+                copy_rows(more, 0, unit)
                 cloud(U[n, np.argmin(values[n])], refine * delta, more[CORNERS:])
                 consider(G, f, W, npc, ends, more, pool[size:], best, best_u)
                 exact = exact_bound(
@@ -438,7 +440,7 @@ def bound_cells(
                 )
                 if exact - margin > bound:
                     bound = exact - margin
-                    lin[n] = wbar
+                    copy_into(lin[n], wbar)
         out[n] = bound
     return out
 

@@ -7,8 +7,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .arrays import copy_into
 from .branch_bound import cloud, normalise
-from .nearest_point import min_norm_point
+from .nearest_point import TOL, min_norm_point
 from .support import OPTIONS, scratch, support_point, support_value
 
 
@@ -57,8 +58,8 @@ def descend_many(G, f, W, npc, ends, U0, iterations, stop):
             _rotate(U[n], step, angle[n], trial)
             v = support_point(G, f, W, npc, ends, trial, trial_grad, D)
             if v < values[n]:
-                U[n] = trial
-                grads[n] = trial_grad
+                copy_into(U[n], trial)
+                copy_into(grads[n], trial_grad)
                 values[n] = v
                 angle[n] = min(angle[n] * 1.5, 0.6)
             else:
@@ -98,7 +99,7 @@ def local_minimum(G, f, W, npc, ends, u0, max_iter, smallest):
             for k in range(6):
                 tangent[i, k] = points[i, k] - a * u[k]
             size = max(size, np.sqrt(points[i] @ points[i]))
-        g = min_norm_point(tangent)[0]
+        g = min_norm_point(tangent, TOL)[0]
         gn = np.sqrt(g @ g)
         if not gn > eps * size:
             eps *= 0.1
@@ -111,7 +112,7 @@ def local_minimum(G, f, W, npc, ends, u0, max_iter, smallest):
             _rotate(u, step, angle, trial)
             v = support_value(G, f, W, npc, ends, trial, D)
             if v <= value - 1e-4 * angle * gn:
-                u[:] = trial
+                copy_into(u, trial)
                 value = v
                 moved = True
                 break

@@ -6,10 +6,12 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .arrays import copy_into
 from .support import OPTIONS, scratch, support_point
 
 MAX_LINE_STEPS = 20  # Wolfe's fallback steps in a row (roundoff) before it returns its point
 STALL = 10  # Gilbert steps without progress after which the bracket is returned as it is
+TOL = 1e-15  # Wolfe's default optimality tolerance (the kernels pass it: one compile)
 
 
 @njit(**OPTIONS)
@@ -22,10 +24,12 @@ def _affine_minimizer(P, S, k, mu):
         return
     A = np.empty((P.shape[1], k - 1))
     for i in range(1, k):
-        A[:, i - 1] = P[S[i]] - P[S[0]]
+        for d in range(P.shape[1]):
+            A[d, i - 1] = P[S[i], d] - P[S[0], d]
     z = np.linalg.lstsq(A, -P[S[0]])[0]
     mu[0] = 1.0 - z.sum()
-    mu[1:k] = z
+    for i in range(1, k):
+        mu[i] = z[i - 1]
 
 
 @njit(**OPTIONS)
@@ -55,7 +59,7 @@ def _line_step(S, lam, k, x, P, j):
 
 
 @njit(**OPTIONS)
-def min_norm_point(points, tol=1e-15):
+def min_norm_point(points, tol=TOL):
     """Wolfe's algorithm: the point of ``conv(points)`` (n, d) nearest the origin and its
     convex weights (n,)."""
     n, dim = points.shape
@@ -72,7 +76,7 @@ def min_norm_point(points, tol=1e-15):
     S = np.empty(n + 1, np.int64)
     lam = np.zeros(n + 1)
     mu = np.empty(n + 1)
-    S[0], lam[0], k = np.argmin(norms2), 1.0, 1
+    S[0], lam[0], k = np.argmin(norms2), 1.0, np.int64(1)  # not a literal: one compile
     fallbacks = 0
     for _ in range(50 * (n + 1)):
         x = _current(P, S, lam, k)
@@ -95,7 +99,7 @@ def min_norm_point(points, tol=1e-15):
         for _ in range(k):  # minor cycle: each step drops a point, so it ends
             _affine_minimizer(P, S, k, mu)
             if np.all(mu[:k] > 0.0):
-                lam[:k] = mu[:k]
+                copy_into(lam, mu[:k])
                 break
             theta = np.inf
             for i in range(k):
@@ -115,7 +119,9 @@ def min_norm_point(points, tol=1e-15):
         if inside:
             fallbacks = 0
         else:  # roundoff dropped the improving point again: step towards it instead
-            S[:], lam[:], k = S_before, lam_before, k_before
+            copy_into(S, S_before)
+            copy_into(lam, lam_before)
+            k = k_before
             k2 = _line_step(S, lam, k, x, P, j)
             if k2 < 0:
                 break
@@ -139,33 +145,35 @@ def nearest_point_bounds(G, f, W, npc, ends, U0, gap, max_iter):
         if -v > lo:
             lo, best = -v, i
     best_u = U0[best].copy()
-    x, w = min_norm_point(kept[:n0])
+    x, w = min_norm_point(kept[:n0], TOL)
     hi = np.sqrt(x @ x)
     count = 0
     for i in range(n0):
         if w[i] > 0.0:
-            kept[count] = kept[i]
+            copy_into(kept[count], kept[i])
             count += 1
     evaluations, stalled = n0, 0
     u = np.empty(6)
     for _ in range(max_iter):
         if hi - lo <= gap or not hi > 0.0 or stalled >= STALL:
             break
-        u[:] = -x / np.sqrt(x @ x)
+        norm = np.sqrt(x @ x)
+        for k in range(6):
+            u[k] = -x[k] / norm
         v = support_point(G, f, W, npc, ends, u, kept[count], D)
         count += 1
         evaluations += 1
         if -v > lo:
             lo = -v
-            best_u[:] = u
-        x, w = min_norm_point(kept[:count])
+            copy_into(best_u, u)
+        x, w = min_norm_point(kept[:count], TOL)
         norm = np.sqrt(x @ x)
         stalled = stalled + 1 if norm >= hi * (1.0 - 1e-15) else 0
         hi = min(hi, norm)
         kept_now = 0
         for i in range(count):
             if w[i] > 0.0:
-                kept[kept_now] = kept[i]
+                copy_into(kept[kept_now], kept[i])
                 kept_now += 1
         count = kept_now
     return lo, max(hi, lo), best_u, evaluations
