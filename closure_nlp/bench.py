@@ -680,6 +680,107 @@ def bench_plans(seeds=(1, 2, 3), baseline=None, names=None, extra=()) -> dict:
     return report
 
 
+STARTUP_EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "box_7fpc.contacts.json"
+_COMPILED_LINE = "compiled the numeric kernels in "
+
+
+def _cli_run(python_path: str, args: list, env: dict, tty: bool, timeout: float) -> dict:
+    """One ``python -m closure_nlp.cli`` subprocess with ``python_path`` first: its wall and CPU
+    seconds (the children's rusage), exit status and stderr (through a pseudo-terminal when
+    ``tty``: the compile notice is shown on terminals only)."""
+    import resource
+    import subprocess
+
+    master = slave = None
+    if tty:
+        import pty
+
+        master, slave = pty.openpty()
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    start = time.perf_counter()
+    done = subprocess.run(
+        [sys.executable, "-m", "closure_nlp.cli", *args],
+        stdout=subprocess.DEVNULL,
+        stderr=slave if tty else subprocess.PIPE,
+        env={**os.environ, "PYTHONPATH": python_path, **env},
+        cwd=python_path,
+        timeout=timeout,
+    )
+    wall = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if tty:
+        os.close(slave)
+        chunks = []
+        while True:
+            try:
+                chunk = os.read(master, 4096)
+            except OSError:  # EIO: the terminal's other end is closed and drained
+                break
+            if not chunk:
+                break
+            chunks.append(chunk)
+        os.close(master)
+        stderr = b"".join(chunks).decode(errors="replace").replace("\r\n", "\n")
+    else:
+        stderr = done.stderr.decode(errors="replace")
+    cpu = after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime
+    return {"wall": wall, "cpu": cpu, "status": done.returncode, "stderr": stderr}
+
+
+def _startup_checkout(python_path: str, example: str, cache: str, timeout: float) -> dict:
+    """The cold run of one checkout: a fresh numba cache, the CLI's ``rho`` on a terminal."""
+    run = _cli_run(python_path, ["rho", example], {"NUMBA_CACHE_DIR": cache}, True, timeout)
+    lines = [line for line in run["stderr"].splitlines() if "numeric kernels" in line]
+    said = [line for line in lines if line.startswith(_COMPILED_LINE)]
+    reported = float(said[0][len(_COMPILED_LINE) :].split()[0]) if len(said) == 1 else None
+    return {
+        "cold_wall_s": run["wall"],
+        "cold_cpu_s": run["cpu"],
+        "exit_status": run["status"],
+        "notice_lines": lines,  # "compiling ..." then "compiled ... in X s", once
+        "notice_seconds": reported,
+    }
+
+
+def bench_startup(repeats: int = 5, baseline=None, timeout: float = 1800.0) -> dict:
+    """Start-up of ``closure-nlp rho examples/box_7fpc.contacts.json``: cold (a fresh
+    ``NUMBA_CACHE_DIR``, so every kernel compiles; run on a pseudo-terminal, where the CLI says
+    that it compiles and how long) and warm (the same command again, the kernels from that
+    cache; median wall and CPU seconds of ``repeats`` runs). Each run is its own process; given
+    ``baseline`` (another checkout's folder) the same for it, the warm runs alternating."""
+    import tempfile
+
+    example = str(STARTUP_EXAMPLE)
+    runs = {"ours": str(Path(__file__).resolve().parents[1])}
+    if baseline is not None:
+        runs["baseline"] = str(Path(baseline).resolve())
+    report = {"load_before": _load(), "example": "examples/box_7fpc.contacts.json"}
+    with tempfile.TemporaryDirectory() as folder:
+        caches = {name: str(Path(folder) / name) for name in runs}
+        for name, path in runs.items():
+            report[name] = _startup_checkout(path, example, caches[name], timeout)
+            print(json.dumps({name: report[name]}), file=sys.stderr, flush=True)
+        warm = {name: [] for name in runs}
+        for _ in range(repeats):
+            for name, path in runs.items():
+                env = {"NUMBA_CACHE_DIR": caches[name]}
+                run = _cli_run(path, ["rho", example], env, False, timeout)
+                if run["status"] != 0:
+                    raise RuntimeError(f"{name}: exit {run['status']}: {run['stderr'][-300:]}")
+                warm[name].append(run)
+    for name in runs:
+        report[name]["warm_wall_s"] = _stats([r["wall"] for r in warm[name]])
+        report[name]["warm_cpu_s"] = _stats([r["cpu"] for r in warm[name]])
+    if baseline is not None:
+        report["ratios"] = {  # baseline / ours: above 1, ours starts faster
+            "cold_cpu": report["baseline"]["cold_cpu_s"] / report["ours"]["cold_cpu_s"],
+            "warm_wall_median": report["baseline"]["warm_wall_s"]["median"]
+            / report["ours"]["warm_wall_s"]["median"],
+        }
+    report["load_after"] = _load()
+    return report
+
+
 def _load() -> float:
     import os
 
@@ -1020,9 +1121,17 @@ def main(argv=None) -> int:
     p.add_argument("--neighbours", action="store_true", help="the ceiling over neighbours too")
     p.add_argument("--compare", action="store_true", help="the exhaustive settings too, after")
     p.add_argument("--budget", type=float, help="seconds per model (default: 30, pistol 60)")
+    p = sub.add_parser("startup", help="cold compile and warm start of the command line's rho")
+    p.add_argument("--repeats", type=int, default=5)
+    p.add_argument("--baseline", help="folder of another checkout (e.g. a git worktree)")
     p = sub.add_parser("units", help="pybullet's domino in m and mm, placed under margins")
     p.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
+    if args.what == "startup":  # its own processes and caches: nothing to warm up here
+        report = bench_startup(args.repeats, args.baseline)
+        json.dump(report, sys.stdout, indent=2)
+        sys.stdout.write("\n")
+        return 0
     from .kernels import warm_up
 
     warm_up()  # a kernel compiled inside a timed call would count its compile as its cost

@@ -21,7 +21,6 @@ from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
-from scipy.optimize import nnls
 
 from .contact_count import require_closure_count
 from .contacts import ContactSet, friction_pieces
@@ -558,6 +557,8 @@ def nearest_weights(vertices: np.ndarray, point: np.ndarray) -> np.ndarray:
     size = size if size > 0.0 else 1.0
     A = np.vstack([(vertices - centre).T / size, 1e3 * np.ones((1, k))])  # sum-to-one, stiff
     b = np.concatenate([(point - centre) / size, [1e3]])
+    from scipy.optimize import nnls  # here: scipy.optimize costs 0.2 s of every start
+
     w, _ = nnls(A, b)
     return w / w.sum()
 

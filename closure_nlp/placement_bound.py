@@ -64,7 +64,6 @@ import time
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.optimize import linprog
 
 from .certify import tolerance_unit
 from .contacts import ContactSet, grasp_matrices
@@ -473,6 +472,8 @@ def _highs(A: np.ndarray, owner: np.ndarray, m: int):
 
 def _linprog(A: np.ndarray, owner: np.ndarray, m: int):
     """The same LP by scipy's ``linprog`` (where HiGHS's own Python module is missing)."""
+    from scipy.optimize import linprog  # here: scipy.optimize costs 0.2 s of every start
+
     N, R = A.shape
     cost = np.zeros(R + 1)
     cost[-1] = -1.0
