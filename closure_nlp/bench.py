@@ -1005,14 +1005,16 @@ def bench_gap(
 UNITS_GRASPS = {"4 PCwF": (4, "pcwf"), "7 FPC": (7, "fpc")}
 
 
-def bench_units(margins=(0.0, 0.02, 0.05), seed: int = 0, budget: float = 15.0) -> dict:
+def bench_units(margins=(0.0, 0.02, 0.05), seed: int = 0, cells: int = 200) -> dict:
     """Same part, same answer: pybullet's domino characterized in metres and, from the same
     triangles scaled x1000, in millimetres; elements selected once (``plan`` in metres, seed
     ``seed``), then placed in both units on those elements (no neighbour moves; automatic
-    torque scale and mu_s, mu 0.2) with the ceiling over them for ``budget`` seconds or a 2%
-    gap, under margins of ``margins`` times the part's size (the largest side of its bounding
-    box). Each pair's certified capacities must differ by at most the larger gap times the
-    smaller ceiling (``agree``). Needs pybullet's data (``pybullet_data``)."""
+    torque scale and mu_s, mu 0.2) with the ceiling over them for ``cells`` cells or a 2%
+    gap (a budget of cells, not seconds: the same work in both units, whatever the load),
+    under margins of ``margins`` times the part's size (the largest side of its bounding box).
+    Each pair's certified capacities must differ by at most the larger gap times the smaller
+    ceiling (``agree``); ``work`` compares the exchange rounds, cells and seconds of the two
+    units (mm over m). Needs pybullet's data (``pybullet_data``)."""
     import trimesh
 
     from .characterize import characterize_mesh
@@ -1048,11 +1050,10 @@ def bench_units(margins=(0.0, 0.02, 0.05), seed: int = 0, budget: float = 15.0) 
                     row[units] = {"error": "an element is too small for the margin"}
                     continue
                 load, t0 = _load(), time.perf_counter()
-                options = PlacementOptions(
-                    neighbour_moves=0, bound_cells=100_000, time_budget=budget
-                )
+                options = PlacementOptions(neighbour_moves=0, bound_cells=cells)
                 placed = Placer(eligibility, options)(elements)
                 row[units] = {
+                    "rounds": placed.rounds,
                     "margin_length": margin * size,
                     "exchange_rho": placed.exchange_rho,
                     "rho": placed.rho,
@@ -1070,6 +1071,11 @@ def bench_units(margins=(0.0, 0.02, 0.05), seed: int = 0, budget: float = 15.0) 
                 difference = abs(a["capacity"] - b["capacity"])
                 row["difference"] = difference / larger
                 row["agree"] = bool(difference <= allowed + 1e-6 * larger)
+            if "rounds" in a and "rounds" in b:
+                row["work"] = {
+                    key: b[key] / a[key] if a[key] else None
+                    for key in ("rounds", "bound_nodes", "seconds")
+                }
             rows.append(row)
         report["grasps"][grasp] = {"elements": elements, "rows": rows}
     return report
@@ -1126,6 +1132,7 @@ def main(argv=None) -> int:
     p.add_argument("--baseline", help="folder of another checkout (e.g. a git worktree)")
     p = sub.add_parser("units", help="pybullet's domino in m and mm, placed under margins")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--cells", type=int, default=200, help="cells of each ceiling (default 200)")
     args = parser.parse_args(argv)
     if args.what == "startup":  # its own processes and caches: nothing to warm up here
         report = bench_startup(args.repeats, args.baseline)
@@ -1156,7 +1163,7 @@ def main(argv=None) -> int:
         seeds = [int(x) for x in args.seeds.split(",")]
         report = bench_plans(seeds, args.baseline, args.models.split(","), args.flags.split())
     elif args.what == "units":
-        report = bench_units(seed=args.seed)
+        report = bench_units(seed=args.seed, cells=args.cells)
     elif args.what == "gap":
         names = args.models.split(",")
         budgets = {name: args.budget for name in names} if args.budget else None

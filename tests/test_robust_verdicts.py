@@ -106,3 +106,23 @@ def test_seven_frictionless_contacts_on_a_tessellated_sphere_are_not_held(tmp_pa
     assert code == 1
     assert data["placement"]["robust"] is False
     assert "robust" in err or not data["placement"]["force_closure"]
+
+
+def test_seven_frictionless_contacts_on_pybullets_smooth_sphere_are_not_held(tmp_path, capsys):
+    """pybullet's sphere_smooth.obj: the 7 FPC points a plan of seed 0 places are force closure
+    by the file (rho ~ -2.9e-6, from its vertex normals) but not within the accuracy
+    characterize measures (normals within 6.4 degrees): not held, exit 1."""
+    pybullet_data = pytest.importorskip("pybullet_data")
+    from pathlib import Path
+
+    mesh = Path(pybullet_data.getDataPath()) / "sphere_smooth.obj"
+    model = tmp_path / "sphere.model.json"
+    assert cli.main(["characterize", str(mesh), "--out", str(model), "--units", "m"]) == 0
+    capsys.readouterr()
+    assert load_model(model).tolerance.normal_deg > 1.0
+    points = "219,85,216,148,35,141,7"
+    argv = ["place", str(model), "--elements", points, "--type", "fpc", "--no-bound"]
+    code, data, err = _json(capsys, *argv)
+    assert code == 1 and "not robust" in err
+    assert data["force_closure"] is True and data["robust"] is False
+    assert -1e-4 < data["rho"] < 0.0  # held by the file, by a hair
