@@ -265,3 +265,30 @@ def test_exchange_runs_keep_to_their_share_of_the_time(monkeypatch):
     assert runs[60.0, 0.0] == 1
     assert runs[60.0, 1.0] >= 3
     assert runs[np.inf, 0.0] == runs[np.inf, 1.0] == runs[60.0, 1.0]
+
+
+def test_the_split_halves_the_piece_largest_against_its_element():
+    """Several elements' pieces are separated first; then the piece largest relative to its
+    element is halved; a cell of points is not split."""
+    model = box_model(2.0)
+    eligibility = Eligibility(model, contact_specs(3, type="pcwf", mu=0.5), 0.5)
+    lp = CellLP(eligibility)
+    whole = [element_pieces(eligibility, e)[0] for e in (0, 1, 2)]
+    quarter = whole[0].halves()[0].halves()[0]
+    half = whole[1].halves()[0]
+    tiny = element_pieces(eligibility, 3)[0].halves()[0].halves()[0].halves()[0]
+    cell = ((quarter,), (half,), (tiny,))
+    bound = lp.bound(cell, rounds=0, tolerance=1e-3)
+    split = placement_bound._split(lp, placement_bound._Cell(cell, bound, 0))
+    assert [c[1][0].size for c in split] == [p.size for p in half.halves()]
+    assert all(c[0] == (quarter,) and c[2] == (tiny,) for c in split)
+    mixed = ((quarter,), (half,), (tiny, whole[2]))
+    bound = lp.bound(mixed, rounds=0, tolerance=1e-3)
+    split = placement_bound._split(lp, placement_bound._Cell(mixed, bound, 0))
+    assert sorted(len(c[2]) for c in split) == [1, 1] and split[0][1] == (half,)
+    points = tuple(
+        (placement_bound.Piece(e, whole[k].vertices[:1], whole[k].inward_normal),)
+        for k, e in enumerate((0, 1, 2))
+    )
+    bound = lp.bound(points, rounds=0, tolerance=1e-3)
+    assert placement_bound._split(lp, placement_bound._Cell(points, bound, 0)) is None
