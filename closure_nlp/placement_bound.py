@@ -421,14 +421,24 @@ def _solve_lp(A: np.ndarray, owner: np.ndarray, U: np.ndarray) -> CellBound:
     """``max_lam min_k (A lam)_k`` over one simplex per contact, and its certified dual bound."""
     N, R = A.shape
     m = int(owner.max()) + 1
-    solved = _highs(A, owner, m) if _Highs is not None else _linprog(A, owner, m)
-    x, duals, value = solved
+    # solved on A over its largest entry: the solver's absolute tolerances then mean the same
+    # for any wrench scale (the weights and duals do not change; the value scales back)
+    unit = float(A.max(initial=0.0))
+    unit = unit if unit > 0.0 else 1.0
+    try:
+        solve = _highs if _Highs is not None else _linprog
+        x, duals, value = solve(A / unit, owner, m)
+        value *= unit
+    except RuntimeError:
+        # every solver failed on it: uniform weights and duals, still a certified bound
+        x, duals, value = np.r_[np.ones(R), 0.0], -np.full(N, 1.0 / N), np.nan
     lam = np.maximum(x[:R], 0.0)
     totals = np.bincount(owner, lam, minlength=m)
     lam /= totals[owner]
     y = np.maximum(-duals, 0.0)
     y = y / y.sum() if y.sum() > 0 else np.full(N, 1.0 / N)
-    return CellBound(dual_bound(A, owner, y), lam, y, U, value)
+    bound = dual_bound(A, owner, y)
+    return CellBound(bound, lam, y, U, value if np.isfinite(value) else bound)
 
 
 _SOLVERS = threading.local()

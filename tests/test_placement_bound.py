@@ -233,6 +233,34 @@ def test_a_failed_highs_solve_falls_back(monkeypatch):
     assert result.value == pytest.approx(expected, rel=1e-6)
 
 
+def test_every_solver_failing_still_gives_a_certified_bound(monkeypatch):
+    """When HiGHS and linprog both fail on an LP, the cell's bound is the weak dual of uniform
+    duals: looser, still above every sampled placement, and no exception."""
+
+    def failed(*args):
+        raise RuntimeError("capacity bound: the LP solver failed (test)")
+
+    monkeypatch.setattr(placement_bound, "_highs", failed)
+    monkeypatch.setattr(placement_bound, "_linprog", failed)
+    model = box_model(2.0)
+    specs = contact_specs(4, type="pcwf", mu=0.5)
+    bad, closure = _violations(Eligibility(model, specs, 0.5), (0, 1, 2, 3), 3, 4, depth=(4, 8))
+    assert bad == 0 and closure >= 6
+
+
+def test_lp_values_scale_with_the_wrench_scale():
+    """The LP is solved on its matrix over the largest entry: scaling the matrix by 1e-9 or
+    1e9 scales the value and keeps the weights (HiGHS's absolute tolerances do not decide)."""
+    rng = np.random.default_rng(8)
+    owner = np.array([0, 0, 0, 1, 1, 2, 2])
+    A = rng.random((50, 7))
+    base = placement_bound._solve_lp(A, owner, np.zeros((50, 6)))
+    for factor in (1e-9, 1e9):
+        scaled = placement_bound._solve_lp(A * factor, owner, np.zeros((50, 6)))
+        assert scaled.value == pytest.approx(base.value * factor, rel=1e-9)
+        np.testing.assert_allclose(scaled.lam, base.lam, atol=1e-9)
+
+
 def test_exchange_runs_keep_to_their_share_of_the_time(monkeypatch):
     """Under a time budget, polish_share caps the time the exchange runs from the best cells
     take: with a share of zero only the first runs (it starts before any time is spent); with
