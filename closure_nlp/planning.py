@@ -38,6 +38,7 @@ from .selection import (
     heuristic,
     iterative,
     light_rho_hat,
+    lone_contact,
 )
 from .solver_cache import cached
 from .validation import is_whole
@@ -313,12 +314,19 @@ FRESH_RUNS = 8  # new heuristic + iterative runs at most, when placements keep f
 
 
 def _alternatives(eligibility, seed, selection, second, recall: _Recall):
-    """Further eligible element sets to place, each multiset once: the next set of the pool
+    """Further eligible element sets to place, each multiset once and none that no placement
+    can make force closure (:func:`~closure_nlp.selection.lone_contact`, unless
+    ``selection.placeable`` is off): the next set of the pool
     (sets the iterative runs met, lowest rho_hat first; those only screened by a light search
     are evaluated first and skipped unless eligible), then the result of a new heuristic +
     iterative run (seed derived from ``seed``), and so on alternately."""
     tried = {_multiset(eligibility, second.elements)}
     pool = _pool([], second, eligibility)
+
+    def hopeless(elements) -> bool:
+        """No placement on these elements is force closure (:func:`lone_contact`)."""
+        return selection.placeable and lone_contact(eligibility, elements) is not None
+
     runs = 0
     while pool or runs < FRESH_RUNS:
         while pool:
@@ -327,6 +335,8 @@ def _alternatives(eligibility, seed, selection, second, recall: _Recall):
             if key in tried:
                 continue
             tried.add(key)
+            if hopeless(elements):
+                continue
             if not proven:
                 found = eligibility(elements, certify=False)
                 if not found.eligible:
@@ -344,7 +354,7 @@ def _alternatives(eligibility, seed, selection, second, recall: _Recall):
         fresh = recall.iterative(found.elements, f"iterative {runs}")
         pool = _pool(pool, fresh, eligibility)
         key = _multiset(eligibility, fresh.elements)
-        if fresh.eligible and key not in tried:
+        if fresh.eligible and key not in tried and not hopeless(fresh.elements):
             tried.add(key)
             yield fresh.elements, f"new selection {runs} (heuristic + iterative)", fresh.rho_hat
 

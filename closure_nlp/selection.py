@@ -15,6 +15,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .contact_count import require_closure_count
+from .contacts import ContactType
 from .eligibility import Eligibility, EligibilityResult, check_usable, element_set_keys
 from .errors import MethodError
 from .progress import Progress
@@ -47,6 +48,10 @@ class SelectionOptions:
         give the full search only to those that can still beat the best; the light value is
         never above the full one (the full search starts from its direction), so the choice is
         the same. ``False``: the full search for every neighbour.
+    placeable : bool
+        A plan places no further element set (after the iterative result) that no placement
+        can make force closure by :func:`lone_contact`: rho_hat, which lets a contact use its
+        whole element, may count such sets eligible. ``False``: it places them too.
     """
 
     initial: int = 1
@@ -54,6 +59,7 @@ class SelectionOptions:
     descent: float = 1e-9
     max_iterations: int = 10_000
     screen: bool = True
+    placeable: bool = True
 
     def __post_init__(self) -> None:
         for name, low in (("initial", 1), ("restarts", 1), ("max_iterations", 1)):
@@ -64,6 +70,7 @@ class SelectionOptions:
         if not (isinstance(self.descent, (int, float)) and self.descent >= 0):
             raise ValueError(f"descent: expected a number >= 0, got {self.descent!r}")
         object.__setattr__(self, "screen", as_flag(self.screen, "screen"))
+        object.__setattr__(self, "placeable", as_flag(self.placeable, "placeable"))
 
 
 @dataclass(frozen=True)
@@ -345,6 +352,56 @@ def iterative(
     )
 
 
+# Singular values below this share of the largest count as zero in lone_contact: the wrenches
+# it tests are exactly orthogonal to a direction (surfaces of revolution, parallel planes), so
+# only round-off separates them from it.
+LONE_RANK_TOLERANCE = 1e-9
+
+# The columns of an element's vertex grasp matrices (normal force, two friction forces, spin
+# moment) whose wrenches a contact of each type can apply.
+_COLUMNS = {ContactType.FPC: [0], ContactType.PCWF: [0, 1, 2]}
+
+
+def lone_contact(eligibility: Eligibility, elements) -> int | None:
+    """The position of a frictionless contact that alone gives the set a dimension of wrench
+    space, or None.
+
+    If the wrenches every other contact can apply, anywhere on its element, are orthogonal to a
+    direction ``u`` (they span fewer than 6 dimensions), only contact ``i`` has a wrench along
+    ``u``; a frictionless contact applies one wrench, ``u . w`` of one sign, so no placement on
+    the set resists both ``u`` and ``-u``: none is force closure. rho_hat, which lets a contact
+    use its whole element (both ends of a flat), may still call the set eligible. (E.g. a shaft
+    whose other elements are on surfaces of revolution, with one contact on a wrench flat: no
+    torque about the axis but from that contact.) The test is relative to the wrenches' scale.
+
+    Parameters
+    ----------
+    eligibility : Eligibility
+    elements : sequence of int
+        One element id per contact, ``m`` of them.
+
+    Returns
+    -------
+    int or None
+        The first such position; None when there is none (the set may still not be placeable).
+    """
+    specs = eligibility.specs
+    blocks = []
+    for spec, e in zip(specs, elements):
+        G = eligibility.model.elements[e].grasp_matrices(eligibility.torque_scale)
+        columns = _COLUMNS.get(spec.type, [0, 1, 2, 3])
+        blocks.append(G[:, :, columns].transpose(0, 2, 1).reshape(-1, 6))
+    largest = max(np.linalg.norm(b, 2) for b in blocks)
+    for i, spec in enumerate(specs):
+        if spec.type is not ContactType.FPC:
+            continue
+        others = np.vstack([b for k, b in enumerate(blocks) if k != i])
+        values = np.linalg.svd(others, compute_uv=False)
+        if len(values) < 6 or values[5] <= LONE_RANK_TOLERANCE * largest:
+            return i
+    return None
+
+
 def run_selection(
     eligibility: Eligibility,
     algorithm: str = "heuristic",
@@ -391,5 +448,6 @@ __all__ = [
     "SelectionResult",
     "heuristic",
     "iterative",
+    "lone_contact",
     "run_selection",
 ]

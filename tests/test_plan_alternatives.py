@@ -125,3 +125,23 @@ def test_the_ceiling_is_computed_once_for_the_placement_returned(hand, monkeypat
     assert result.placement.capacity_bound is not None
     assert result.placement.capacity_bound >= -result.placement.bounds[1]  # a ceiling
     assert result.placement.seconds >= result.placement.bound_seconds > 0
+
+
+def test_sets_no_placement_can_hold_are_not_placed(hand, monkeypatch):
+    """Alternatives that lone_contact proves hopeless are skipped (here every set is declared
+    so, with a double); selection.placeable off places them as before. (The new selection
+    runs, which skip them alike, are left out: they cost most of a plan.)"""
+    from closure_nlp import planning
+
+    monkeypatch.setattr(planning, "lone_contact", lambda eligibility, elements: 0)
+    monkeypatch.setattr(planning, "FRESH_RUNS", 0)  # the iterative run's own sets only
+    skipped = plan(hand, seed=1, placer=FailingFirst(hand, failures=10), alternatives=1)
+    assert len(skipped.attempts) == 1  # the iterative result alone
+    placed = plan(
+        hand,
+        seed=1,
+        placer=FailingFirst(hand, failures=10),
+        alternatives=1,
+        selection=SelectionOptions(placeable=False),
+    )
+    assert len(placed.attempts) == 2

@@ -244,3 +244,45 @@ def test_screens_that_stop_early_change_no_decision(ring, monkeypatch):
     assert early.elements == full.elements and early.history == full.history
     assert early.rho_hat == full.rho_hat and early.screened == full.screened
     assert early_runs < len(runs)  # and the early stops did spare local solver runs
+
+
+SHAFT = "examples/studies/models/stepped_shaft.model.json"
+# Iterative results of two seeds on the stepped shaft (7 FPC, torque scale 1): wrench flats are
+# elements 6-11, the other elements lie on surfaces of revolution or on planes normal to the axis
+ONE_FLAT = [74, 81, 33, 1, 10, 70, 40]  # only element 10 is a flat
+TWO_FLATS = [66, 8, 6, 30, 0, 61, 56]
+
+
+def _axial_torques(model, elements):
+    """Torque about the shaft's axis (z) of a unit normal force at every vertex of each element:
+    (p x n)_z, straight from the geometry."""
+    out = []
+    for e in elements:
+        el = model.elements[e]
+        n = el.inward_normal
+        out.append(np.array([p[0] * n[1] - p[1] * n[0] for p in el.vertices]))
+    return out
+
+
+@pytest.mark.parametrize("torque_scale", [1.0, 1e-3, 1e3])
+def test_a_lone_frictionless_contact_on_a_flat_makes_a_set_hopeless(torque_scale):
+    """ONE_FLAT: only the flat's contact has torque about the axis (the geometry says so), of
+    either sign along the flat, so rho_hat calls the set eligible while one contact there gives
+    one sign: no placement is force closure. lone_contact names that contact, at any torque
+    scale; with two flats, or with friction on the flat's contact, it names none."""
+    from closure_nlp.elements import load_model
+    from closure_nlp.selection import lone_contact
+
+    model = load_model(SHAFT)
+    torques = _axial_torques(model, ONE_FLAT)
+    size = max(np.abs(t).max() for t in torques)
+    assert all(np.abs(t).max() <= 1e-12 * size for k, t in enumerate(torques) if k != 4)
+    assert torques[4].min() < 0 < torques[4].max()  # both signs along the flat
+    fpc = Eligibility(model, contact_specs(7, type="fpc"), torque_scale=torque_scale)
+    assert lone_contact(fpc, ONE_FLAT) == 4
+    assert lone_contact(fpc, TWO_FLATS) is None
+    if torque_scale == 1.0:
+        assert fpc(ONE_FLAT).eligible  # the relaxation cannot tell
+    specs = list(contact_specs(7, type="fpc"))
+    specs[4] = contact_specs(1, type="pcwf", mu=0.3)[0]
+    assert lone_contact(Eligibility(model, specs, torque_scale=torque_scale), ONE_FLAT) is None
