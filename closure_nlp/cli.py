@@ -1277,7 +1277,8 @@ def _compile_kernels(args) -> None:
     from .kernels import warm_up
 
     shown = not args.quiet and sys.stderr.isatty()
-    warm_up((lambda text: sys.stderr.write(f"{text}\n")) if shown else None)
+    notify = (lambda text: sys.stderr.write(f"{text}\n")) if shown else None
+    warm_up(notify, rho_only=args.run is _cmd_rho)
 
 
 @contextlib.contextmanager

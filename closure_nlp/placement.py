@@ -19,7 +19,6 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
-import casadi as ca
 import numpy as np
 
 from .contact_count import require_closure_count
@@ -401,6 +400,8 @@ class ExchangeProblem:
         self.rows, self.capacity = tuple(rows), capacity
         self.affine = tuple(k > AFFINE_ROWS for k in self.rows)
         frictionless = tuple(frictionless) or (False,) * len(self.rows)
+        import casadi as ca  # here: only a placement builds this NLP (casadi costs every start)
+
         m, K = len(self.rows), capacity
         c = [ca.SX.sym(f"c{i}", k) for i, k in enumerate(self.rows)]
         r = ca.SX.sym("r")

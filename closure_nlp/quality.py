@@ -22,7 +22,6 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field, fields, replace
 
-import casadi as ca
 import numpy as np
 
 from .contacts import ContactSet
@@ -281,6 +280,8 @@ class SupportMinProblem:
     ):
         self.n_pieces = tuple(n_pieces)
         self.rows_per_slot = tuple(rows_per_slot)
+        import casadi as ca  # here: the compiled path needs no NLP (casadi costs every start)
+
         m = len(self.n_pieces)
         u = ca.SX.sym("u", 6)
         z, t, total = ca.SX.sym("z", m), ca.SX.sym("t"), ca.SX.sym("sum_z")

@@ -35,7 +35,10 @@ def test_a_read_only_install_caches_in_the_user_cache(tmp_path, monkeypatch):
         return real_access(path, mode)
 
     monkeypatch.setattr(kernels.os, "access", access)
-    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
+    # set, then removed, through monkeypatch: restored after the test whatever
+    # _cache_dir_fallback writes (the later tests' subprocesses would compile in tmp_path)
+    monkeypatch.setenv("NUMBA_CACHE_DIR", "")
+    monkeypatch.delenv("NUMBA_CACHE_DIR")
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
     kernels._cache_dir_fallback()
     assert os.environ["NUMBA_CACHE_DIR"] == str(tmp_path / "cache" / "closure_nlp" / "numba")
@@ -67,3 +70,21 @@ def test_a_cold_cache_compiles_once_and_says_so(tmp_path):
     again = "from closure_nlp.kernels import warm_up\nlines = []\n"
     again += "print(warm_up(lines.append) is None, len(lines))\n"
     assert _run(again, env, tmp_path) == ["True 0"]
+
+
+def test_the_rho_command_loads_only_the_kernels_of_rho(tmp_path):
+    from closure_nlp import kernels
+
+    code = (
+        "from closure_nlp.kernels import nearest_point, support, warm_up\n"
+        "print(warm_up(rho_only=True) is None, bool(support.rows_many.overloads),\n"
+        "      bool(support.slots_many.overloads), bool(nearest_point.min_norm_point.overloads),\n"
+        "      bool(support.evaluate_many.overloads))\n"
+    )
+    env = _env(PYTHONPATH=str(ROOT))
+    if "NUMBA_CACHE_DIR" in os.environ:
+        env["NUMBA_CACHE_DIR"] = os.environ["NUMBA_CACHE_DIR"]
+    if not kernels._cached():  # a cold cache: this first process compiles every kernel
+        assert _run(code, env, tmp_path) == ["False True True True True"]
+    # warm: the kernels of rho loaded, not those of rows, slots and Wolfe's nearest point
+    assert _run(code, env, tmp_path) == ["True False False False True"]

@@ -67,7 +67,7 @@ def _cached() -> bool:
         return False
 
 
-def warm_up(notify=None) -> float | None:
+def warm_up(notify=None, *, rho_only: bool = False) -> float | None:
     """Compile (or load from the disk cache) the kernels a certified rho runs, on tiny sets,
     so that the first answer's ``seconds`` holds none of it.
 
@@ -77,6 +77,11 @@ def warm_up(notify=None) -> float | None:
         ``notify(text)`` is called before a compile (when the disk cache lacks a kernel) and
         after it, with the seconds it took; the library itself never prints (the CLI shows
         it on stderr; the ``closure_nlp`` logger records it too).
+    rho_only : bool
+        With every kernel in the disk cache, load only those a certified rho runs (the
+        ``rho`` command's), not those of slot values, row terms and Wolfe's nearest point
+        (elements and placements): each load costs milliseconds of every start. A compile
+        always compiles them all, once.
 
     Returns
     -------
@@ -105,6 +110,8 @@ def warm_up(notify=None) -> float | None:
     apart = ContactSet(tuple(Contact(-n, n) for n in normals[[0, 1]]))
     for contact_set in (closure, apart):
         rho(contact_set)
+    if rho_only and not compiles:
+        return None
     from ..nearest_point import min_norm_point
     from ..wrenches import WrenchSlots
 
