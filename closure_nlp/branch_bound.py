@@ -22,8 +22,8 @@ Support points. Besides the cell's own eleven, every cell may combine the point 
 bound its parent kept (a halved cell is first bounded by that point alone, and dropped before
 its samples are taken when that suffices), the support points of a tiny cloud around the
 incumbent (they hold every piece of ``p`` that meets at the minimum), and a cell that survives
-near the minimum gets those of a cloud around its lowest sample, with a longer search of the
-weights.
+near the minimum gets those of a cloud around its lowest sample (and of its corners when they
+do not suffice), with a longer search of the weights.
 
 Incumbent. Every evaluated direction gives an upper bound ``p(u) >= min p``; the lowest is the
 incumbent. When a cell's samples lower it, an optional local solver (``polish``) runs from there:
@@ -85,8 +85,8 @@ class BranchBoundOptions:
         Frank-Wolfe steps that choose the convex weights of a cell's support points.
     refine_below : float
         Angular radius under which a cell that survives its first bound gets more support
-        points (a cloud around its lowest sample) and a longer search of their weights: near
-        the minimum, where the kinks of ``p`` meet.
+        points (a cloud around its lowest sample, then its corners) and a longer search of
+        their weights: near the minimum, where the kinks of ``p`` meet.
     stop_below_zero : bool
         Stop, unconverged, at the first direction with ``p < 0``: the origin is then outside the
         set, where :mod:`closure_nlp.nearest_point` is exact and much faster.
