@@ -591,7 +591,10 @@ def halve(axis, sign, lo, hi, cells_per_round):
         lo2 = np.concatenate((lo, lo))
         hi2 = np.concatenate((hi, hi))
         for c in range(len(axis)):
-            w = np.argmax(hi[c] - lo[c])
+            w, widest = 0, hi[c, 0] - lo[c, 0]  # the first widest, as np.argmax
+            for j in range(1, hi.shape[1]):
+                if hi[c, j] - lo[c, j] > widest:
+                    w, widest = j, hi[c, j] - lo[c, j]
             cut = 0.5 * (lo[c, w] + hi[c, w])
             hi2[c, w] = cut
             lo2[c + len(axis), w] = cut

@@ -54,7 +54,8 @@ def descend_many(G, f, W, npc, ends, U0, iterations, stop):
             if not norm > 1e-12:
                 angle[n] *= 0.5
                 continue
-            step /= norm
+            for k in range(6):
+                step[k] /= norm
             _rotate(U[n], step, angle[n], trial)
             v = support_point(G, f, W, npc, ends, trial, trial_grad, D)
             if v < values[n]:

@@ -35,8 +35,9 @@ def _affine_minimizer(P, S, k, mu):
 @njit(**OPTIONS)
 def _current(P, S, lam, k):
     x = np.zeros(P.shape[1])
-    for i in range(k):
-        x += lam[i] * P[S[i]]
+    for i in range(k):  # loops, not array arithmetic (numba compiles numpy's broadcasting)
+        for d in range(P.shape[1]):
+            x[d] += lam[i] * P[S[i], d]
     return x
 
 
@@ -44,12 +45,16 @@ def _current(P, S, lam, k):
 def _line_step(S, lam, k, x, P, j):
     """``x`` moved towards ``P[j]`` by exact line search; returns the new count, or -1 when
     the step is zero."""
-    d = P[j] - x
+    d = np.empty(len(x))
+    for q in range(len(x)):
+        d[q] = P[j, q] - x[q]
     dd = d @ d
     gamma = min(1.0, max(0.0, -(x @ d) / dd)) if dd > 0.0 else 0.0
     if not gamma > 0.0:
         return -1
-    lam[:k] *= 1.0 - gamma
+    keep = 1.0 - gamma
+    for i in range(k):
+        lam[i] *= keep
     for i in range(k):
         if S[i] == j:
             lam[i] += gamma
@@ -112,7 +117,9 @@ def min_norm_point(points, tol=TOL):
                     S[kept], lam[kept] = S[i], value
                     kept += 1
             k = kept
-            lam[:k] /= lam[:k].sum()
+            total = lam[:k].sum()
+            for i in range(k):
+                lam[i] /= total
         inside = False
         for i in range(k):
             inside |= S[i] == j
