@@ -54,4 +54,5 @@ def _start_directions(u0: np.ndarray) -> np.ndarray:
     Q, _ = np.linalg.qr(np.column_stack([u0, np.eye(6)]))
     E = Q[:, 1:6].T
     U = np.vstack([u0, u0 + 0.1 * E, u0 - 0.1 * E])
-    return U / np.linalg.norm(U, axis=1, keepdims=True)
+    # C order, as every kernel takes its directions (another layout is another compile)
+    return np.ascontiguousarray(U / np.linalg.norm(U, axis=1, keepdims=True))
