@@ -33,7 +33,9 @@ def min_norm_point(points: np.ndarray, tol: float = 1e-15):
     weights : (n,) float
         Its convex weights (non-negative, summing to 1).
     """
-    P = np.ascontiguousarray(points, dtype=float)
+    # a copy in C order, writeable: the one type the kernel is compiled for (a read-only or
+    # strided array would compile it again, inside the caller's timing)
+    P = np.array(points, dtype=float, order="C")
     return kernels.min_norm_point(P, float(tol))
 
 

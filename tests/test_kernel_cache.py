@@ -88,3 +88,34 @@ def test_the_rho_command_loads_only_the_kernels_of_rho(tmp_path):
         assert _run(code, env, tmp_path) == ["False True True True True"]
     # warm: the kernels of rho loaded, not those of rows, slots and Wolfe's nearest point
     assert _run(code, env, tmp_path) == ["True False False False True"]
+
+
+def test_read_only_and_strided_inputs_reuse_the_compiled_kernels():
+    # a read-only or strided array is another numba type: the API's wrappers pass C-ordered
+    # writeable copies, so no call compiles a kernel again inside an answer's timing
+    import numpy as np
+
+    from closure_nlp.contacts import Contact, ContactSet
+    from closure_nlp.kernels import descent
+    from closure_nlp.kernels import nearest_point as kernel
+    from closure_nlp.nearest_point import _start_directions, min_norm_point
+    from closure_nlp.quality import _local_minimum
+    from closure_nlp.wrenches import WrenchSlots
+
+    normals = np.vstack([np.eye(3), -np.eye(3)])
+    slots = WrenchSlots.from_contacts(ContactSet(tuple(Contact(-n, n) for n in normals[:4])))
+    points = np.vstack([np.eye(6), -np.eye(6)])
+    _local_minimum(slots, np.full(6, 0.5))
+    min_norm_point(points.copy())
+    counts = [len(descent.local_minimum.signatures), len(kernel.min_norm_point.signatures)]
+    frozen = np.full(6, 0.5)
+    frozen.flags.writeable = False
+    _local_minimum(slots, frozen)
+    _local_minimum(slots, np.full((6, 2), 0.5)[:, 0])  # strided
+    frozen_points = points.copy()
+    frozen_points.flags.writeable = False
+    min_norm_point(frozen_points)
+    min_norm_point(np.asfortranarray(points))
+    after = [len(descent.local_minimum.signatures), len(kernel.min_norm_point.signatures)]
+    assert after == counts
+    assert _start_directions(np.full(6, 0.5)).flags.c_contiguous  # Gilbert's starts
