@@ -533,9 +533,7 @@ def _with_margin(args, eligibility: Eligibility, ids=()) -> Eligibility:
             "no point of them is that far from their boundary",
         )
     if len(model.unusable) == len(model):
-        raise InputError(
-            "--margin", f"every element is too small for a margin of {args.margin:g}"
-        )
+        raise InputError("--margin", f"every element is too small for a margin of {args.margin:g}")
     specs, scale = eligibility.specs, eligibility.torque_scale
     return Eligibility(model, specs, scale, tolerance=eligibility.tolerance)
 

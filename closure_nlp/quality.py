@@ -613,7 +613,10 @@ class SupportMinimizer:
 def _local_minimum(slots: WrenchSlots, u0: np.ndarray):
     """One run of the compiled local minimiser: (unit u, iterations, status, success)."""
     u, _, iterations, converged = descent_kernels.local_minimum(
-        *slots.packed, np.array(u0, dtype=float), LOCAL_MAX_ITER, LOCAL_SMALLEST  # C, writeable
+        *slots.packed,
+        np.array(u0, dtype=float),
+        LOCAL_MAX_ITER,
+        LOCAL_SMALLEST,  # C, writeable
     )
     return u, int(iterations), "converged" if converged else "iteration limit", bool(converged)
 

@@ -116,9 +116,7 @@ class SeedSpread:
             if run.ok:
                 placed = run.result.placement
                 key = tuple(sorted(placed.elements))
-                met.setdefault(key, []).append(
-                    (placed.rho, placed.capacity_bound)
-                )
+                met.setdefault(key, []).append((placed.rho, placed.capacity_bound))
         rows = []
         for key, found in met.items():
             ceilings = [c for _, c in found if c is not None]

@@ -35,7 +35,12 @@ def main(argv=None) -> int:
         ax.axhline(float(np.median(rhos)), color="grey", lw=0.8, ls="--", label="median")
         chosen = entry["chosen_seed"]
         ax.plot(
-            [chosen], [rhos[seeds.index(chosen)]], "*", ms=16, mfc="none", color="black",
+            [chosen],
+            [rhos[seeds.index(chosen)]],
+            "*",
+            ms=16,
+            mfc="none",
+            color="black",
             label=f"chosen (seed {chosen})",
         )
         ax.set_title(f"{name}: {len(seeds)} seeds")

@@ -160,8 +160,14 @@ def _run_process(made: Process, folder: Path, t0: float) -> Outcome:
     try:
         proc = subprocess.run(
             [sys.executable, "-m", "closure_nlp.cli", *argv],
-            stdout=full or stdout, stderr=subprocess.PIPE, cwd=folder, env=env,
-            timeout=HANG_SECONDS, preexec_fn=prepare, text=True, errors="replace",
+            stdout=full or stdout,
+            stderr=subprocess.PIPE,
+            cwd=folder,
+            env=env,
+            timeout=HANG_SECONDS,
+            preexec_fn=prepare,
+            text=True,
+            errors="replace",
         )
     except subprocess.TimeoutExpired:
         return Outcome("hang", f"no end in {HANG_SECONDS:g} s", time.perf_counter() - t0)
@@ -218,9 +224,7 @@ def _write(folder: Path, name: str, content) -> Path:
 
 BOX = {  # 7 frictionless contacts on a unit box: force closure (examples/box_7fpc)
     "defaults": {"type": "fpc"},
-    "contacts": json.loads((ROOT / "examples" / "box_7fpc.contacts.json").read_text())[
-        "contacts"
-    ],
+    "contacts": json.loads((ROOT / "examples" / "box_7fpc.contacts.json").read_text())["contacts"],
 }
 PAIR = {  # two opposite soft fingers: a 2-contact answer that needs no long search
     "contacts": [
@@ -345,8 +349,13 @@ def _contact_cases() -> list[Case]:
         "mu": [(-1, ERROR), (0, ANSWER), (1e6, ANSWER), (1e7, ERROR), (1e300, ERROR)],
         "mu_s": [(-1, ERROR), (0, ANSWER), (1e12, ANSWER), (1e13, ERROR), (1e300, ERROR)],
         "f_max": [
-            (0, ERROR), (-1, ERROR), (1e-13, ERROR), (1e-12, ANSWER), (1e12, ANSWER),
-            (1e13, ERROR), (1e300, ERROR),
+            (0, ERROR),
+            (-1, ERROR),
+            (1e-13, ERROR),
+            (1e-12, ANSWER),
+            (1e12, ANSWER),
+            (1e13, ERROR),
+            (1e300, ERROR),
         ],
     }
     for field, values in ranges.items():
@@ -360,8 +369,16 @@ def _contact_cases() -> list[Case]:
             )
             rho_case(f"{field}={label}", content, ERROR)
     for value, expect in [
-        (0, ERROR), (-1, ERROR), (1e-16, ERROR), (1e-15, ANSWER), (1e15, ANSWER), (1e16, ERROR),
-        (1e300, ERROR), ("1", ERROR), (True, ERROR), (None, ERROR),
+        (0, ERROR),
+        (-1, ERROR),
+        (1e-16, ERROR),
+        (1e-15, ANSWER),
+        (1e15, ANSWER),
+        (1e16, ERROR),
+        (1e300, ERROR),
+        ("1", ERROR),
+        (True, ERROR),
+        (None, ERROR),
     ]:
         rho_case(f"torque_scale={value!r}", {**PAIR, "torque_scale": value}, expect)
     for label, value in [("glue", "glue"), ("number", 3), ("null", None), ("upper", "SFCE")]:
@@ -369,14 +386,22 @@ def _contact_cases() -> list[Case]:
         rho_case(f"type={label}", _with(PAIR, (*c0, "type"), value), expect)
     rho_case("unknown_key", _with(PAIR, (*c0, "positon"), [0, 0, 1]), ERROR)
     for key, value, expect in [
-        ("element", 3, ANSWER), ("element", -1, ERROR), ("element", "3", ERROR),
-        ("element", True, ERROR), ("weights", [0.5, 0.5], ANSWER), ("weights", ["a"], ERROR),
+        ("element", 3, ANSWER),
+        ("element", -1, ERROR),
+        ("element", "3", ERROR),
+        ("element", True, ERROR),
+        ("weights", [0.5, 0.5], ANSWER),
+        ("weights", ["a"], ERROR),
         ("name", 7, ERROR),
     ]:
         rho_case(f"{key}={value!r}", _with(PAIR, (*c0, key), value), expect)
     rho_case("weights=[NaN]", _json_with_raw(PAIR, (*c0, "weights"), "[0.5, NaN]"), ERROR)
-    for label, point, expect in [("1e200", [0, 0, 1e200], ERROR), ("str", ["0", 0, 1], ERROR),
-                                 ("bool", [True, 0, 0], ERROR), ("1e12", [0, 0, 1e12], ANSWER)]:
+    for label, point, expect in [
+        ("1e200", [0, 0, 1e200], ERROR),
+        ("str", ["0", 0, 1], ERROR),
+        ("bool", [True, 0, 0], ERROR),
+        ("1e12", [0, 0, 1e12], ANSWER),
+    ]:
         rho_case(f"reference_point={label}", {**PAIR, "reference_point": point}, expect)
     rho_case("contacts=empty", {"contacts": []}, ERROR)
     rho_case("contacts=object", {"contacts": {}}, ERROR)
@@ -427,11 +452,16 @@ def _model_cases() -> list[Case]:
     for label, scale, expect in [
         # A facet of size 2e12 next to unit ones: they are degenerate against the part (the
         # whole box at 1e11 is accepted: group mesh_scale).
-        ("1e12", 1e12, ERROR), ("1e13", 1e13, ERROR), ("1e200", 1e200, ERROR),
+        ("1e12", 1e12, ERROR),
+        ("1e13", 1e13, ERROR),
+        ("1e200", 1e200, ERROR),
         ("1e-200", 1e-200, ERROR),  # a facet of size 1e-200 next to unit ones: degenerate
     ]:
-        content = _with(base, (*e0, "vertices"), [[-1, y * scale, z * scale] for y, z in
-                                                   [(-1, -1), (1, -1), (1, 1), (-1, 1)]])
+        content = _with(
+            base,
+            (*e0, "vertices"),
+            [[-1, y * scale, z * scale] for y, z in [(-1, -1), (1, -1), (1, 1), (-1, 1)]],
+        )
         elig_case(f"facet_size={label}", content, expect)
     for label, value in [
         ("kind=glue", ("kind", "glue")),
@@ -457,8 +487,13 @@ def _model_cases() -> list[Case]:
     pt = {"kind": "point", "vertices": [[0, 0, 1], [1, 0, 1]], "inward_normal": [0, 0, -1]}
     elig_case("point_two_vertices", _with(base, ("elements", 5), pt), ERROR)
     for label, pair in [
-        ("99", [0, 99]), ("negative", [0, -1]), ("self", [1, 1]), ("bool", [True, 0]),
-        ("string", ["0", 1]), ("triple", [0, 1, 2]), ("float", [0.0, 1]),
+        ("99", [0, 99]),
+        ("negative", [0, -1]),
+        ("self", [1, 1]),
+        ("bool", [True, 0]),
+        ("string", ["0", 1]),
+        ("triple", [0, 1, 2]),
+        ("float", [0.0, 1]),
     ]:
         elig_case(f"adjacency={label}", _with(base, ("adjacency", 0), pair), ERROR)
     for label, point in [("1e200", [0, 0, 1e200]), ("str", ["0", 0, 1]), ("short", [0, 0])]:
@@ -482,8 +517,11 @@ def _model_cases() -> list[Case]:
             _write(folder, "part.stl", mesh_bytes)
             data = _with(base, ("mesh",), "part.stl")
             if flip is not None:
-                data = _with(data, ("elements", flip, "inward_normal"),
-                             [-x for x in base["elements"][flip]["inward_normal"]])
+                data = _with(
+                    data,
+                    ("elements", flip, "inward_normal"),
+                    [-x for x in base["elements"][flip]["inward_normal"]],
+                )
             path = _write(folder, "m.model.json", data)
             if command == "show":
                 return ["show", path, "--out", folder / "x.glb", "--json"]
@@ -518,8 +556,12 @@ def _mesh_cases() -> list[Case]:
         cases.append(Case("meshes", name, make, expect))
 
     for suffix in ("stl", "obj", "ply", "glb", "off", "3mf", "dae"):
-        char_case(f"random_bytes.{suffix}", f"r.{suffix}",
-                  bytes(rng.integers(0, 256, 3000, dtype=np.uint8)), ERROR)
+        char_case(
+            f"random_bytes.{suffix}",
+            f"r.{suffix}",
+            bytes(rng.integers(0, 256, 3000, dtype=np.uint8)),
+            ERROR,
+        )
         char_case(f"empty.{suffix}", f"e.{suffix}", b"", ERROR)
     char_case("ascii_solid_garbage.stl", "g.stl", "solid x\n garbage\nendsolid\n", ERROR)
     char_case("text.txt", "t.txt", "hello", ERROR)
@@ -544,12 +586,23 @@ def _mesh_cases() -> list[Case]:
     char_case("torn_box.stl", "torn.stl", trimesh.exchange.stl.export_stl(torn), ERROR)
     flat = trimesh.Trimesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])
     char_case("one_triangle.stl", "tri.stl", trimesh.exchange.stl.export_stl(flat), ERROR)
-    char_case("cube.stl_spacing_nan", "cube2.stl", trimesh.exchange.stl.export_stl(tet), ERROR,
-              ("--point-spacing", "nan"))
-    char_case("cube.stl_sharp_-1", "cube3.stl", trimesh.exchange.stl.export_stl(tet), ERROR,
-              ("--sharp-angle", "-1"))
+    char_case(
+        "cube.stl_spacing_nan",
+        "cube2.stl",
+        trimesh.exchange.stl.export_stl(tet),
+        ERROR,
+        ("--point-spacing", "nan"),
+    )
+    char_case(
+        "cube.stl_sharp_-1",
+        "cube3.stl",
+        trimesh.exchange.stl.export_stl(tet),
+        ERROR,
+        ("--sharp-angle", "-1"),
+    )
     char_case("cup.stl", "cup.stl", CUP_MESH.read_bytes(), ANSWER)
     for out, needle in [("file", "f"), ("under_file", "f/x.model.json"), ("folder", "d")]:
+
         def make(folder, out=needle):
             _write(folder, "f", "x")
             (folder / "d").mkdir(exist_ok=True)
@@ -581,8 +634,11 @@ def _study_cases() -> list[Case]:
         ("seeds=2**63", "contacts = 4\nseeds = [9223372036854775808]", ERROR),
         ("seeds=repeat", "contacts = 4\nseeds = [1, 1]", ERROR),
         ("seeds=empty", "contacts = 4\nseeds = []", ERROR),
-        ("grid=over_limit", "contacts = [4, 5]\nmu = [0.1, 0.2, 0.3, 0.4, 0.5]\nseeds = 10001",
-         ERROR),
+        (
+            "grid=over_limit",
+            "contacts = [4, 5]\nmu = [0.1, 0.2, 0.3, 0.4, 0.5]\nseeds = 10001",
+            ERROR,
+        ),
         ("contacts=1000", "contacts = 1000", ERROR),
         ("contacts=0", "contacts = 0", ERROR),
         ("contacts=1", "contacts = 1", ERROR),
@@ -650,29 +706,58 @@ def _flag_cases() -> list[Case]:
     }.items():
         for value in values:
             good = {
-                ("--mu", "1e6"), ("--mu-s", "1e12"), ("--f-max", "1e-12"), ("--f-max", "1e12"),
-                ("--torque-scale", "1e-15"), ("--type", "PCWF"), ("--type", "fpc,fpc,fpc,fpc"),
+                ("--mu", "1e6"),
+                ("--mu-s", "1e12"),
+                ("--f-max", "1e-12"),
+                ("--f-max", "1e12"),
+                ("--torque-scale", "1e-15"),
+                ("--type", "PCWF"),
+                ("--type", "fpc,fpc,fpc,fpc"),
             }
             expect = ANSWER if (flag, value) in good else ERROR
-            flag_case(f"eligibility {flag}={value!r}", "eligibility", [*el, flag, value, "--json"],
-                      expect)
+            flag_case(
+                f"eligibility {flag}={value!r}", "eligibility", [*el, flag, value, "--json"], expect
+            )
     for value, expect in [
-        ("", ERROR), ("0,,1", ERROR), ("99", ERROR), ("-1", ERROR), ("1e3", ERROR),
-        ("0," * 32 + "0", ERROR), ("a", ERROR), ("0,1,2,3,4,5,0,1", ANSWER), ("0", ANSWER),
+        ("", ERROR),
+        ("0,,1", ERROR),
+        ("99", ERROR),
+        ("-1", ERROR),
+        ("1e3", ERROR),
+        ("0," * 32 + "0", ERROR),
+        ("a", ERROR),
+        ("0,1,2,3,4,5,0,1", ANSWER),
+        ("0", ANSWER),
     ]:
-        flag_case(f"eligibility --elements={value[:20]!r}", "eligibility",
-                  ["--elements", value, "--json"], expect)
+        flag_case(
+            f"eligibility --elements={value[:20]!r}",
+            "eligibility",
+            ["--elements", value, "--json"],
+            expect,
+        )
     for value in ["0", "-1", "1000", "33", "1e3", "x", "1"]:
         flag_case(f"select --contacts={value}", "select", ["--contacts", value], ERROR)
         flag_case(f"plan --contacts={value}", "plan", ["--contacts", value], ERROR)
-    for flag, value in [("--seed", "-1"), ("--seed", "1e3"), ("--seed", str(2**64)),
-                        ("--start", "0,99"), ("--start", "x"), ("--algorithm", "magic")]:
+    for flag, value in [
+        ("--seed", "-1"),
+        ("--seed", "1e3"),
+        ("--seed", str(2**64)),
+        ("--start", "0,99"),
+        ("--start", "x"),
+        ("--algorithm", "magic"),
+    ]:
         flag_case(f"select {flag}={value}", "select", ["--contacts", "4", flag, value], ERROR)
     for flag, value in [("--starts", "0"), ("--starts", "1000000"), ("--seed", "-5")]:
         flag_case(f"place {flag}={value}", "place", [*el, flag, value], ERROR)
         flag_case(f"plan {flag}={value}", "plan", ["--contacts", "4", flag, value], ERROR)
-    for flag, value in [("--seeds", "0"), ("--seeds", "x"), ("--budget", "0"), ("--budget", "nan"),
-                        ("--budget", "-1"), ("--workers", "0")]:
+    for flag, value in [
+        ("--seeds", "0"),
+        ("--seeds", "x"),
+        ("--budget", "0"),
+        ("--budget", "nan"),
+        ("--budget", "-1"),
+        ("--workers", "0"),
+    ]:
         flag_case(f"plan {flag}={value}", "plan", ["--contacts", "4", flag, value], ERROR)
     flag_case("place --elements 0,1 (too few pcwf)", "place", ["--elements", "0,1"], ERROR)
     flag_case("show --out .txt", "show", ["--out", "x.txt"], ERROR)
@@ -736,8 +821,11 @@ def _api_cases() -> list[Case]:
         args = {"position": [0, 0, 1], "inward_normal": [0, 0, -1], **kwargs}
         api(f"Contact({label})", lambda args=args: Contact(**args).position, ERROR)
     for label, ts in [("0", 0.0), ("1e300", 1e300), ("nan", float("nan")), ("str", "1")]:
-        api(f"ContactSet(torque_scale={label})",
-            lambda ts=ts: ContactSet(pair.contacts, ts).torque_scale, ERROR)
+        api(
+            f"ContactSet(torque_scale={label})",
+            lambda ts=ts: ContactSet(pair.contacts, ts).torque_scale,
+            ERROR,
+        )
     api("ContactSet(empty)", lambda: ContactSet(()), ERROR)
     api("ContactSet(not contacts)", lambda: ContactSet(([0, 0, 1],)), ERROR)
     api("ContactSet(2001)", lambda: ContactSet(pair.contacts * 1001), ERROR)
@@ -746,21 +834,46 @@ def _api_cases() -> list[Case]:
     api("contact_specs(2.5)", lambda: contact_specs(2.5), ERROR)
     api("contact_specs(mu list short)", lambda: contact_specs(3, mu=[0.1]), ERROR)
     api("rho(pair)", lambda: rho(pair).rho, ANSWER)
-    api("rho(normal 1e300)", lambda: rho(contact_set_from_dict(
-        _with(PAIR, ("contacts", 0, "inward_normal"), [0, 0, -1e300]))).rho, ANSWER)
+    api(
+        "rho(normal 1e300)",
+        lambda: (
+            rho(
+                contact_set_from_dict(_with(PAIR, ("contacts", 0, "inward_normal"), [0, 0, -1e300]))
+            ).rho
+        ),
+        ANSWER,
+    )
     api("rho(box)", lambda: rho(contact_set_from_dict(BOX)).rho, ANSWER)
-    api("rho(box, warm_start=nan)", lambda: rho(contact_set_from_dict(BOX),
-                                                warm_start=[np.nan] * 6).rho, ERROR)
-    api("rho(box, warm_start=str)", lambda: rho(contact_set_from_dict(BOX),
-                                                warm_start="abc").rho, ERROR)
-    api("rho(box, warm_start=2 rows)", lambda: rho(contact_set_from_dict(BOX),
-                                                   warm_start=np.eye(6)[:2]).rho, ANSWER)
-    api("rho(box, warm_start=zero row)", lambda: rho(contact_set_from_dict(BOX),
-                                                     warm_start=np.zeros((2, 6))).rho, ERROR)
-    api("rho(box, warm_start=5 columns)", lambda: rho(contact_set_from_dict(BOX),
-                                                      warm_start=np.ones((2, 5))).rho, ERROR)
-    api("rho(box, warm_start=ragged rows)", lambda: rho(contact_set_from_dict(BOX),
-                                                        warm_start=[[1] * 6, [1, 0]]).rho, ERROR)
+    api(
+        "rho(box, warm_start=nan)",
+        lambda: rho(contact_set_from_dict(BOX), warm_start=[np.nan] * 6).rho,
+        ERROR,
+    )
+    api(
+        "rho(box, warm_start=str)",
+        lambda: rho(contact_set_from_dict(BOX), warm_start="abc").rho,
+        ERROR,
+    )
+    api(
+        "rho(box, warm_start=2 rows)",
+        lambda: rho(contact_set_from_dict(BOX), warm_start=np.eye(6)[:2]).rho,
+        ANSWER,
+    )
+    api(
+        "rho(box, warm_start=zero row)",
+        lambda: rho(contact_set_from_dict(BOX), warm_start=np.zeros((2, 6))).rho,
+        ERROR,
+    )
+    api(
+        "rho(box, warm_start=5 columns)",
+        lambda: rho(contact_set_from_dict(BOX), warm_start=np.ones((2, 5))).rho,
+        ERROR,
+    )
+    api(
+        "rho(box, warm_start=ragged rows)",
+        lambda: rho(contact_set_from_dict(BOX), warm_start=[[1] * 6, [1, 0]]).rho,
+        ERROR,
+    )
     api("rho(not a set)", lambda: rho([1, 2, 3]).rho, ERROR)
     for label, element in [
         ("vertices_str", lambda: Element("point", [["0", 0, 0]], [0, 0, 1])),
@@ -777,12 +890,19 @@ def _api_cases() -> list[Case]:
     api("model.check_id(1.0)", lambda: box.check_id(1.0, "id"), ERROR)
     api("model.check_id(-1)", lambda: box.check_id(-1, "id"), ERROR)
     specs = contact_specs(4)
-    api("Eligibility(box)([0,1,2,3])", lambda: Eligibility(box, specs)([0, 1, 2, 3]).rho_hat,
-        ANSWER)
-    api("Eligibility(box)([0,1,2,99])", lambda: Eligibility(box, specs)([0, 1, 2, 99]).rho_hat,
-        ERROR)
-    api("Eligibility(box)(['0',1,2,3])",
-        lambda: Eligibility(box, specs)(["0", 1, 2, 3]).rho_hat, ERROR)
+    api(
+        "Eligibility(box)([0,1,2,3])", lambda: Eligibility(box, specs)([0, 1, 2, 3]).rho_hat, ANSWER
+    )
+    api(
+        "Eligibility(box)([0,1,2,99])",
+        lambda: Eligibility(box, specs)([0, 1, 2, 99]).rho_hat,
+        ERROR,
+    )
+    api(
+        "Eligibility(box)(['0',1,2,3])",
+        lambda: Eligibility(box, specs)(["0", 1, 2, 3]).rho_hat,
+        ERROR,
+    )
     api("Eligibility(box)([0,1])", lambda: Eligibility(box, specs)([0, 1]).rho_hat, ERROR)
     api("Eligibility(torque_scale=0)", lambda: Eligibility(box, specs, 0.0).torque_scale, ERROR)
     api("model_from_dict(list)", lambda: model_from_dict([]).elements, ERROR)
@@ -795,28 +915,40 @@ def _api_cases() -> list[Case]:
     from closure_nlp.selection import SelectionOptions, heuristic
 
     for label, kwargs in [
-        ("starts=0", {"starts": 0}), ("starts=-1", {"starts": -1}), ("starts=2.5", {"starts": 2.5}),
-        ("seed=str", {"seed": "1"}), ("certify=str", {"certify": "yes"}), ("bogus", {"bogus": 1}),
+        ("starts=0", {"starts": 0}),
+        ("starts=-1", {"starts": -1}),
+        ("starts=2.5", {"starts": 2.5}),
+        ("seed=str", {"seed": "1"}),
+        ("certify=str", {"certify": "yes"}),
+        ("bogus", {"bogus": 1}),
         ("round_search=str", {"round_search": "light"}),
     ]:
         api(f"PlacementOptions({label})", lambda kw=kwargs: PlacementOptions(**kw).starts, ERROR)
     from closure_nlp.quality import SupportMinimizer
 
     for label, kwargs in [
-        ("search=dict", {"search": {"samples": 8}}), ("seed_search=str", {"seed_search": "light"}),
+        ("search=dict", {"search": {"samples": 8}}),
+        ("seed_search=str", {"seed_search": "light"}),
     ]:
         api(f"SupportMinimizer({label})", lambda kw=kwargs: SupportMinimizer(**kw).search, ERROR)
     for label, kwargs in [
-        ("initial=0", {"initial": 0}), ("restarts=0", {"restarts": 0}),
-        ("max_iterations=-1", {"max_iterations": -1}), ("descent=nan", {"descent": float("nan")}),
+        ("initial=0", {"initial": 0}),
+        ("restarts=0", {"restarts": 0}),
+        ("max_iterations=-1", {"max_iterations": -1}),
+        ("descent=nan", {"descent": float("nan")}),
     ]:
         api(f"SelectionOptions({label})", lambda kw=kwargs: SelectionOptions(**kw).initial, ERROR)
     elig = Eligibility(box, specs)
     api("heuristic(start=[99])", lambda: heuristic(elig, start=[99]).rho_hat, ERROR)
     api("heuristic(start='01')", lambda: heuristic(elig, start="01").rho_hat, ERROR)
     api("heuristic(seed=-1)", lambda: heuristic(elig, seed=-1).rho_hat, ERROR)
-    for label, weights in [("negative", [-0.5, 1.5]), ("nan", [np.nan, 1.0]), ("str", ["a", 1]),
-                           ("short", [1.0]), ("sum_2", [1.0, 1.0])]:
+    for label, weights in [
+        ("negative", [-0.5, 1.5]),
+        ("nan", [np.nan, 1.0]),
+        ("str", ["a", 1]),
+        ("short", [1.0]),
+        ("sum_2", [1.0, 1.0]),
+    ]:
         api(f"simplex_weights({label})", lambda w=weights: simplex_weights(w, 2, "w"), ERROR)
     api("simplex_weights(ok)", lambda: simplex_weights([0.25, 0.75], 2, "w"), ANSWER)
     api("characterize(3)", lambda: characterize(3).elements, ERROR)
@@ -829,20 +961,42 @@ def _api_cases() -> list[Case]:
         trimesh.creation.box(extents=(1, 1, 1)).export(path)
         return lambda: characterize(path, **{key: value}).elements
 
-    for key, value in [("sharp_angle", -1.0), ("sharp_angle", float("nan")),
-                       ("point_spacing", -2.0), ("segment_spacing", "x"), ("bogus", 1)]:
-        cases.append(Case("api", f"characterize({key}={value!r})",
-                          lambda f, k=key, v=value: char_option(f, k, v), ERROR))
+    for key, value in [
+        ("sharp_angle", -1.0),
+        ("sharp_angle", float("nan")),
+        ("point_spacing", -2.0),
+        ("segment_spacing", "x"),
+        ("bogus", 1),
+    ]:
+        cases.append(
+            Case(
+                "api",
+                f"characterize({key}={value!r})",
+                lambda f, k=key, v=value: char_option(f, k, v),
+                ERROR,
+            )
+        )
 
     def writes(folder, data):
         return lambda: write_json(folder / "x.json", data)
 
-    cases.append(Case("api", "write_json(nan)",
-                      lambda f: writes(f, {"rho": float("nan")}), ERROR))
-    cases.append(Case("api", "write_json(inf in list)",
-                      lambda f: writes(f, {"a": [1.0, float("inf")]}), ERROR))
-    cases.append(Case("api", "save_model(under a file)", lambda f: (
-        (f / "file").write_text("x"), lambda: save_model(box, f / "file" / "m.json"))[1], ERROR))
+    cases.append(Case("api", "write_json(nan)", lambda f: writes(f, {"rho": float("nan")}), ERROR))
+    cases.append(
+        Case(
+            "api", "write_json(inf in list)", lambda f: writes(f, {"a": [1.0, float("inf")]}), ERROR
+        )
+    )
+    cases.append(
+        Case(
+            "api",
+            "save_model(under a file)",
+            lambda f: (
+                (f / "file").write_text("x"),
+                lambda: save_model(box, f / "file" / "m.json"),
+            )[1],
+            ERROR,
+        )
+    )
 
     def deep(folder):
         path = _write(folder, "deep.json", "[" * 100000 + "]" * 100000)
@@ -876,8 +1030,10 @@ def _mesh_scale_cases() -> list[Case]:
         char_case(f"cube_at_{scale:g}.obj", cube, ANSWER)
         char_case(f"cube_at_{scale:g}.stl", cube, ANSWER, "stl")
     boxes = trimesh.util.concatenate(
-        [trimesh.creation.box(extents=(1, 1, 1)).apply_translation([3.0 * k, 0, 0])
-         for k in range(200)]
+        [
+            trimesh.creation.box(extents=(1, 1, 1)).apply_translation([3.0 * k, 0, 0])
+            for k in range(200)
+        ]
     )
     char_case("200_separate_boxes.glb", boxes, ERROR, "glb")
     char_case("200_separate_boxes.glb_merge_bodies", boxes, ANSWER, "glb", ("--merge-bodies",))
@@ -896,12 +1052,21 @@ def _mesh_scale_cases() -> list[Case]:
             e["vertices"] = [[x * scale for x in v] for v in e["vertices"]]
         elig_case(f"box_model_at_{scale:g}", scaled, ANSWER)
         for label, size in (("triangle", 1e-15), ("sliver", 1.0)):
-            tri = [[-1, 0, 0], [-1, size, 0], [-1, size / 2, 1e-9 * size if label == "sliver"
-                                                  else size]]
-            facet = {"kind": "facet", "vertices": [[x * scale for x in v] for v in tri],
-                     "inward_normal": [1, 0, 0]}
-            elig_case(f"{label}_{size:g}_in_box_at_{scale:g}",
-                      {**scaled, "elements": [*scaled["elements"], facet]}, ERROR)
+            tri = [
+                [-1, 0, 0],
+                [-1, size, 0],
+                [-1, size / 2, 1e-9 * size if label == "sliver" else size],
+            ]
+            facet = {
+                "kind": "facet",
+                "vertices": [[x * scale for x in v] for v in tri],
+                "inward_normal": [1, 0, 0],
+            }
+            elig_case(
+                f"{label}_{size:g}_in_box_at_{scale:g}",
+                {**scaled, "elements": [*scaled["elements"], facet]},
+                ERROR,
+            )
     return cases
 
 
@@ -946,8 +1111,13 @@ def _special_input_cases() -> list[Case]:
         "sparse_2GiB": (lambda f, n: _sparse(f, n), "file of 2 GiB is over the 256 MiB limit"),
         "folder": (lambda f, n: f, "is a folder, not a regular file"),
     }
-    names = {"rho": "c.contacts.json", "eligibility": "m.model.json", "study": "s.toml",
-             "show --contacts": "c.contacts.json", "characterize": "m.stl"}
+    names = {
+        "rho": "c.contacts.json",
+        "eligibility": "m.model.json",
+        "study": "s.toml",
+        "show --contacts": "c.contacts.json",
+        "characterize": "m.stl",
+    }
     for command, filename in names.items():
         for label, (make_path, needle) in sources.items():
             if command == "characterize" and label == "sparse_2GiB":
@@ -995,8 +1165,11 @@ def _special_outputs(folder: Path) -> dict:
         os.mknod(null, 0o666 | 0o020000, os.makedev(1, 3))
     except PermissionError:
         null = Path("/dev/null")
-    return {"fifo": (fifo, "a FIFO"), "socket": (sock, "a socket"),
-            "device": (null, "a character device")}
+    return {
+        "fifo": (fifo, "a FIFO"),
+        "socket": (sock, "a socket"),
+        "device": (null, "a character device"),
+    }
 
 
 def _output_cases() -> list[Case]:
@@ -1005,6 +1178,7 @@ def _output_cases() -> list[Case]:
     box = _box_model()
     for kind in ("fifo", "socket", "device"):
         for command in ("place", "show", "characterize", "plan"):
+
             def make(folder, kind=kind, command=command):
                 out, _ = _special_outputs(folder)[kind]
                 model = _write(folder, "m.model.json", box)
@@ -1026,42 +1200,111 @@ def _environment_cases() -> list[Case]:
     a malformed scheduler address is bad input (2); names shown escaped."""
     cases = []
     box_contacts = ROOT / "examples" / "box_7fpc.contacts.json"
-    cases.append(Case("environment", "stdout /dev/full",
-                      lambda f: Process(["rho", box_contacts], stdout="full"),
-                      ANSWER, 1, "error: stdout: cannot write: No space left on device"))
-    cases.append(Case("environment", "stdout closed",
-                      lambda f: Process(["rho", box_contacts], stdout="closed"),
-                      ANSWER, 1, "error: stdout: closed"))
+    cases.append(
+        Case(
+            "environment",
+            "stdout /dev/full",
+            lambda f: Process(["rho", box_contacts], stdout="full"),
+            ANSWER,
+            1,
+            "error: stdout: cannot write: No space left on device",
+        )
+    )
+    cases.append(
+        Case(
+            "environment",
+            "stdout closed",
+            lambda f: Process(["rho", box_contacts], stdout="closed"),
+            ANSWER,
+            1,
+            "error: stdout: closed",
+        )
+    )
 
     def copy(folder, name):
         path = folder / name
         path.write_bytes(box_contacts.read_bytes())
         return path
 
-    cases.append(Case("environment", "non-ASCII name, PYTHONIOENCODING=ascii",
-                      lambda f: Process(["rho", copy(f, "caf\u00e9.contacts.json")],
-                                        env={"PYTHONIOENCODING": "ascii"}),
-                      ANSWER, 1, "error: stdout: cannot print"))
-    cases.append(Case("environment", "non-ASCII name, ascii, --json",
-                      lambda f: Process(["rho", copy(f, "caf\u00e9.contacts.json"), "--json"],
-                                        env={"PYTHONIOENCODING": "ascii"}), ANSWER, 0))
-    cases.append(Case("environment", "characterize onto a full disk",
-                      lambda f: Process(["characterize", CUP_MESH, "--out", f / "c.model.json"],
-                                        file_size=2000),
-                      ANSWER, 1, "cannot write: File too large"))
+    cases.append(
+        Case(
+            "environment",
+            "non-ASCII name, PYTHONIOENCODING=ascii",
+            lambda f: Process(
+                ["rho", copy(f, "caf\u00e9.contacts.json")], env={"PYTHONIOENCODING": "ascii"}
+            ),
+            ANSWER,
+            1,
+            "error: stdout: cannot print",
+        )
+    )
+    cases.append(
+        Case(
+            "environment",
+            "non-ASCII name, ascii, --json",
+            lambda f: Process(
+                ["rho", copy(f, "caf\u00e9.contacts.json"), "--json"],
+                env={"PYTHONIOENCODING": "ascii"},
+            ),
+            ANSWER,
+            0,
+        )
+    )
+    cases.append(
+        Case(
+            "environment",
+            "characterize onto a full disk",
+            lambda f: Process(
+                ["characterize", CUP_MESH, "--out", f / "c.model.json"], file_size=2000
+            ),
+            ANSWER,
+            1,
+            "cannot write: File too large",
+        )
+    )
     study = f'models = ["{LAMP.as_posix()}"]\ncontacts = 4\n'
     for address in ("garbage", "tcp://host", "tcp://host:0", "ftp://host:1", "host:\uff18"):
-        cases.append(Case(
-            "environment", f"--scheduler {address}",
-            lambda f, a=address: ["study", _write(f, "s.toml", study), "--out", f / "out",
-                                  "--scheduler", a], ERROR, 2, "--scheduler: "))
-    for label, name, shown in [("newline", "a\nb.json", "a\\nb.json"),
-                               ("escape", "x\x1b[2J.json", "x\\x1b[2J.json"),
-                               ("bell", "x\x07.json", "x\\x07.json")]:
-        cases.append(Case("environment", f"missing file with a {label} in its name",
-                          lambda f, n=name: ["rho", f / n], ERROR, 2, shown))
-        cases.append(Case("environment", f"answer for a file with a {label} in its name",
-                          lambda f, n=name: Process(["rho", copy(f, n)]), ANSWER, 0))
+        cases.append(
+            Case(
+                "environment",
+                f"--scheduler {address}",
+                lambda f, a=address: [
+                    "study",
+                    _write(f, "s.toml", study),
+                    "--out",
+                    f / "out",
+                    "--scheduler",
+                    a,
+                ],
+                ERROR,
+                2,
+                "--scheduler: ",
+            )
+        )
+    for label, name, shown in [
+        ("newline", "a\nb.json", "a\\nb.json"),
+        ("escape", "x\x1b[2J.json", "x\\x1b[2J.json"),
+        ("bell", "x\x07.json", "x\\x07.json"),
+    ]:
+        cases.append(
+            Case(
+                "environment",
+                f"missing file with a {label} in its name",
+                lambda f, n=name: ["rho", f / n],
+                ERROR,
+                2,
+                shown,
+            )
+        )
+        cases.append(
+            Case(
+                "environment",
+                f"answer for a file with a {label} in its name",
+                lambda f, n=name: Process(["rho", copy(f, n)]),
+                ANSWER,
+                0,
+            )
+        )
     return cases
 
 
@@ -1072,37 +1315,114 @@ def _strict_cases() -> list[Case]:
     box = _box_model()
 
     def contacts_case(name, content, expect, code, message):
-        cases.append(Case("strict", name,
-                          lambda f, c=content: ["rho", _write(f, "c.contacts.json", c)],
-                          expect, code, message))
+        cases.append(
+            Case(
+                "strict",
+                name,
+                lambda f, c=content: ["rho", _write(f, "c.contacts.json", c)],
+                expect,
+                code,
+                message,
+            )
+        )
 
-    for label, value in [("nbsp", "fpc\u00a0"), ("space", "fpc "), ("tab", "\tfpc"),
-                         ("fullwidth", "\uff46\uff50\uff43"), ("zero_width", "fp\u200bc")]:
-        contacts_case(f"type {label}", _with(PAIR, ("contacts", 0, "type"), value), ERROR, 2,
-                      "contacts[0].type: unknown contact type")
+    for label, value in [
+        ("nbsp", "fpc\u00a0"),
+        ("space", "fpc "),
+        ("tab", "\tfpc"),
+        ("fullwidth", "\uff46\uff50\uff43"),
+        ("zero_width", "fp\u200bc"),
+    ]:
+        contacts_case(
+            f"type {label}",
+            _with(PAIR, ("contacts", 0, "type"), value),
+            ERROR,
+            2,
+            "contacts[0].type: unknown contact type",
+        )
     for units in ("km", "mm ", "MM", "\u00b5m"):
-        contacts_case(f"contacts units {units!r}", {**PAIR, "units": units}, ERROR, 2,
-                      "units: unknown unit")
-        cases.append(Case("strict", f"model units {units!r}", lambda f, u=units: [
-            "eligibility", _write(f, "m.model.json", {**box, "units": u}), "--elements",
-            "0,1,2,3"], ERROR, 2, "units: unknown unit"))
+        contacts_case(
+            f"contacts units {units!r}", {**PAIR, "units": units}, ERROR, 2, "units: unknown unit"
+        )
+        cases.append(
+            Case(
+                "strict",
+                f"model units {units!r}",
+                lambda f, u=units: [
+                    "eligibility",
+                    _write(f, "m.model.json", {**box, "units": u}),
+                    "--elements",
+                    "0,1,2,3",
+                ],
+                ERROR,
+                2,
+                "units: unknown unit",
+            )
+        )
     text = json.dumps(PAIR)
-    contacts_case("duplicate 'contacts'", text[:-1] + ', "contacts": []}', ERROR, 2,
-                  "duplicate key 'contacts'")
-    contacts_case("duplicate nested 'type'", text.replace('"type": "sfce"',
-                                                          '"type": "sfce", "type": "fpc"', 1),
-                  ERROR, 2, "duplicate key 'type'")
-    cases.append(Case("strict", "duplicate model key", lambda f: [
-        "eligibility", _write(f, "m.model.json", json.dumps(box)[:-1] + ', "name": "x"}'),
-        "--elements", "0,1,2,3"], ERROR, 2, "duplicate key 'name'"))
-    for flag, value in [("--elements", "\uff14\uff18,1,2,3"), ("--elements", "0,1,2,\u0663"),
-                        ("--mu", "\uff10.5"), ("--f-max", "\uff11"), ("--type", "fpc\u00a0")]:
+    contacts_case(
+        "duplicate 'contacts'",
+        text[:-1] + ', "contacts": []}',
+        ERROR,
+        2,
+        "duplicate key 'contacts'",
+    )
+    contacts_case(
+        "duplicate nested 'type'",
+        text.replace('"type": "sfce"', '"type": "sfce", "type": "fpc"', 1),
+        ERROR,
+        2,
+        "duplicate key 'type'",
+    )
+    cases.append(
+        Case(
+            "strict",
+            "duplicate model key",
+            lambda f: [
+                "eligibility",
+                _write(f, "m.model.json", json.dumps(box)[:-1] + ', "name": "x"}'),
+                "--elements",
+                "0,1,2,3",
+            ],
+            ERROR,
+            2,
+            "duplicate key 'name'",
+        )
+    )
+    for flag, value in [
+        ("--elements", "\uff14\uff18,1,2,3"),
+        ("--elements", "0,1,2,\u0663"),
+        ("--mu", "\uff10.5"),
+        ("--f-max", "\uff11"),
+        ("--type", "fpc\u00a0"),
+    ]:
         args = ["--elements", "0,1,2,3"] if flag != "--elements" else []
-        cases.append(Case("strict", f"eligibility {flag}={value!r}", lambda f, fl=flag, v=value,
-                          a=args: ["eligibility", _write(f, "m.model.json", box), *a, fl, v],
-                          ERROR, 2, None))
-    cases.append(Case("strict", "plan --contacts \uff14", lambda f: [
-        "plan", _write(f, "m.model.json", box), "--contacts", "\uff14"], ERROR, 2, None))
+        cases.append(
+            Case(
+                "strict",
+                f"eligibility {flag}={value!r}",
+                lambda f, fl=flag, v=value, a=args: [
+                    "eligibility",
+                    _write(f, "m.model.json", box),
+                    *a,
+                    fl,
+                    v,
+                ],
+                ERROR,
+                2,
+                None,
+            )
+        )
+    cases.append(
+        Case(
+            "strict",
+            "plan --contacts \uff14",
+            lambda f: ["plan", _write(f, "m.model.json", box), "--contacts", "\uff14"],
+            ERROR,
+            2,
+            None,
+        )
+    )
 
     from closure_nlp.contacts import Contact, ContactSet, contact_set_from_dict, contact_specs
     from closure_nlp.elements import model_from_dict
@@ -1117,18 +1437,38 @@ def _strict_cases() -> list[Case]:
     def api(name, call, expect, message=None):
         cases.append(Case("strict", name, lambda folder, call=call: call, expect, None, message))
 
-    api("Eligibility(set of ids)", lambda: Eligibility(model, specs)({0, 1, 2, 3}).rho_hat,
-        ERROR, "(no order)")
-    api("heuristic(start=set)", lambda: heuristic(Eligibility(model, specs), start={0}).rho_hat,
-        ERROR, "(no order)")
-    api("Eligibility(certify=np.bool_)", lambda: Eligibility(model, specs)(
-        [0, 1, 2, 3], certify=np.bool_(True)).rho_hat, ANSWER)
-    api("Eligibility(numpy ids)", lambda: Eligibility(model, contact_specs(np.int64(4)))(
-        np.array([0, 1, 2, 3])).rho_hat, ANSWER)
-    api("PlacementOptions(numpy scalars)", lambda: PlacementOptions(
-        starts=np.int64(2), certify=np.bool_(False)).starts, ANSWER)
-    api("rho(certify=np.bool_)", lambda: rho(contact_set_from_dict(BOX),
-                                             certify=np.bool_(True)).rho, ANSWER)
+    api(
+        "Eligibility(set of ids)",
+        lambda: Eligibility(model, specs)({0, 1, 2, 3}).rho_hat,
+        ERROR,
+        "(no order)",
+    )
+    api(
+        "heuristic(start=set)",
+        lambda: heuristic(Eligibility(model, specs), start={0}).rho_hat,
+        ERROR,
+        "(no order)",
+    )
+    api(
+        "Eligibility(certify=np.bool_)",
+        lambda: Eligibility(model, specs)([0, 1, 2, 3], certify=np.bool_(True)).rho_hat,
+        ANSWER,
+    )
+    api(
+        "Eligibility(numpy ids)",
+        lambda: Eligibility(model, contact_specs(np.int64(4)))(np.array([0, 1, 2, 3])).rho_hat,
+        ANSWER,
+    )
+    api(
+        "PlacementOptions(numpy scalars)",
+        lambda: PlacementOptions(starts=np.int64(2), certify=np.bool_(False)).starts,
+        ANSWER,
+    )
+    api(
+        "rho(certify=np.bool_)",
+        lambda: rho(contact_set_from_dict(BOX), certify=np.bool_(True)).rho,
+        ANSWER,
+    )
 
     def reused_buffer():
         """Every contact built from one buffer, then the buffer filled with NaN."""
@@ -1217,8 +1557,11 @@ def main(argv: list[str] | None = None) -> None:
             outcome = run_case(case, Path(tmp) / f"case{k}")
             results.append((case, outcome))
             if not as_expected(case, outcome):
-                print(f"UNEXPECTED {case.id}: expected {case.expect} {case.code} "
-                      f"{case.message!r}, got {outcome.kind}: {outcome.detail[:300]}", flush=True)
+                print(
+                    f"UNEXPECTED {case.id}: expected {case.expect} {case.code} "
+                    f"{case.message!r}, got {outcome.kind}: {outcome.detail[:300]}",
+                    flush=True,
+                )
     if "--list" in args:
         print(listing(results))
     print(table(results))

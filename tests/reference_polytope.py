@@ -416,5 +416,3 @@ def _no_interior(evaluated: _Evaluated):
     x = min_norm_point(evaluated.all_points())
     hi = float(np.linalg.norm(x))
     return lo, hi, 0
-
-

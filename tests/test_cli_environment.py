@@ -57,8 +57,10 @@ def test_a_name_the_output_encoding_cannot_show(tmp_path):
 
 
 def test_names_with_control_characters_stay_on_one_line(tmp_path, capsys):
-    for name, shown in (("a\nb.contacts.json", "a\\nb.contacts.json"),
-                        ("red\x1b[31m.contacts.json", "red\\x1b[31m.contacts.json")):
+    for name, shown in (
+        ("a\nb.contacts.json", "a\\nb.contacts.json"),
+        ("red\x1b[31m.contacts.json", "red\\x1b[31m.contacts.json"),
+    ):
         missing = tmp_path / ("gone-" + name)
         code = cli.main(["rho", str(missing)])
         out, err = capsys.readouterr()
@@ -72,8 +74,10 @@ def test_names_with_control_characters_stay_on_one_line(tmp_path, capsys):
         assert out.startswith(f"{tmp_path}/{shown}: rho = ")
 
 
-@pytest.mark.parametrize("address", ["garbage", "tcp://host", "tcp://host:0", "ftp://host:1",
-                                     "host:\uff18\uff17", "tcp://a b:1"])
+@pytest.mark.parametrize(
+    "address",
+    ["garbage", "tcp://host", "tcp://host:0", "ftp://host:1", "host:\uff18\uff17", "tcp://a b:1"],
+)
 def test_a_malformed_scheduler_address_is_bad_input(tmp_path, capsys, address):
     study = tmp_path / "s.toml"
     study.write_text(f'models = ["{LAMP.as_posix()}"]\ncontacts = 4\n')
@@ -98,10 +102,23 @@ def test_an_unreachable_scheduler_is_a_failure_of_the_environment(tmp_path):
         "running.CONNECT_SECONDS = 1\n"
         "sys.exit(main(sys.argv[1:]))\n"
     )
-    argv = ["study", study, "--out", tmp_path / "out", "--limit", "1", "--scheduler",
-            "tcp://127.0.0.1:1"]
-    proc = subprocess.run([sys.executable, "-c", code, *map(str, argv)], capture_output=True,
-                          text=True, timeout=300, env=ENV)
+    argv = [
+        "study",
+        study,
+        "--out",
+        tmp_path / "out",
+        "--limit",
+        "1",
+        "--scheduler",
+        "tcp://127.0.0.1:1",
+    ]
+    proc = subprocess.run(
+        [sys.executable, "-c", code, *map(str, argv)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env=ENV,
+    )
     assert proc.returncode == 1 and proc.stdout == ""
     [line] = proc.stderr.splitlines()
     assert line.startswith("error: scheduler tcp://127.0.0.1:1: cannot connect: ")
@@ -119,8 +136,14 @@ def test_characterize_onto_a_full_disk(tmp_path):
     SIGXFSZ), which the command must report as a fault of the system, not a bug."""
     out = tmp_path / "cup.model.json"
     out.write_text("old")
-    proc = child("characterize", ROOT / "models" / "cup.stl", "--out", out,
-                 stdout=subprocess.PIPE, preexec_fn=_file_size_limit(2000))
+    proc = child(
+        "characterize",
+        ROOT / "models" / "cup.stl",
+        "--out",
+        out,
+        stdout=subprocess.PIPE,
+        preexec_fn=_file_size_limit(2000),
+    )
     assert proc.returncode == 1, proc.stderr
     [line] = proc.stderr.splitlines()
     assert line.startswith(f"error: {out}: cannot write: File too large")

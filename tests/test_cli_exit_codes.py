@@ -102,8 +102,17 @@ def test_sigint_during_ipopt_exits_130_with_one_line(tmp_path):
     subprocess.run([sys.executable, "-c", "import closure_nlp.cli"], env=_env(), check=True)
     startup = time.perf_counter() - t0
     proc = subprocess.Popen(
-        [sys.executable, "-m", "closure_nlp.cli", "plan", LAMP, "--contacts", "4", "--out",
-         str(out)],
+        [
+            sys.executable,
+            "-m",
+            "closure_nlp.cli",
+            "plan",
+            LAMP,
+            "--contacts",
+            "4",
+            "--out",
+            str(out),
+        ],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,

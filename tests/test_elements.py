@@ -190,8 +190,9 @@ def test_degeneracy_is_judged_against_the_part_not_absolutely(size):
     speck = Element("facet", tiny, [0, 0, 1], name="elements[6]")
     with pytest.raises(ValueError, match=r"elements\[6\]: the facet is .* degenerate against"):
         Model((*box_facets(size / 2), speck))
-    short = Element("segment", [[-s, -s, -s], [-s + 1e-9 * size, -s, -s]], [0, 1, 1],
-                    name="elements[6]")
+    short = Element(
+        "segment", [[-s, -s, -s], [-s + 1e-9 * size, -s, -s]], [0, 1, 1], name="elements[6]"
+    )
     with pytest.raises(ValueError, match=r"elements\[6\]: the segment is"):
         Model((*box_facets(size / 2), short))
     sliver = size * np.array([[0, 0, 0], [1, 0, 0], [0.5, 1e-9, 0]])

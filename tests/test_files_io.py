@@ -80,8 +80,9 @@ def _command(kind: str, path: Path, folder: Path) -> list:
     }[kind]
 
 
-@pytest.mark.parametrize("command", ["rho", "eligibility", "plan", "characterize", "study",
-                                     "show --contacts"])
+@pytest.mark.parametrize(
+    "command", ["rho", "eligibility", "plan", "characterize", "study", "show --contacts"]
+)
 @pytest.mark.parametrize("name", ["fifo", "dev_zero", "sparse_2GiB"])
 def test_every_command_refuses_special_inputs_at_once(tmp_path, command, name):
     """In a child process with a time limit: before the check, a FIFO blocked forever and
@@ -109,8 +110,9 @@ def test_a_symlink_to_a_regular_file_is_read(tmp_path):
     assert load_json(link) == load_json(BOX)
 
 
-def test_a_file_swapped_for_a_fifo_after_the_check_is_refused_on_the_open_file(tmp_path,
-                                                                                monkeypatch):
+def test_a_file_swapped_for_a_fifo_after_the_check_is_refused_on_the_open_file(
+    tmp_path, monkeypatch
+):
     fifo = _fifo(tmp_path)
     monkeypatch.setattr(files, "check_input", lambda path, limit=0: Path(path))
     t0 = time.monotonic()
@@ -197,9 +199,7 @@ def test_a_kill_at_each_step_of_an_exchange_leaves_the_old_or_the_new_set(tmp_pa
 
 
 @pytest.mark.parametrize("step", STEPS_RENAMES)
-def test_a_kill_at_each_step_of_two_renames_is_recovered_to_the_old_or_the_new_set(
-    tmp_path, step
-):
+def test_a_kill_at_each_step_of_two_renames_is_recovered_to_the_old_or_the_new_set(tmp_path, step):
     out = tmp_path / "run"
     _old_set(out)
     assert _kill_at(out, step, exchange=False) == -signal.SIGKILL
@@ -278,7 +278,9 @@ def test_place_and_show_and_characterize_refuse_a_special_out(tmp_path, capsys, 
         assert err == f"error: {path}: --out: exists and is {words}, not a regular file\n"
     after = os.stat(path)
     assert (after.st_mode, after.st_ino, after.st_rdev) == (
-        before.st_mode, before.st_ino, before.st_rdev
+        before.st_mode,
+        before.st_ino,
+        before.st_rdev,
     )
 
 

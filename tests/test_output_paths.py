@@ -49,8 +49,10 @@ def no_work(monkeypatch):
         (lambda d: (d / "f").write_text("x") and d / "f", "exists and is not a folder"),
         (lambda d: (d / "f").write_text("x") and d / "f" / "sub", "which is a file"),
         (lambda d: Path("/proc/closure_nlp/out"), "cannot write"),
-        (lambda d: (d / "o").mkdir() or (d / "o" / "mine.txt").write_text("x") and d / "o",
-         "holds other files"),
+        (
+            lambda d: (d / "o").mkdir() or (d / "o" / "mine.txt").write_text("x") and d / "o",
+            "holds other files",
+        ),
     ],
 )
 def test_plan_out_refused_before_any_work(tmp_path, capsys, box_file, no_work, make, needle):
@@ -76,8 +78,24 @@ def test_plan_rerun_replaces_the_whole_set(tmp_path, capsys, box_file):
     (out / "report.json").write_text('{"old": true}')
     (out / "stale.png").write_text("from an older version")
     code, stdout, err = run(
-        capsys, "plan", box_file, "--contacts", "4", "--type", "pcwf", "--mu", "0.5",
-        "--seeds", "1", "--starts", "1", "--alternatives", "0", "--out", out, "--json",
+        capsys,
+        "plan",
+        box_file,
+        "--contacts",
+        "4",
+        "--type",
+        "pcwf",
+        "--mu",
+        "0.5",
+        "--seeds",
+        "1",
+        "--starts",
+        "1",
+        "--alternatives",
+        "0",
+        "--out",
+        out,
+        "--json",
     )
     assert code == 0, err
     written = json.loads(stdout)["out"]

@@ -40,8 +40,9 @@ SNIPPETS = [code for code, _ in shown("python")]
 
 def _slow_if_plan(items, key):
     return [
-        pytest.param(i, marks=pytest.mark.slow, id=key(x)) if "plan" in x else
-        pytest.param(i, id=key(x))
+        pytest.param(i, marks=pytest.mark.slow, id=key(x))
+        if "plan" in x
+        else pytest.param(i, id=key(x))
         for i, x in enumerate(items)
     ]
 

@@ -72,8 +72,19 @@ def _cli(capsys, *argv) -> dict:
 
 @pytest.mark.slow
 def test_plan_cli_equals_api(capsys, box):
-    argv = ["plan", str(box), "--contacts", "3", "--seed", "3", "--seeds", "1", "--starts", "2",
-            *OPTIONS]
+    argv = [
+        "plan",
+        str(box),
+        "--contacts",
+        "3",
+        "--seed",
+        "3",
+        "--seeds",
+        "1",
+        "--starts",
+        "2",
+        *OPTIONS,
+    ]
     from_cli = _cli(capsys, *argv, "--type", "pcwf")
     api = plan(_hand(box, 3, "pcwf"), seed=3, placement=PlacementOptions(starts=2)).to_dict()
     assert from_cli["placement"]["force_closure"]

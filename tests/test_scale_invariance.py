@@ -103,7 +103,8 @@ def test_rho_verdict_invariant_to_torque_scale(seed, kinds, exponent):
 def test_eligibility_verdict_invariant_to_f_max_and_torque_scale(f_exponent, t_exponent, ids):
     model = box_model()
     reference = Eligibility(model, contact_specs(4, mu=0.5), torque_scale=1.0)(list(ids))
-    scaled = Eligibility(model, contact_specs(4, mu=0.5, f_max=10.0**f_exponent),
-                         torque_scale=10.0**t_exponent)(list(ids))
+    scaled = Eligibility(
+        model, contact_specs(4, mu=0.5, f_max=10.0**f_exponent), torque_scale=10.0**t_exponent
+    )(list(ids))
     assert np.isfinite(scaled.rho_hat)
     assert scaled.eligible == reference.eligible

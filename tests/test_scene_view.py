@@ -71,8 +71,10 @@ def test_the_page_has_a_title_with_rho_and_a_legend(tmp_path, capsys):
     out = tmp_path / "lamp.html"
     lamp = MODELS / "lamp.model.json"
     facets = load_model(lamp).elements
-    contacts = ContactSet(tuple(Contact(facets[e].centroid, facets[e].inward_normal)
-                                for e in (14, 10, 55, 47)), torque_scale=1 / 60)
+    contacts = ContactSet(
+        tuple(Contact(facets[e].centroid, facets[e].inward_normal) for e in (14, 10, 55, 47)),
+        torque_scale=1 / 60,
+    )
     path = tmp_path / "four.contacts.json"
     path.write_text(__import__("json").dumps(contacts.to_dict()))
     assert main(["show", str(lamp), "--contacts", str(path), "--out", str(out)]) == 0
@@ -97,14 +99,23 @@ def test_a_headless_browser_renders_the_page(tmp_path):
 
     lamp = load_model(MODELS / "lamp.model.json")
     facets = lamp.elements
-    contacts = ContactSet(tuple(Contact(facets[e].centroid, facets[e].inward_normal)
-                                for e in (14, 10, 55, 47)))
+    contacts = ContactSet(
+        tuple(Contact(facets[e].centroid, facets[e].inward_normal) for e in (14, 10, 55, 47))
+    )
     page = export_scene(lamp, contacts, tmp_path / "view.html", highlight=(14, 10, 55, 47))
     shot = tmp_path / "shot.png"
     command = [
-        _browser(), "--headless", "--no-sandbox", "--disable-gpu", "--use-angle=swiftshader",
-        "--enable-unsafe-swiftshader", "--hide-scrollbars", "--window-size=800,600",
-        "--virtual-time-budget=8000", f"--screenshot={shot}", page.as_uri(),
+        _browser(),
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--use-angle=swiftshader",
+        "--enable-unsafe-swiftshader",
+        "--hide-scrollbars",
+        "--window-size=800,600",
+        "--virtual-time-budget=8000",
+        f"--screenshot={shot}",
+        page.as_uri(),
     ]
     subprocess.run(command, check=True, capture_output=True, timeout=120)
     pixels = imread(shot)[..., :3]

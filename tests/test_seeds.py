@@ -80,8 +80,12 @@ def fake_result(
 ) -> PlanResult:
     """A plan's result with only what the spread reads."""
     placement = SimpleNamespace(
-        rho=rho, force_closure=force_closure, marginal=marginal, elements=tuple(elements),
-        bounds=(rho, rho), capacity_bound=ceiling,
+        rho=rho,
+        force_closure=force_closure,
+        marginal=marginal,
+        elements=tuple(elements),
+        bounds=(rho, rho),
+        capacity_bound=ceiling,
     )
     selection = SimpleNamespace(elements=tuple(elements))
     return PlanResult(selection, selection, placement, 0.0, (), ())
@@ -114,7 +118,9 @@ def test_a_failed_or_marginal_seed_does_not_stop_the_plan(monkeypatch, workers):
     assert best.placement.rho == -0.5 and spread["chosen_seed"] == 3
     assert (spread["force_closure"], spread["marginal"], spread["failed"]) == (3, 1, 1)
     assert spread["runs"][2] == {
-        "seed": 2, "error": "RuntimeError: no placement", "seconds": spread["runs"][2]["seconds"]
+        "seed": 2,
+        "error": "RuntimeError: no placement",
+        "seconds": spread["runs"][2]["seconds"],
     }
     assert (spread["best_rho"], spread["worst_rho"]) == (-0.5, 0.0)
     assert spread["median_rho"] == pytest.approx(-0.15, rel=1e-12)  # of -0.2, 0.0, -0.5, -0.1
@@ -170,8 +176,26 @@ def test_cli_plan_with_seeds_writes_the_spread(tmp_path, capsys):
     path = tmp_path / "box.model.json"
     save_model(box_model(10.0), path)
     out = tmp_path / "run"
-    argv = ["plan", str(path), "--contacts", "4", "--mu", "0.4", "--seeds", "2", "--workers",
-            "2", "--starts", "1", "--alternatives", "0", "--out", str(out), "--json", "--quiet"]
+    argv = [
+        "plan",
+        str(path),
+        "--contacts",
+        "4",
+        "--mu",
+        "0.4",
+        "--seeds",
+        "2",
+        "--workers",
+        "2",
+        "--starts",
+        "1",
+        "--alternatives",
+        "0",
+        "--out",
+        str(out),
+        "--json",
+        "--quiet",
+    ]
     assert cli.main(argv) == 0
     data = json.loads(capsys.readouterr().out)
     spread = data["seeds"]
@@ -218,9 +242,7 @@ def tied_plan(eligibility, *, seed, **kwargs):
 
 
 @pytest.mark.parametrize("workers", [1, 2])
-def test_a_tie_goes_to_the_lowest_seed_whatever_the_order_the_seeds_finish(
-    monkeypatch, workers
-):
+def test_a_tie_goes_to_the_lowest_seed_whatever_the_order_the_seeds_finish(monkeypatch, workers):
     patch_plan(monkeypatch, tied_plan)
     from closure_nlp.seeds import plan_seeds
 
@@ -247,9 +269,7 @@ def memo_plan(eligibility, *, seed, memo, **kwargs):
 
 
 @pytest.mark.parametrize("workers", [1, 2])
-def test_a_seed_takes_the_steps_every_earlier_seed_computed_in_any_process(
-    monkeypatch, workers
-):
+def test_a_seed_takes_the_steps_every_earlier_seed_computed_in_any_process(monkeypatch, workers):
     patch_plan(monkeypatch, memo_plan)
     from closure_nlp.seeds import plan_seeds
 

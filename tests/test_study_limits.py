@@ -60,8 +60,17 @@ def test_ctrl_c_on_a_study_keeps_finished_tasks(tmp_path):
     path = study(tmp_path, "seeds = 6\n[placement]\nstarts = 1")
     out = tmp_path / "out"
     proc = subprocess.Popen(
-        [sys.executable, "-m", "closure_nlp.cli", "study", str(path), "--out", str(out),
-         "--workers", "1"],
+        [
+            sys.executable,
+            "-m",
+            "closure_nlp.cli",
+            "study",
+            str(path),
+            "--out",
+            str(out),
+            "--workers",
+            "1",
+        ],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,

@@ -134,8 +134,10 @@ def test_smoothed_support_is_an_upper_bound_with_its_exact_gradient(kind):
     rng = np.random.default_rng(4)
     kind = ContactType.parse(kind)
     slots = WrenchSlots.build(
-        [(grasp_matrices(rng.normal(size=(k, 3)), rng.normal(size=3)), kind, 0.4, 0.2, 1.0)
-         for k in (1, 3, 4)]
+        [
+            (grasp_matrices(rng.normal(size=(k, 3)), rng.normal(size=3)), kind, 0.4, 0.2, 1.0)
+            for k in (1, 3, 4)
+        ]
     )
     U = rng.normal(size=(20, 6))
     U /= np.linalg.norm(U, axis=1, keepdims=True)
@@ -178,4 +180,3 @@ def test_element_slots_values_and_support_points(kind, seed):
     np.testing.assert_allclose(np.einsum("nr,nr->n", points, U), values, rtol=1e-10, atol=1e-12)
     V = unit(rng, 200)
     assert np.all(points @ V.T <= slots.support(V)[None, :] + 1e-10)
-

@@ -124,8 +124,11 @@ def test_unreadable_mesh_files_are_value_errors(tmp_path, name, content, needle)
 # --- what the API validates is a copy, kept read-only ------------------------------------------
 
 BOX_FILE = json.loads(
-    (__import__("pathlib").Path(__file__).resolve().parents[1] / "examples" /
-     "box_7fpc.contacts.json").read_text()
+    (
+        __import__("pathlib").Path(__file__).resolve().parents[1]
+        / "examples"
+        / "box_7fpc.contacts.json"
+    ).read_text()
 )
 
 
@@ -159,8 +162,12 @@ def test_validated_arrays_are_read_only_copies():
     element = Element("facet", vertices, [0, 0, 1])
     point = np.array([0.5, 0.5, 0.5])
     model = Model((element,), reference_point=point)
-    for kept, given in ((contact.position, position), (contact.inward_normal, normal),
-                        (element.vertices, vertices), (model.reference_point, point)):
+    for kept, given in (
+        (contact.position, position),
+        (contact.inward_normal, normal),
+        (element.vertices, vertices),
+        (model.reference_point, point),
+    ):
         assert not np.shares_memory(kept, given)
         assert not kept.flags.writeable
         with pytest.raises(ValueError, match="read-only"):

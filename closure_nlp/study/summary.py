@@ -60,12 +60,7 @@ def best_of_seeds(ok, seeds) -> dict:
     if not rows:
         return {BEST_RHO: float("nan"), BEST_SEED: None}
     best = rows[
-        choose(
-            [
-                (r["seed"], bool(r["force_closure"]), r["rho"], r.get("rho_unit"))
-                for r in rows
-            ]
-        )
+        choose([(r["seed"], bool(r["force_closure"]), r["rho"], r.get("rho_unit")) for r in rows])
     ]
     return {BEST_RHO: float(best["rho"]), BEST_SEED: int(best["seed"])}
 

@@ -292,7 +292,15 @@ def worker_memory() -> dict:
 
 # The task's fields that a row holds as they are (the options go in as JSON).
 _TASK_COLUMNS = (
-    "model", "model_digest", "type", "contacts", "mu", "mu_s", "f_max", "torque_scale", "seed"
+    "model",
+    "model_digest",
+    "type",
+    "contacts",
+    "mu",
+    "mu_s",
+    "f_max",
+    "torque_scale",
+    "seed",
 )
 
 
