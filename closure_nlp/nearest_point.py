@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .kernels import kernel_array
 from .kernels import nearest_point as kernels
 from .wrenches import WrenchSlots
 
@@ -33,10 +34,7 @@ def min_norm_point(points: np.ndarray, tol: float = 1e-15):
     weights : (n,) float
         Its convex weights (non-negative, summing to 1).
     """
-    # a copy in C order, writeable: the one type the kernel is compiled for (a read-only or
-    # strided array would compile it again, inside the caller's timing)
-    P = np.array(points, dtype=float, order="C")
-    return kernels.min_norm_point(P, float(tol))
+    return kernels.min_norm_point(kernel_array(points), float(tol))
 
 
 def nearest_point_bounds(slots: WrenchSlots, u0: np.ndarray, gap: float, max_iter: int = 200):
@@ -56,5 +54,4 @@ def _start_directions(u0: np.ndarray) -> np.ndarray:
     Q, _ = np.linalg.qr(np.column_stack([u0, np.eye(6)]))
     E = Q[:, 1:6].T
     U = np.vstack([u0, u0 + 0.1 * E, u0 - 0.1 * E])
-    # C order, as every kernel takes its directions (another layout is another compile)
-    return np.ascontiguousarray(U / np.linalg.norm(U, axis=1, keepdims=True))
+    return kernel_array(U / np.linalg.norm(U, axis=1, keepdims=True))

@@ -27,6 +27,7 @@ import numpy as np
 from .contacts import ContactSet
 from .interrupts import interruptible
 from .kernels import descent as descent_kernels
+from .kernels import kernel_array
 from .solver_cache import PerThread, cached
 from .sphere_search import descend, smoothed_descent, sphere_samples
 from .tolerances import DEFAULT_TOLERANCES, Tolerances
@@ -613,10 +614,7 @@ class SupportMinimizer:
 def _local_minimum(slots: WrenchSlots, u0: np.ndarray):
     """One run of the compiled local minimiser: (unit u, iterations, status, success)."""
     u, _, iterations, converged = descent_kernels.local_minimum(
-        *slots.packed,
-        np.array(u0, dtype=float),
-        LOCAL_MAX_ITER,
-        LOCAL_SMALLEST,  # C, writeable
+        *slots.packed, kernel_array(u0), LOCAL_MAX_ITER, LOCAL_SMALLEST
     )
     return u, int(iterations), "converged" if converged else "iteration limit", bool(converged)
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from .kernels import descent as kernels
+from .kernels import kernel_array
 from .wrenches import WrenchSlots
 
 _SAMPLES: dict[tuple[int, int], np.ndarray] = {}
@@ -86,7 +87,7 @@ def descend(
     """
 
     if tau is None:  # compiled: the same steps on p itself
-        U = np.array(U, dtype=float)  # writeable: a read-only array is another compile
+        U = kernel_array(U)
         return kernels.descend_many(*slots.packed, U, int(iterations), float(stop))
 
     def evaluate(V):

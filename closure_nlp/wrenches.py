@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .contacts import ContactSet, ContactType, friction_pieces
+from .kernels import kernel_array
 from .kernels import support as kernels
 
 MAX_PIECES = 2  # SFCl has two friction pieces, the others fewer
@@ -155,9 +156,9 @@ class WrenchSlots:
         if "_packed" not in self.__dict__:
             counts = np.diff(np.append(self.starts, len(self.G)))
             packed = (
-                np.ascontiguousarray(self.G, dtype=float),
-                np.ascontiguousarray(self.f_max, dtype=float),
-                np.ascontiguousarray(self.pieces, dtype=float),
+                kernel_array(self.G),
+                kernel_array(self.f_max),
+                kernel_array(self.pieces),
                 np.repeat(np.asarray(self.n_pieces, dtype=np.int64), counts),
                 np.append(self.starts, len(self.G)).astype(np.int64),
             )
@@ -213,10 +214,8 @@ class WrenchSlots:
 
 
 def _directions(U) -> np.ndarray:
-    """Directions as the kernels take them: (N, 6) float64, C-contiguous, writeable (numba
-    compiles a read-only array as another type: a second compile of every kernel)."""
-    U = np.ascontiguousarray(np.atleast_2d(U), dtype=float)
-    return U if U.flags.writeable else U.copy()
+    """Directions as the kernels take them: (N, 6) (:func:`~closure_nlp.kernels.kernel_array`)."""
+    return kernel_array(np.atleast_2d(U))
 
 
 def as_slots(value) -> WrenchSlots:

@@ -16,6 +16,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+import numpy as np
+
 
 def _cache_dir_fallback() -> None:
     """Point numba's disk cache at a user cache folder when this package's folder is read-only
@@ -42,6 +44,15 @@ def _cache_dir_fallback() -> None:
 
 
 _cache_dir_fallback()
+
+
+def kernel_array(a) -> np.ndarray:
+    """``a`` as the kernels are compiled for it: float64, C order, aligned, writeable, a
+    plain ndarray; a copy only when ``a`` is not already so. numba compiles another version of
+    a kernel for a read-only, strided or Fortran-ordered array (seconds, inside the caller's
+    timing); no kernel writes into its inputs, so sharing the caller's array is safe."""
+    return np.require(a, dtype=float, requirements=["C", "A", "W", "E"])
+
 
 # The kernels called from Python (the others are compiled into them): warm_up calls each.
 ENTRY_POINTS = {
