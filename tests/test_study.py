@@ -10,6 +10,8 @@ import functools
 import json
 import os
 import shutil
+import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -511,6 +513,46 @@ def test_killed_worker_then_resume_every_task_once(tiny, serial_rows, client, tm
     assert (third.run, third.failed, third.skipped) == (len(failed), 0, 4 - len(failed))
     assert len(list((out / "results").glob("*.parquet"))) == 4
     same_rows(read_results(out / "results").set_index("task_id"), serial_rows)
+
+
+def held_once(task, model_text, folder: str, task_id: str):
+    """Task ``task_id``'s first run waits in its worker until ``folder/release`` exists; every run
+    of it is counted in ``folder/runs``."""
+    if task.task_id == task_id:
+        with open(os.path.join(folder, "runs"), "a") as runs:
+            runs.write("run\n")
+        release = os.path.join(folder, "release")
+        if not os.path.exists(release):
+            Path(folder, "started").write_text("started")
+            while not os.path.exists(release):
+                time.sleep(0.02)
+    return run_task(task, model_text)
+
+
+@pytest.mark.slow
+def test_a_task_cancelled_by_the_cluster_runs_again(tiny, serial_rows, client, tmp_path):
+    """The cluster cancels a task's future (as when its finished result dies with its worker):
+    the task runs again instead of recording an error."""
+    from distributed import Future
+
+    study = load_study(tiny)
+    held = study.tasks[1].task_id
+    runner = functools.partial(held_once, folder=str(tmp_path), task_id=held)
+
+    def cancel_when_started():
+        while not (tmp_path / "started").exists():
+            time.sleep(0.02)
+        keys = [k for ks in client.processing().values() for k in ks if held in str(k)]
+        client.cancel([Future(key, client) for key in keys], force=True)
+        (tmp_path / "release").write_text("release")
+
+    canceller = threading.Thread(target=cancel_when_started)
+    canceller.start()
+    run = run_study(study, tmp_path / "out", client=client, runner=runner)
+    canceller.join()
+    assert (run.run, run.failed) == (4, 0)
+    assert (tmp_path / "runs").read_text().count("run") == 2
+    same_rows(read_results(tmp_path / "out" / "results").set_index("task_id"), serial_rows)
 
 
 @pytest.mark.slow

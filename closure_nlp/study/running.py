@@ -7,6 +7,7 @@ import os
 import re
 import time
 from collections.abc import Callable, Sequence
+from concurrent.futures import CancelledError
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -202,6 +203,7 @@ def _plain(value):
 
 
 CONNECT_SECONDS = 20  # to reach a scheduler before giving up
+LOST_RESULT_RETRIES = 2  # a task whose finished result died with its worker runs again
 _PROTOCOLS = ("tcp", "tls", "ws", "wss", "ucx")
 _ADDRESS = re.compile(
     r"(?:(?P<protocol>[a-z]+)://)?(?P<host>\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9._-]+):(?P<port>[0-9]{1,5})"
@@ -252,20 +254,34 @@ def _run_dask(tasks: Sequence[Task], texts, record, runner, client, scheduler, w
     futures = {}
     try:
         used = len(client.scheduler_info().get("workers", {}))
-        models = {d: client.scatter(text, hash=False) for d, text in texts.items()}
+        # every worker holds each model: one that dies does not take the models with it
+        models = {d: client.scatter(text, hash=False, broadcast=True) for d, text in texts.items()}
         tag = uuid.uuid4().hex[:8]
-        for task in tasks:
-            future = client.submit(
-                runner,
-                task,
-                models[task.model_digest],
-                key=f"study-{task.task_id}-{tag}",
-            )
+        tries = dict.fromkeys((task.task_id for task in tasks), 0)
+
+        def submit(task):
+            if models[task.model_digest].status != "finished":  # lost with every holder
+                models[task.model_digest] = client.scatter(
+                    texts[task.model_digest], hash=False, broadcast=True
+                )
+            tries[task.task_id] += 1
+            key = f"study-{task.task_id}-{tag}-{tries[task.task_id]}"
+            future = client.submit(runner, task, models[task.model_digest], key=key)
             futures[future] = task
-        for future in as_completed(futures):
+            return future
+
+        completed = as_completed([submit(task) for task in tasks])
+        for future in completed:
             task = futures.pop(future)
             try:
                 row = future.result()
+            except CancelledError as exc:
+                # a result lost with its worker after the task ended: not the task's doing
+                if tries[task.task_id] <= LOST_RESULT_RETRIES:
+                    future.release()
+                    completed.add(submit(task))
+                    continue
+                row = error_row(task, f"{type(exc).__name__}: {exc}")
             except (Exception, asyncio.CancelledError) as exc:  # noqa: BLE001 - a dead worker
                 row = error_row(task, f"{type(exc).__name__}: {exc}")
             future.release()
