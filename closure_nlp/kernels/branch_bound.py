@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .arrays import copy_into, copy_rows
+from .arrays import copy_into, copy_rows, fill
 from .support import OPTIONS, scratch, set_value, support_point
 
 SAMPLES = 11  # a cell's centre and the ends of its five axes
@@ -107,8 +107,11 @@ def cell_geometry(axis, sign, lo, hi, metric, centre, corners, unit):
     for j in range(5):
         v = max(max(lo[j], -hi[j]), 0.0)
         far += v * v
+    smallest = metric[0]
+    for k in range(1, 6):
+        smallest = min(smallest, metric[k])
     delta = np.arccos(min(1.0, max(-1.0, cos)))
-    return delta, np.sqrt(far) * metric.min()
+    return delta, np.sqrt(far) * smallest
 
 
 @njit(**OPTIONS)
@@ -165,10 +168,11 @@ def frank_wolfe(points, n, c, delta, steps, lam, wbar):
         single = cd * s - sd * np.sqrt(nb)
         if single > best:
             best, j = single, i
-    lam[:n] = 0.0
+    fill(lam, n, 0.0)
     lam[j] = 1.0
     lam_a = a[j]
-    v = B[j].copy()
+    v = np.empty(6)
+    copy_into(v, B[j])
     unit = np.empty(6)
     for _ in range(steps):
         nv2 = 0.0
@@ -279,7 +283,7 @@ def game_weights(M, lam, stop=np.inf):
                     T[r, k] -= factor * T[i, k]
         basis[i] = j
         pivots += 1
-    lam[:K] = 0.0
+    fill(lam, K, 0.0)
     for r in range(C + 1):
         if basis[r] < K:
             lam[basis[r]] = max(T[r, V], 0.0)
@@ -310,7 +314,7 @@ def exact_bound(points, n, corners, unit, nearest, stop, wbar):
             M[q, i] = s
     lam = np.empty(n)
     game_weights(M, lam, stop)
-    wbar[:] = 0.0
+    fill(wbar, len(wbar), 0.0)
     for i in range(n):
         for k in range(6):
             wbar[k] += lam[i] * points[i, k]
@@ -321,7 +325,8 @@ def exact_bound(points, n, corners, unit, nearest, stop, wbar):
 def tangent_basis(u, E):
     """An orthonormal basis (5, 6) of the tangent space at unit ``u``: a Householder
     reflection taking ``u`` to ``+-e_0``, its other columns."""
-    v = u.copy()
+    v = np.empty(6)
+    copy_into(v, u)
     v[0] += 1.0 if u[0] >= 0.0 else -1.0
     vv = 0.0
     for k in range(6):
@@ -339,7 +344,8 @@ def cloud(u, scales, out):
     tangent_basis(u, E)
     copy_into(out[0], u)
     at = 1
-    for eps in scales:
+    for e in range(len(scales)):
+        eps = scales[e]
         for sgn in (1.0, -1.0):
             for j in range(5):
                 for k in range(6):
@@ -408,8 +414,11 @@ def bound_cells(
     unit = np.empty((CORNERS, 6))
     lam = np.empty(pool_size)
     wbar = np.empty(6)
-    refine = np.array([REFINE_SCALE])
-    anchor_scales = ANCHOR_SCALES.copy()  # a global is read-only: another compile of cloud
+    refine = np.empty(1)
+    anchor_scales = np.empty(len(ANCHOR_SCALES))  # a global is read-only: another compile
+    copy_into(anchor_scales, ANCHOR_SCALES)
+    # row offsets as int64, not literals: a literal argument compiles another version
+    first, refined = np.int64(0), np.int64(REFINE_POINTS)
     more = np.empty((REFINE_POINTS + CORNERS, 6))
     directions = np.empty((ANCHORS, 6))
     anchored = False
@@ -417,7 +426,7 @@ def bound_cells(
         delta, nearest = cell_geometry(
             axis[n], sign[n], lo[n], hi[n], metric, centre, corners, unit
         )
-        copy_rows(pool, 0, points[n])
+        copy_rows(pool, first, points[n])
         copy_into(pool[SAMPLES], points[n, 0] if np.isnan(lin[n, 0]) else lin[n])
         bound, at = -np.inf, 0
         for s in range(SAMPLES + 1):
@@ -427,7 +436,10 @@ def bound_cells(
         copy_into(lin[n], pool[at])
         bound -= margin
         if bound < target:
-            if not anchored and (anchor_at[6] == 0.0 or not np.array_equal(anchor_at[:6], best_u)):
+            same = anchor_at[6] != 0.0
+            for k in range(6):
+                same &= anchor_at[k] == best_u[k]
+            if not anchored and not same:
                 # the incumbent's anchors: taken once per round, when first needed
                 cloud(best_u, anchor_scales, directions)
                 copy_into(anchor_at, best_u)
@@ -441,8 +453,13 @@ def bound_cells(
                 bound = max(cap, box) - margin
                 copy_into(lin[n], wbar)
             if bound < target and delta < refine_below:
-                cloud(U[n, np.argmin(values[n])], refine * delta, more)
-                copy_rows(more, REFINE_POINTS, unit)
+                low = 0
+                for k in range(1, SAMPLES):  # the first of equal values, as np.argmin
+                    if values[n, k] < values[n, low]:
+                        low = k
+                refine[0] = REFINE_SCALE * delta
+                cloud(U[n, low], refine, more)
+                copy_rows(more, refined, unit)
                 have = size
                 for add in (REFINE_POINTS, CORNERS):
                     consider(G, f, W, npc, ends, more[have - size : have - size + add],
@@ -515,7 +532,9 @@ def advance(
     samples."""
     gap, margin = settings[GAP], settings[MARGIN]
     max_cells, extended = settings[MAX_CELLS], settings[EXTENDED_CELLS]
-    lin = np.full((len(axis), 6), np.nan)  # none inherited on entry
+    lin = np.empty((len(axis), 6))
+    for n in range(len(axis)):
+        fill(lin[n], len(lin[n]), np.nan)  # none inherited on entry
     while True:
         if not evaluated:
             N = len(axis)
@@ -565,16 +584,33 @@ def advance(
             tally[LOWER] = min(tally[LOWER], lowest_live)
             return BUDGET, axis, sign, lo, hi, U, points, values
         keep = keep[:alive]
-        axis, sign, lo, hi = halve(
-            axis[keep], sign[keep], lo[keep], hi[keep], int(settings[CELLS_PER_ROUND])
-        )
+        axis, sign, lo, hi = take_cells(axis, sign, lo, hi, keep)
+        axis, sign, lo, hi = halve(axis, sign, lo, hi, int(settings[CELLS_PER_ROUND]))
         inherited = np.empty((len(axis), 6))
         for c in range(len(axis)):  # halve's child c + k * alive has parent c
-            inherited[c] = lin[keep[c % alive]]
+            copy_into(inherited[c], lin[keep[c % alive]])
         live = screen(axis, sign, lo, hi, metric, inherited, best[0] - gap, margin, tally)
+        axis, sign, lo, hi = take_cells(axis, sign, lo, hi, live)
         if len(live) == 0:
-            return CONVERGED, axis[live], sign[live], lo[live], hi[live], U, points, values
-        axis, sign, lo, hi, lin = axis[live], sign[live], lo[live], hi[live], inherited[live]
+            return CONVERGED, axis, sign, lo, hi, U, points, values
+        lin = np.empty((len(live), 6))
+        for c in range(len(live)):
+            copy_into(lin[c], inherited[live[c]])
+
+
+@njit(**OPTIONS)
+def take_cells(axis, sign, lo, hi, rows):
+    """The cells ``rows`` (indices, repeats allowed): a loop, not fancy indexing (numba
+    compiles numpy's broadcasting for each array type)."""
+    n = len(rows)
+    axis2, sign2 = np.empty(n, np.int64), np.empty(n)
+    lo2, hi2 = np.empty((n, lo.shape[1])), np.empty((n, lo.shape[1]))
+    for c in range(n):
+        r = rows[c]
+        axis2[c], sign2[c] = axis[r], sign[r]
+        copy_into(lo2[c], lo[r])
+        copy_into(hi2[c], hi[r])
+    return axis2, sign2, lo2, hi2
 
 
 @njit(**OPTIONS)
@@ -586,10 +622,10 @@ def halve(axis, sign, lo, hi, cells_per_round):
     while cuts < 5 and n * 2 ** (cuts + 1) <= cells_per_round:
         cuts += 1
     for _ in range(cuts):
-        axis2 = np.concatenate((axis, axis))
-        sign2 = np.concatenate((sign, sign))
-        lo2 = np.concatenate((lo, lo))
-        hi2 = np.concatenate((hi, hi))
+        twice = np.empty(2 * len(axis), np.int64)
+        for c in range(len(twice)):
+            twice[c] = c % len(axis)
+        axis2, sign2, lo2, hi2 = take_cells(axis, sign, lo, hi, twice)
         for c in range(len(axis)):
             w, widest = 0, hi[c, 0] - lo[c, 0]  # the first widest, as np.argmax
             for j in range(1, hi.shape[1]):

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .arrays import copy_into
+from .arrays import copy_into, dot
 from .branch_bound import cloud, normalise
 from .nearest_point import TOL, min_norm_point
 from .support import OPTIONS, scratch, support_point, support_value
@@ -30,22 +30,25 @@ def descend_many(G, f, W, npc, ends, U0, iterations, stop):
     there (N,)."""
     D = scratch(f)
     N = len(U0)
-    U = U0.copy()
-    for n in range(N):
-        normalise(U[n])
+    U = np.empty((N, 6))
     values = np.empty(N)
     grads = np.empty((N, 6))
+    angle = np.empty(N)
+    lowest = np.inf
     for n in range(N):
+        copy_into(U[n], U0[n])
+        normalise(U[n])
         values[n] = support_point(G, f, W, npc, ends, U[n], grads[n], D)
-    angle = np.full(N, 0.3)
+        lowest = min(lowest, values[n])
+        angle[n] = 0.3
     step = np.empty(6)
     trial = np.empty(6)
     trial_grad = np.empty(6)
     for _ in range(iterations):
-        if values.min() <= stop:
+        if lowest <= stop:
             break
         for n in range(N):
-            gu = grads[n] @ U[n]
+            gu = dot(grads[n], U[n])
             norm = 0.0
             for k in range(6):
                 step[k] = -(grads[n, k] - gu * U[n, k])
@@ -62,6 +65,7 @@ def descend_many(G, f, W, npc, ends, U0, iterations, stop):
                 copy_into(U[n], trial)
                 copy_into(grads[n], trial_grad)
                 values[n] = v
+                lowest = min(lowest, v)
                 angle[n] = min(angle[n] * 1.5, 0.6)
             else:
                 angle[n] *= 0.5
@@ -78,7 +82,8 @@ def local_minimum(G, f, W, npc, ends, u0, max_iter, smallest):
 
     Returns (unit direction, value, iterations, converged)."""
     D = scratch(f)
-    u = u0.copy()
+    u = np.empty(6)
+    copy_into(u, u0)
     normalise(u)
     value = support_value(G, f, W, npc, ends, u, D)
     directions = np.empty((11, 6))
@@ -96,12 +101,12 @@ def local_minimum(G, f, W, npc, ends, u0, max_iter, smallest):
         size = 0.0
         for i in range(11):
             support_point(G, f, W, npc, ends, directions[i], points[i], D)
-            a = points[i] @ u
+            a = dot(points[i], u)
             for k in range(6):
                 tangent[i, k] = points[i, k] - a * u[k]
-            size = max(size, np.sqrt(points[i] @ points[i]))
+            size = max(size, np.sqrt(dot(points[i], points[i])))
         g = min_norm_point(tangent, TOL)[0]
-        gn = np.sqrt(g @ g)
+        gn = np.sqrt(dot(g, g))
         if not gn > eps * size:
             eps *= 0.1
             continue

@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .arrays import copy_into
+from .arrays import copy_into, dot
+from .least_squares import least_squares
 from .support import OPTIONS, scratch, support_point
 
 MAX_LINE_STEPS = 20  # Wolfe's fallback steps in a row (roundoff) before it returns its point
@@ -22,14 +23,19 @@ def _affine_minimizer(P, S, k, mu):
     if k == 1:
         mu[0] = 1.0
         return
-    A = np.empty((P.shape[1], k - 1))
-    for i in range(1, k):
-        for d in range(P.shape[1]):
+    dim = P.shape[1]
+    A = np.empty((dim, k - 1))
+    b = np.empty(dim)
+    z = np.empty(k - 1)
+    for d in range(dim):
+        b[d] = -P[S[0], d]
+        for i in range(1, k):
             A[d, i - 1] = P[S[i], d] - P[S[0], d]
-    z = np.linalg.lstsq(A, -P[S[0]])[0]
-    mu[0] = 1.0 - z.sum()
+    least_squares(A, b, z)
+    mu[0] = 1.0
     for i in range(1, k):
         mu[i] = z[i - 1]
+        mu[0] -= z[i - 1]
 
 
 @njit(**OPTIONS)
@@ -45,11 +51,12 @@ def _current(P, S, lam, k):
 def _line_step(S, lam, k, x, P, j):
     """``x`` moved towards ``P[j]`` by exact line search; returns the new count, or -1 when
     the step is zero."""
-    d = np.empty(len(x))
+    dd, xd = 0.0, 0.0
     for q in range(len(x)):
-        d[q] = P[j, q] - x[q]
-    dd = d @ d
-    gamma = min(1.0, max(0.0, -(x @ d) / dd)) if dd > 0.0 else 0.0
+        d = P[j, q] - x[q]
+        dd += d * d
+        xd += x[q] * d
+    gamma = min(1.0, max(0.0, -xd / dd)) if dd > 0.0 else 0.0
     if not gamma > 0.0:
         return -1
     keep = 1.0 - gamma
@@ -69,24 +76,38 @@ def min_norm_point(points, tol=TOL):
     convex weights (n,)."""
     n, dim = points.shape
     weights = np.zeros(n)
-    size = np.abs(points).max() if n else 0.0
+    point = np.zeros(dim)
+    size = 0.0
+    for i in range(n):
+        for d in range(dim):
+            size = max(size, abs(points[i, d]))
     if not size > 0.0:
         weights[0] = 1.0
-        return np.zeros(dim), weights
-    P = points / size  # Wolfe's steps are scale-free: points of unit size
-    norms2 = np.empty(n)
+        return point, weights
+    P = np.empty((n, dim))  # Wolfe's steps are scale-free: points of unit size
+    scale, first, low = 1e-300, 0, np.inf
     for i in range(n):
-        norms2[i] = P[i] @ P[i]
-    scale = max(norms2.max(), 1e-300)
+        for d in range(dim):
+            P[i, d] = points[i, d] / size
+        norm2 = dot(P[i], P[i])
+        scale = max(scale, norm2)
+        if norm2 < low:  # the first of equal norms, as np.argmin
+            first, low = i, norm2
     S = np.empty(n + 1, np.int64)
     lam = np.zeros(n + 1)
     mu = np.empty(n + 1)
-    S[0], lam[0], k = np.argmin(norms2), 1.0, np.int64(1)  # not a literal: one compile
+    S[0], lam[0], k = first, 1.0, np.int64(1)  # not a literal: one compile
+    S_before = np.empty(n + 1, np.int64)
+    lam_before = np.empty(n + 1)
     fallbacks = 0
     for _ in range(50 * (n + 1)):
         x = _current(P, S, lam, k)
-        j = np.argmin(P @ x)
-        if x @ x - x @ P[j] <= tol * scale or fallbacks == MAX_LINE_STEPS:
+        j, low = 0, np.inf
+        for i in range(n):
+            v = dot(P[i], x)
+            if v < low:
+                j, low = i, v
+        if dot(x, x) - low <= tol * scale or fallbacks == MAX_LINE_STEPS:
             break
         fallbacks += 1
         inside = False
@@ -98,13 +119,19 @@ def min_norm_point(points, tol=TOL):
                 break
             k = k2
             continue
-        S_before, lam_before, k_before = S.copy(), lam.copy(), k
+        copy_into(S_before, S)
+        copy_into(lam_before, lam)
+        k_before = k
         S[k], lam[k] = j, 0.0
         k += 1
         for _ in range(k):  # minor cycle: each step drops a point, so it ends
             _affine_minimizer(P, S, k, mu)
-            if np.all(mu[:k] > 0.0):
-                copy_into(lam, mu[:k])
+            positive = True
+            for i in range(k):
+                positive &= mu[i] > 0.0
+            if positive:
+                for i in range(k):
+                    lam[i] = mu[i]
                 break
             theta = np.inf
             for i in range(k):
@@ -117,7 +144,9 @@ def min_norm_point(points, tol=TOL):
                     S[kept], lam[kept] = S[i], value
                     kept += 1
             k = kept
-            total = lam[:k].sum()
+            total = 0.0
+            for i in range(k):
+                total += lam[i]
             for i in range(k):
                 lam[i] /= total
         inside = False
@@ -135,7 +164,10 @@ def min_norm_point(points, tol=TOL):
             k = k2
     for i in range(k):
         weights[S[i]] += lam[i]
-    return weights @ points, weights
+    for i in range(n):
+        for d in range(dim):
+            point[d] += weights[i] * points[i, d]
+    return point, weights
 
 
 @njit(**OPTIONS)
@@ -151,9 +183,10 @@ def nearest_point_bounds(G, f, W, npc, ends, U0, gap, max_iter):
         v = support_point(G, f, W, npc, ends, U0[i], kept[i], D)
         if -v > lo:
             lo, best = -v, i
-    best_u = U0[best].copy()
+    best_u = np.empty(6)
+    copy_into(best_u, U0[best])
     x, w = min_norm_point(kept[:n0], TOL)
-    hi = np.sqrt(x @ x)
+    hi = np.sqrt(dot(x, x))
     count = 0
     for i in range(n0):
         if w[i] > 0.0:
@@ -164,7 +197,7 @@ def nearest_point_bounds(G, f, W, npc, ends, U0, gap, max_iter):
     for _ in range(max_iter):
         if hi - lo <= gap or not hi > 0.0 or stalled >= STALL:
             break
-        norm = np.sqrt(x @ x)
+        norm = np.sqrt(dot(x, x))
         for k in range(6):
             u[k] = -x[k] / norm
         v = support_point(G, f, W, npc, ends, u, kept[count], D)
@@ -174,7 +207,7 @@ def nearest_point_bounds(G, f, W, npc, ends, U0, gap, max_iter):
             lo = -v
             copy_into(best_u, u)
         x, w = min_norm_point(kept[:count], TOL)
-        norm = np.sqrt(x @ x)
+        norm = np.sqrt(dot(x, x))
         stalled = stalled + 1 if norm >= hi * (1.0 - 1e-15) else 0
         hi = min(hi, norm)
         kept_now = 0
