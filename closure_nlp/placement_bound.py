@@ -454,26 +454,52 @@ def _solve_lp(A: np.ndarray, owner: np.ndarray, U: np.ndarray) -> CellBound:
     return CellBound(bound, lam, y, U, value if np.isfinite(value) else bound)
 
 
+def max_min_lp(A: np.ndarray, owner: np.ndarray, lower=None, upper=None):
+    """``max_lam min_k (A lam)_k`` over one simplex per contact (``owner`` (R,): each column's
+    contact), ``lam`` also within ``lower`` and ``upper`` (R,) when given: ``lam`` (R,) and the
+    optimum. Solved on ``A`` over its largest magnitude (HiGHS's absolute tolerances then mean
+    the same at any wrench scale). Raises RuntimeError when every LP solver fails.
+
+    Solved by HiGHS's interior point method without crossover, to 1e-10: where the optimum is
+    not unique it ends inside the optimal face, as IPOPT does on the same problem, rather than
+    at a vertex (the exchange method's next trust region is centred there)."""
+    unit = float(np.max(np.abs(A), initial=0.0))
+    unit = unit if unit > 0.0 else 1.0
+    m = int(owner.max()) + 1
+    if _Highs is None:
+        x, _, value = _linprog(A / unit, owner, m, lower, upper)
+    else:
+        x, _, value = _highs(A / unit, owner, m, lower, upper, interior=True)
+    return x[: A.shape[1]], value * unit
+
+
 _SOLVERS = threading.local()
 
 
-def _highs(A: np.ndarray, owner: np.ndarray, m: int):
+def _highs(A: np.ndarray, owner: np.ndarray, m: int, lower=None, upper=None, interior=False):
     """The LP ``min -t`` s.t. ``t - A lam <= 0``, ``sum_{r of i} lam_r = 1``, ``lam >= 0`` by
     HiGHS itself, one solver per thread (scipy's ``linprog`` around the same solver spends
     about 4 ms per call checking its options, 2-3 times the solve of a cell's LP):
-    (primal x (R + 1,), duals of the N inequality rows, optimal t)."""
-    solver = getattr(_SOLVERS, "highs", None)
+    (primal x (R + 1,), duals of the N inequality rows, optimal t). ``lower`` and ``upper``
+    (R,), optional, bound ``lam`` further (the exchange method's trust region); ``interior``:
+    by the interior point method, without crossover (:func:`max_min_lp`)."""
+    name = "interior" if interior else "highs"
+    solver = getattr(_SOLVERS, name, None)
     if solver is None:
         solver = _Highs()
         solver.setOptionValue("output_flag", False)
         solver.setOptionValue("presolve", "off")  # small dense LPs: presolve costs, finds nothing
-        _SOLVERS.highs = solver
+        if interior:
+            solver.setOptionValue("solver", "ipm")
+            solver.setOptionValue("run_crossover", "off")
+            solver.setOptionValue("ipm_optimality_tolerance", 1e-10)
+        setattr(_SOLVERS, name, solver)
     N, R = A.shape
     lp = _HighsLp()
     lp.num_col_, lp.num_row_ = R + 1, N + m
     lp.col_cost_ = np.r_[np.zeros(R), -1.0]
-    lp.col_lower_ = np.r_[np.zeros(R), -_INF]
-    lp.col_upper_ = np.full(R + 1, _INF)
+    lp.col_lower_ = np.r_[np.zeros(R) if lower is None else lower, -_INF]
+    lp.col_upper_ = np.r_[np.full(R, _INF) if upper is None else upper, _INF]
     lp.row_lower_ = np.r_[np.full(N, -_INF), np.ones(m)]
     lp.row_upper_ = np.r_[np.zeros(N), np.ones(m)]
     lp.a_matrix_.format_ = _ROWWISE
@@ -489,13 +515,13 @@ def _highs(A: np.ndarray, owner: np.ndarray, m: int):
         solver.clearSolver()
         solver.run()
         if solver.getModelStatus() != _OPTIMAL:
-            return _linprog(A, owner, m)
+            return _linprog(A, owner, m, lower, upper)
     solution = solver.getSolution()
     duals = np.asarray(solution.row_dual, float)[:N]
     return np.asarray(solution.col_value, float), duals, -solver.getInfo().objective_function_value
 
 
-def _linprog(A: np.ndarray, owner: np.ndarray, m: int):
+def _linprog(A: np.ndarray, owner: np.ndarray, m: int, lower=None, upper=None):
     """The same LP by scipy's ``linprog`` (where HiGHS's own Python module is missing)."""
     from scipy.optimize import linprog  # here: scipy.optimize costs 0.2 s of every start
 
@@ -510,7 +536,10 @@ def _linprog(A: np.ndarray, owner: np.ndarray, m: int):
         b_ub=np.zeros(N),
         A_eq=A_eq,
         b_eq=np.ones(m),
-        bounds=[(0.0, None)] * R + [(None, None)],
+        bounds=[
+            *zip(np.zeros(R) if lower is None else lower, [None] * R if upper is None else upper),
+            (None, None),
+        ],
         method="highs",
     )
     if res.status != 0:

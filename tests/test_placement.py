@@ -16,6 +16,7 @@ from closure_nlp.elements import Element, Model, load_model, save_model
 from closure_nlp.eligibility import Eligibility
 from closure_nlp.placement import (
     ElementFrame,
+    ExchangeLP,
     ExchangeProblem,
     PlacementOptions,
     Placer,
@@ -138,22 +139,57 @@ def test_rounds_count_every_exchange_round(monkeypatch):
         assert result.force_closure and result.rho <= result.start_rho
 
 
-def test_frictionless_exchange_matches_the_general_form(monkeypatch):
-    """Frictionless contacts get the linear exchange NLP; forced into the general form (zero
-    friction pieces under the square root) the placement is the same."""
+def test_frictionless_exchange_is_a_linear_programme(monkeypatch):
+    """Frictionless contacts: the restricted problem is linear, and HiGHS (``ExchangeLP``)
+    reaches IPOPT's optimum of the same NLP, with weights in their simplices and the trust
+    region that attain it; the placement says which solver it used, and ``"ipopt"`` forces
+    the NLP."""
     from closure_nlp import placement
 
-    eligibility = Eligibility(box_model(1.0), contact_specs(7, type="fpc"), torque_scale=1.0)
+    eligibility = Eligibility(
+        load_model(MODELS / "pistol.model.json"), contact_specs(7, type="fpc"), torque_scale=1.0
+    )
+    elements = [6, 5, 1, 3, 0, 5, 2]  # facets of 24, 18 and 4 vertices (the NLP's affine form)
+    model, rng = eligibility.model, np.random.default_rng(4)
+    frames = [ElementFrame.padded(model.elements[e], eligibility.torque_scale) for e in elements]
+    rows = tuple(len(frame.G) for frame in frames)
+    f_max, margin, radius = np.ones(len(elements)), 0.01, 0.3
+    nlp = ExchangeProblem(rows, 64, 1e-10, margin, (True,) * len(rows))
+    placer = Placer(eligibility, PlacementOptions(bound=False))
+    for trial in range(3):
+        weights = [rng.dirichlet(np.ones(len(model.elements[e].vertices))) for e in elements]
+        slots = WrenchSlots.from_contacts(placer.contact_set(elements, weights))
+        U = rng.standard_normal((40, 6))
+        U /= np.linalg.norm(U, axis=1, keepdims=True)
+        start = [np.pad(w, (0, k - len(w))) for w, k in zip(weights, rows)]
+        c, r = ExchangeLP(margin).solve(frames, slots, f_max, U, start, radius)
+        assert r == pytest.approx(nlp.solve(frames, slots, f_max, U, start, radius)[1], rel=1e-8)
+        for ci, si in zip(c, start):
+            assert ci.sum() == pytest.approx(1.0) and ci.min() >= -1e-9
+            assert np.abs(ci - si).max() <= radius + 1e-9
+        # the linear model at the new weights, evaluated by the support function itself
+        P_start = slots.row_terms(U)[0]
+        mask = (P_start > -margin * f_max).T
+        none = ~mask.any(axis=0)
+        mask[np.argmax(P_start[none], axis=1), np.flatnonzero(none)] = True
+        unpadded = [
+            placement._unpadded(ci, len(model.elements[e].vertices)) for ci, e in zip(c, elements)
+        ]
+        P_new = WrenchSlots.from_contacts(placer.contact_set(elements, unpadded)).row_terms(U)[0]
+        assert (mask.T * P_new).sum(axis=1).min() >= r - 1e-9 * max(1.0, abs(r)), trial
     options = PlacementOptions(bound=False, starts=1, extra_starts=0, neighbour_moves=0)
-    elements = [0, 1, 2, 3, 4, 5, 0]
-    linear = Placer(eligibility, options)
-    fast = linear(elements)
-    assert all(key[-1] == (True,) * 7 for key in linear._problems)
-    monkeypatch.setattr(placement, "friction_pieces", lambda *args: np.ones((1, 4)))
-    general = Placer(eligibility, options)
-    slow = general(elements)
-    assert all(key[-1] == (False,) * 7 for key in general._problems)
-    assert fast.rho == pytest.approx(slow.rho, abs=1e-6 * max(1.0, abs(slow.rho)))
+    box = Eligibility(box_model(1.0), contact_specs(7, type="fpc"), torque_scale=1.0)
+    linear = Placer(box, options)
+    fast = linear([0, 1, 2, 3, 4, 5, 0])
+    assert fast.exchange_solver == "highs" and not linear._problems  # no NLP built
+    general = Placer(box, dataclasses.replace(options, exchange_solver="ipopt"))
+    slow = general([0, 1, 2, 3, 4, 5, 0])
+    assert slow.exchange_solver == "ipopt"
+    assert all(key[-1] == (True,) * 7 for key in general._problems)
+    for result in (fast, slow):
+        assert result.rho <= result.start_rho
+    with pytest.raises(ValueError, match="exchange_solver"):
+        PlacementOptions(exchange_solver="highs")
 
 
 def test_element_frame_is_exact_on_every_kind_of_element():
