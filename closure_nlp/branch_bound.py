@@ -34,6 +34,14 @@ whose bound reaches the incumbent minus the allowed gap are dropped; the others 
 their widest coordinate, until none is left or the budget is spent. The minimum over the sphere
 then lies in ``[min over dropped and live cells of their bounds, incumbent]``.
 
+Symmetry. When turns about an axis map the set onto itself (:mod:`closure_nlp.symmetry`: ``n``
+contacts equally spaced round a cylinder, coaxial round cones), ``p`` is constant on their
+orbits and the search covers only boxes that meet every orbit, mapped onto that part of the
+sphere by an invertible ``frame`` in place of the diagonal metric: ``n`` equal minima become
+one, and a circle of equal minima (which no cell bound drops: its cells multiply at every
+level) becomes a point. The detection's residuals give a ``slack``, subtracted from the lower
+bound, so the bracket holds for inexact data too.
+
 The rounds run compiled (:func:`closure_nlp.kernels.branch_bound.advance`), in one call until
 the search ends or wants its incumbent polished; this module sets the budget and runs the
 local solver.
@@ -47,6 +55,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .kernels import branch_bound as kernels
+from .symmetry import find_symmetry
 from .validation import is_whole
 from .wrenches import WrenchSlots
 
@@ -55,6 +64,8 @@ MAX_POLISH = 8  # local solves per branch and bound: each cheap; the first ones 
 # (a few ulps of sums of m terms), far below any tolerance of the package.
 ROUNDOFF = 1e-13
 CELLS_PER_ROUND = 128  # children per round while few cells live: fewer rounds
+# A symmetry is used when its slack (its detection's residuals) is at most this share of the gap.
+SLACK_SHARE = 0.1
 
 
 @dataclass(frozen=True)
@@ -90,6 +101,10 @@ class BranchBoundOptions:
     stop_below_zero : bool
         Stop, unconverged, at the first direction with ``p < 0``: the origin is then outside the
         set, where :mod:`closure_nlp.nearest_point` is exact and much faster.
+    symmetry : bool
+        Search only a fundamental domain of the turns that map the set onto itself
+        (:mod:`closure_nlp.symmetry`), when there are: a circle of equal minima becomes a
+        point, ``n`` equal minima one.
     """
 
     initial_splits: int = 1
@@ -100,6 +115,7 @@ class BranchBoundOptions:
     fw_steps: int = 12
     refine_below: float = 0.4  # 0.05 -> 0.4: eligible lamp sets 2.3x faster (CPU), others 0.9-1.15x
     stop_below_zero: bool = True
+    symmetry: bool = True
 
     def __post_init__(self) -> None:
         names = ("initial_splits", "max_cells", "extended_cells", "extension_alive", "max_rounds")
@@ -164,6 +180,9 @@ def sphere_minimum(
         isotropic one with ``D = (1, 1, 1, 1/k, 1/k, 1/k)`` (``p_W(D v / |D v|) = p_{DW}(v) /
         |D v|``). Any positive ``D`` covers the sphere: only the work changes.
     options : BranchBoundOptions
+        With ``symmetry``, the search covers a fundamental domain of the set's turns when it
+        has any and their slack is at most :data:`SLACK_SHARE` of ``gap``; the whole sphere
+        otherwise.
     polish : callable, optional
         ``polish(u) -> (6,)``: a local minimiser of ``p`` started at ``u``, run (at most
         :data:`MAX_POLISH` times) from the incumbent whenever samples lowered it by more than
@@ -175,6 +194,13 @@ def sphere_minimum(
     start = time.perf_counter()
     metric = np.ones(6) if metric is None else np.asarray(metric, dtype=float)
     margin = ROUNDOFF * max(slots.row_scales()) * max(1, slots.m)
+    symmetry = find_symmetry(slots) if options.symmetry else None
+    if symmetry is not None and symmetry.slack <= SLACK_SHARE * gap:
+        # min over the domain - slack <= min over the sphere <= min over the domain
+        frame, *cells = symmetry.domain(metric, incumbent, options.initial_splits)
+        slack = symmetry.slack
+    else:
+        frame, cells, slack = np.diag(metric), face_cells(options.initial_splits), 0.0
     packed = slots.packed
     best, best_u = np.array([np.inf, 0.0]), np.zeros(6)
     anchor, anchor_at = np.empty((kernels.ANCHORS, 6)), np.zeros(7)
@@ -189,7 +215,7 @@ def sphere_minimum(
     tally = np.array([np.inf, 0, 0, -1, best[0], 0], dtype=float)
     settings = np.array(
         [
-            gap,
+            gap - slack,
             margin,
             options.fw_steps,
             options.refine_below,
@@ -200,14 +226,15 @@ def sphere_minimum(
             options.stop_below_zero,
             CELLS_PER_ROUND,
             0 if polish is None else MAX_POLISH,
+            np.linalg.svd(frame, compute_uv=False).min(),
         ],
         dtype=float,
     )
-    cells = (*_initial_cells(options.initial_splits), *kernels.no_samples())
+    cells = (*cells, *kernels.no_samples())
     evaluated = False
     while True:
         status, *cells = kernels.advance(
-            *packed, *cells, evaluated, metric, best, best_u, anchor, anchor_at, tally, settings
+            *packed, *cells, evaluated, frame, best, best_u, anchor, anchor_at, tally, settings
         )
         if status != kernels.POLISH:
             break
@@ -215,7 +242,7 @@ def sphere_minimum(
         tally[kernels.POLISHES] += 1
         tally[kernels.POLISHED_AT] = best[0]
         evaluated = True  # the same cells, already evaluated: on to their bounds
-    lower = tally[kernels.LOWER]
+    lower = tally[kernels.LOWER] - slack
     return SphereBounds(
         float(min(lower, best[0])),
         float(best[0]),
@@ -228,11 +255,41 @@ def sphere_minimum(
     )
 
 
+def face_cells(splits: int, ranges=None):
+    """The cube's faces within ``ranges`` (6, 2) of the coordinates (all of ``[-1, 1]`` when
+    omitted), each cut into boxes: ``2^splits`` along every free coordinate of non-zero width.
+    A face ``x_k = +-1`` is kept when ``+-1`` lies in coordinate ``k``'s range.
+
+    Returns
+    -------
+    axis : (N,) int
+    sign : (N,) float
+    lo, hi : (N, 5) float
+        The boxes of the five free coordinates.
+    """
+    ranges = np.tile([-1.0, 1.0], (6, 1)) if ranges is None else np.asarray(ranges, dtype=float)
+    n = 2**splits
+    axes, signs, los, his = [], [], [], []
+    for k in range(6):
+        free = [j for j in range(6) if j != k]
+        cuts = [n if ranges[j, 1] > ranges[j, 0] else 1 for j in free]  # none across zero width
+        pieces = [np.linspace(*ranges[j], c + 1) for j, c in zip(free, cuts)]
+        grid = (
+            np.array(np.meshgrid(*[np.arange(len(e) - 1) for e in pieces], indexing="ij"))
+            .reshape(5, -1)
+            .T
+        )
+        lo = np.column_stack([pieces[j][grid[:, j]] for j in range(5)])
+        hi = np.column_stack([pieces[j][grid[:, j] + 1] for j in range(5)])
+        for sign in (1.0, -1.0):
+            if ranges[k, 0] <= sign <= ranges[k, 1]:
+                axes.append(np.full(len(grid), k, dtype=np.int64))
+                signs.append(np.full(len(grid), sign))
+                los.append(lo)
+                his.append(hi)
+    return np.concatenate(axes), np.concatenate(signs), np.concatenate(los), np.concatenate(his)
+
+
 def _initial_cells(splits: int):
     """Every cube face cut into ``2^(5 splits)`` boxes: axis, sign, lo, hi."""
-    n = 2**splits
-    edges = np.linspace(-1.0, 1.0, n + 1)
-    grid = np.array(np.meshgrid(*[np.arange(n)] * 5, indexing="ij")).reshape(5, -1).T
-    axis = np.repeat(np.arange(6, dtype=np.int64), 2 * len(grid))
-    sign = np.tile(np.repeat([1.0, -1.0], len(grid)), 6)
-    return axis, sign, np.tile(edges[grid], (12, 1)), np.tile(edges[grid + 1], (12, 1))
+    return face_cells(splits)

@@ -2,7 +2,9 @@
 
 The mathematics is that of :mod:`closure_nlp.branch_bound` (which drives the rounds and owns
 the budget): a cell is a box of the five free coordinates of one face of the cube
-``[-1, 1]^6`` mapped by a positive diagonal ``metric``; every support point ``w`` gives
+``[-1, 1]^6`` mapped by an invertible ``metric`` (6, 6) (a positive diagonal evens the cells
+out; a rotation and a shear map the cube's boxes onto a symmetry's fundamental domain,
+:mod:`closure_nlp.symmetry`); every support point ``w`` gives
 ``p(u) >= w . u``, and so does every convex combination of support points.
 
 Incumbent state, shared with the driver and updated in place: ``best`` (2,) holds the lowest
@@ -42,15 +44,16 @@ GAME_HEADROOM = 0.5
 
 @njit(**OPTIONS)
 def face_point(axis, sign, y, metric, out):
-    """``metric * x`` for the cube-face point ``x`` with ``x[axis] = sign`` and the other five
+    """``metric @ x`` for the cube-face point ``x`` with ``x[axis] = sign`` and the other five
     coordinates ``y`` (5,); into ``out`` (6,), unnormalised."""
-    j = 0
-    for k in range(6):
-        if k == axis:
-            out[k] = sign * metric[k]
-        else:
-            out[k] = y[j] * metric[k]
-            j += 1
+    for r in range(6):
+        s = metric[r, axis] * sign
+        j = 0
+        for k in range(6):
+            if k != axis:
+                s += metric[r, k] * y[j]
+                j += 1
+        out[r] = s
 
 
 @njit(**OPTIONS)
@@ -79,11 +82,12 @@ def cell_samples(axis, sign, lo, hi, metric, out):
 
 
 @njit(**OPTIONS)
-def cell_geometry(axis, sign, lo, hi, metric, centre, corners, unit):
+def cell_geometry(axis, sign, lo, hi, metric, floor, centre, corners, unit):
     """The cap holding the cell: fills its centre (6,), its 32 corners (mapped by ``metric``)
     and their unit directions (32, 6); returns the cap's angular radius and a lower bound on
-    ``|metric * x|`` over the box (``c . x / |x|`` is quasi-concave: its minimum over a box is
-    at a corner)."""
+    ``|metric @ x|`` over the box, ``floor`` (the least singular value of ``metric``) times the
+    least ``|x|`` (``c . y / |y|`` is quasi-concave and ``metric`` maps the box's corners to
+    those of its image: the minimum is at a corner)."""
     y = np.empty(5)
     for j in range(5):
         y[j] = 0.5 * (lo[j] + hi[j])
@@ -107,11 +111,8 @@ def cell_geometry(axis, sign, lo, hi, metric, centre, corners, unit):
     for j in range(5):
         v = max(max(lo[j], -hi[j]), 0.0)
         far += v * v
-    smallest = metric[0]
-    for k in range(1, 6):
-        smallest = min(smallest, metric[k])
     delta = np.arccos(min(1.0, max(-1.0, cos)))
-    return delta, np.sqrt(far) * smallest
+    return delta, np.sqrt(far) * floor
 
 
 @njit(**OPTIONS)
@@ -390,8 +391,8 @@ def evaluate_cells(G, f, W, npc, ends, axis, sign, lo, hi, metric, U, points, va
 
 @njit(**OPTIONS)
 def bound_cells(
-    G, f, W, npc, ends, axis, sign, lo, hi, metric, U, points, values, target, stop, margin,
-    fw_steps, refine_below, best, best_u, anchor, anchor_at, lin,
+    G, f, W, npc, ends, axis, sign, lo, hi, metric, floor, U, points, values, target, stop,
+    margin, fw_steps, refine_below, best, best_u, anchor, anchor_at, lin,
 ):  # fmt: skip
     """Lower bounds of ``p`` over every cell (N,), from its evaluated samples
     (:func:`evaluate_cells`): each cheaper bound first, the next only for the cells it leaves
@@ -424,7 +425,7 @@ def bound_cells(
     anchored = False
     for n in range(N):
         delta, nearest = cell_geometry(
-            axis[n], sign[n], lo[n], hi[n], metric, centre, corners, unit
+            axis[n], sign[n], lo[n], hi[n], metric, floor, centre, corners, unit
         )
         copy_rows(pool, first, points[n])
         copy_into(pool[SAMPLES], points[n, 0] if np.isnan(lin[n, 0]) else lin[n])
@@ -476,7 +477,7 @@ def bound_cells(
 
 
 @njit(**OPTIONS)
-def screen(axis, sign, lo, hi, metric, lin, target, margin, tally):
+def screen(axis, sign, lo, hi, metric, floor, lin, target, margin, tally):
     """Which cells (indices) the linear bound of their inherited point ``lin`` (N, 6) leaves
     below ``target``; the others are dropped before their samples are taken, their bounds
     entered in ``tally[LOWER]``. A cell's parent's bounding point is a point of the set,
@@ -487,7 +488,9 @@ def screen(axis, sign, lo, hi, metric, lin, target, margin, tally):
     keep = np.empty(len(axis), np.int64)
     alive = 0
     for n in range(len(axis)):
-        _, nearest = cell_geometry(axis[n], sign[n], lo[n], hi[n], metric, centre, corners, unit)
+        _, nearest = cell_geometry(
+            axis[n], sign[n], lo[n], hi[n], metric, floor, centre, corners, unit
+        )
         bound = box_bound(lin[n], corners, unit, nearest) - margin
         if bound < target:
             keep[alive] = n
@@ -509,8 +512,8 @@ LOWER, CELLS, ROUNDS, ALIVE_AT_BUDGET, POLISHED_AT, POLISHES = range(6)
 # ``settings`` (float64): its budget and tolerances.
 (
     GAP, MARGIN, FW_STEPS, REFINE_BELOW, MAX_CELLS, EXTENDED_CELLS, EXTENSION_ALIVE, MAX_ROUNDS,
-    STOP_BELOW_ZERO, CELLS_PER_ROUND, MAX_POLISH,
-) = range(11)  # fmt: skip
+    STOP_BELOW_ZERO, CELLS_PER_ROUND, MAX_POLISH, FLOOR,
+) = range(12)  # fmt: skip
 
 
 @njit(**OPTIONS)
@@ -555,9 +558,9 @@ def advance(
         target = best[0] - gap  # the round's: refinements may lower the incumbent meanwhile
         stop = target + GAME_HEADROOM * gap
         bound = bound_cells(
-            G, f, W, npc, ends, axis, sign, lo, hi, metric, U, points, values, target, stop, margin,
-            int(settings[FW_STEPS]), settings[REFINE_BELOW], best, best_u, anchor, anchor_at,
-            lin,
+            G, f, W, npc, ends, axis, sign, lo, hi, metric, settings[FLOOR], U, points, values,
+            target, stop, margin, int(settings[FW_STEPS]), settings[REFINE_BELOW], best, best_u,
+            anchor, anchor_at, lin,
         )  # fmt: skip
         alive, lowest_live = 0, np.inf
         keep = np.empty(len(axis), np.int64)
@@ -589,7 +592,9 @@ def advance(
         inherited = np.empty((len(axis), 6))
         for c in range(len(axis)):  # halve's child c + k * alive has parent c
             copy_into(inherited[c], lin[keep[c % alive]])
-        live = screen(axis, sign, lo, hi, metric, inherited, best[0] - gap, margin, tally)
+        live = screen(
+            axis, sign, lo, hi, metric, settings[FLOOR], inherited, best[0] - gap, margin, tally
+        )
         axis, sign, lo, hi = take_cells(axis, sign, lo, hi, live)
         if len(live) == 0:
             return CONVERGED, axis, sign, lo, hi, U, points, values
