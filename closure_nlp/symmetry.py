@@ -70,12 +70,21 @@ class AxialSymmetry:
     slack : float
         ``|p(g u) - p(u)|`` for every ``g`` needed to reach the domain (from the residuals of the
         detection; 0 for exact data up to roundoff), in the units of the set.
+    mirror : (3,) float or None
+        With a turn of order ``n``: a unit vector ``b`` normal to the axis such that the half
+        turn about ``b``, or the reflection across the plane of ``b`` and the axis, maps the set
+        onto itself too (cylinders' contacts on alternate heights have both); the domain is
+        then half the wedge.
+    reflects : bool
+        The mirror map is the reflection (else the half turn).
     """
 
     axis: np.ndarray = field(repr=False)
     order: int
     improper: bool
     slack: float
+    mirror: np.ndarray | None = field(default=None, repr=False)
+    reflects: bool = False
 
     def domain(self, metric, incumbent=None, splits: int = 1):
         """The cube's boxes that cover a fundamental domain, and the map that takes them there.
@@ -97,7 +106,7 @@ class AxialSymmetry:
         axis, sign, lo, hi
             The cells, as :func:`closure_nlp.branch_bound.face_cells`.
         """
-        P = axis_frame(self.axis)
+        P = axis_frame(self.axis, self.mirror)
         ranges = np.tile([-1.0, 1.0], (6, 1))
         shear = np.eye(6)
         if self.order == 0:
@@ -107,10 +116,10 @@ class AxialSymmetry:
                 pair = (3, 4) if np.hypot(u[3], u[4]) > np.hypot(u[0], u[1]) else (0, 1)
             ranges[pair[0]] = (0.0, 1.0)
             ranges[pair[1]] = (0.0, 0.0)
-        elif self.order == 2:
+        elif self.order == 2 and self.mirror is None:
             ranges[1] = (0.0, 1.0)
         else:
-            angle = 2 * np.pi / self.order
+            angle = 2 * np.pi / self.order / (1 if self.mirror is None else 2)
             shear[:2, 1] = np.cos(angle), np.sin(angle)
             ranges[0] = ranges[1] = (0.0, 1.0)
         frame = np.zeros((6, 6))
@@ -121,11 +130,15 @@ class AxialSymmetry:
         return frame, *face_cells(splits, ranges)
 
 
-def axis_frame(axis: np.ndarray) -> np.ndarray:
-    """A right-handed orthonormal basis (3, 3) whose last column is ``axis``."""
+def axis_frame(axis: np.ndarray, first=None) -> np.ndarray:
+    """A right-handed orthonormal basis (3, 3) whose last column is ``axis`` and whose first is
+    ``first`` (normal to the axis) when given."""
     a = axis / np.linalg.norm(axis)
-    e = np.eye(3)[int(np.argmin(np.abs(a)))]
-    e1 = np.cross(e, a)
+    if first is None:
+        e = np.eye(3)[int(np.argmin(np.abs(a)))]
+        e1 = np.cross(e, a)
+    else:
+        e1 = first - (first @ a) * a
     e1 /= np.linalg.norm(e1)
     return np.column_stack([e1, np.cross(a, e1), a])
 
@@ -160,7 +173,10 @@ def find_symmetry(slots: WrenchSlots, rtol: float = RTOL) -> AxialSymmetry | Non
             for improper in (False, True):
                 slack = rows.turn(a, n, improper, tol)
                 if slack is not None:
-                    return AxialSymmetry(a, n, improper, (n - 1) * slack)
+                    mirror, reflects, more = rows.mirror(a, tol)
+                    if mirror is None:
+                        return AxialSymmetry(a, n, improper, (n - 1) * slack)
+                    return AxialSymmetry(a, n, improper, n * slack + more, mirror, reflects)
     return None
 
 
@@ -267,6 +283,32 @@ class _Rows:
             out += [phi] if use_force else [phi, phi + np.pi]
         return out
 
+    def mirror(self, a: np.ndarray, tol: float):
+        """``(b, reflects, slack)``: a unit ``b`` normal to ``a`` whose half turn (or, with
+        ``reflects``, the reflection across the plane of ``a`` and ``b``) maps the set onto
+        itself, and its slack; ``(None, False, 0)`` when none does. Such a map takes the
+        longest projection of a row's normal force (or torque) on the plane normal to ``a``
+        onto a row's, so ``b`` bisects the two (or is normal to the first when they are
+        opposite)."""
+        F, T = self.G[:, :3, 0], self.G[:, 3:, 0]
+        V = F if np.linalg.norm(np.cross(F, a), axis=1).max() > tol else T
+        flat = V - np.outer(V @ a, a)
+        length = np.linalg.norm(flat, axis=1)
+        k = int(np.argmax(length))
+        if length[k] <= tol:
+            return None, False, 0.0
+        for other in np.nonzero(np.abs(length - length[k]) <= tol)[0]:
+            both = flat[k] + flat[other]
+            b = both if np.linalg.norm(both) > tol else np.cross(a, flat[k])
+            b = b / np.linalg.norm(b)
+            c = np.cross(a, b)
+            for reflects, Q in ((False, 2 * np.outer(b, b) - np.eye(3)),
+                                (True, np.eye(3) - 2 * np.outer(c, c))):  # fmt: skip
+                slack = self.maps(Q, tol)
+                if slack is not None:
+                    return b, reflects, slack
+        return None, False, 0.0
+
     def every_turn(self, a: np.ndarray, tol: float) -> float | None:
         """The slack of every turn about ``a``, or None."""
         Kx = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
@@ -292,6 +334,11 @@ class _Rows:
         Q = _rotation(a, 2 * np.pi / n)
         if improper:
             Q = Q @ (np.eye(3) - 2 * np.outer(a, a))
+        return self.maps(Q, tol)
+
+    def maps(self, Q: np.ndarray, tol: float) -> float | None:
+        """The slack of the map ``Q`` (3, 3) orthogonal, or None when it does not map the set
+        onto itself."""
         R = np.zeros((6, 6))
         R[:3, :3] = Q
         R[3:, 3:] = np.linalg.det(Q) * Q

@@ -31,28 +31,50 @@ def _turn(symmetry, angle):
     return R
 
 
+def _mirror(symmetry):
+    """The map of wrenches (6, 6) of the half turn about ``symmetry.mirror``, or of the
+    reflection across the plane of it and the axis."""
+    b, a = symmetry.mirror, symmetry.axis
+    c = np.cross(a, b)
+    Q = np.eye(3) - 2 * np.outer(c, c) if symmetry.reflects else 2 * np.outer(b, b) - np.eye(3)
+    R = np.zeros((6, 6))
+    R[:3, :3], R[3:, 3:] = Q, np.linalg.det(Q) * Q
+    return R
+
+
+def _group(symmetry):
+    """Every element (6, 6) of a finite group found: turns, and turns after a mirror."""
+    n = symmetry.order
+    turns = [_turn(symmetry, 2 * np.pi * j / n) for j in range(n)]
+    if symmetry.mirror is None:
+        return turns
+    return turns + [R @ _mirror(symmetry) for R in turns]
+
+
 def _units(rng, count):
     U = rng.standard_normal((count, 6))
     return U / np.linalg.norm(U, axis=1, keepdims=True)
 
 
 FOUND = [
-    ("cylinder sfce m=4", 4, True),
-    ("cylinder pcwf m=6", 6, True),
-    ("box sfcl faces (0, 1, 2, 3)", 2, False),
+    ("cylinder sfce m=4", 4, True, True),
+    ("cylinder pcwf m=6", 6, True, True),
+    ("box sfcl faces (0, 1, 2, 3)", 2, False, True),
 ]
 
 
-@pytest.mark.parametrize(("name", "order", "improper"), FOUND)
-def test_found_turns_keep_the_reference_support_function(name, order, improper):
+@pytest.mark.parametrize(("name", "order", "improper", "has_mirror"), FOUND)
+def test_found_turns_keep_the_reference_support_function(name, order, improper, has_mirror):
     cs = dict(symmetric_sets())[name]
     symmetry = find_symmetry(WrenchSlots.from_contacts(cs))
     assert (symmetry.order, symmetry.improper) == (order, improper)
     ref = reference.from_contact_set(cs)
-    R = _turn(symmetry, 2 * np.pi / order)
+    assert (symmetry.mirror is not None) == has_mirror
+    maps = [_turn(symmetry, 2 * np.pi / order)] + ([_mirror(symmetry)] if has_mirror else [])
     for u in _units(np.random.default_rng(order), 30):
         value = reference.support(u, ref)
-        assert reference.support(R @ u, ref) == pytest.approx(value, rel=1e-12, abs=1e-12)
+        for R in maps:
+            assert reference.support(R @ u, ref) == pytest.approx(value, rel=1e-12, abs=1e-12)
     assert 0 <= symmetry.slack < 1e-12
 
 
@@ -98,8 +120,7 @@ def test_every_orbit_meets_the_domain(name):
         P = axis_frame(symmetry.axis)
         for u in _units(rng, 40):
             if symmetry.order:
-                n = symmetry.order
-                turns = [_turn(symmetry, 2 * np.pi * j / n) for j in range(n)]
+                turns = _group(symmetry)
             else:  # the turns taking the force pair, or the torque pair, to the positive ray
                 pairs = (P.T @ u[:3])[:2], (P.T @ u[3:])[:2]
                 turns = [_turn(symmetry, -np.arctan2(w[1], w[0])) for w in pairs]
