@@ -14,7 +14,10 @@ its normal ``n_S`` is their generalized cross product, ``<x, n_S> = det[w_S; x]`
 of ``S`` over ``x``), with ``|n_S|^2 = det(w_S w_S^T)`` (Cauchy-Binet). The facets with normals
 ``+-n_S`` lie at the distances ``s(+-n_S) / |n_S|``, and
 ``s(+-n_S) = sum_{j not in S} max(0, +-x_j)`` with ``x_j = det[w_S; w_j]`` (the terms of ``S``
-vanish). So ``min_{|u|=1} s(u)`` is the least of these over the five-subsets ``S`` of full rank:
+vanish). So ``min_{|u|=1} s(u)`` is the least of these over the five-subsets ``S`` of full rank
+(numerically: five generators whose volume is below 1e-8 of the product of their lengths are
+skipped; a facet they span is spanned by others too unless two contacts nearly coincide, and
+then the value may be high, never low: each remaining term is still a true ``s(n)/|n|``):
 when ``Z`` is full-dimensional its least facet distance is its inradius about the origin, and
 when it is not (or the origin is on its boundary) some such facet has distance 0. Every value
 in that least is ``s(n)/|n|`` for some ``n != 0``, never below the minimum, so no other
@@ -71,8 +74,10 @@ def frictionless_capacity(W: np.ndarray) -> np.ndarray:
         )
         x = np.linalg.det(stacked)  # (B, len(rest)): <w_j, n_S>
         norm2 = np.linalg.det(base @ base.transpose(0, 2, 1))
-        # a rank-deficient S has no facet; the relative threshold is far below any real one
-        full = norm2 > 1e-24
+        # S spans no facet when its generators are (nearly) dependent: their volume against
+        # the product of their lengths below 1e-8, where the determinants lose their digits
+        lengths2 = np.prod(np.einsum("bij,bij->bi", base, base), axis=1)
+        full = norm2 > 1e-16 * lengths2
         norm = np.sqrt(np.where(full, norm2, 1.0))
         up = np.maximum(x, 0.0).sum(axis=1)
         down = np.maximum(-x, 0.0).sum(axis=1)
