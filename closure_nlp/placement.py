@@ -34,11 +34,14 @@ from .sphere_search import sphere_samples
 from .validation import as_flag, is_whole
 from .wrenches import WrenchSlots, pad_rows
 
-DIRECTION_BUCKETS = (16, 32, 64, 128, 256)
-# Exchange NLPs kept per cache: 15-30 MB each (64-128 directions, 7 contacts). Unbounded, the
-# fixture study's pistol 7-PCwF tasks run serially left 11 after the 7th, 275 MB of 440 MiB;
-# one plan of the examples uses at most 2 shapes.
-MAX_EXCHANGE_PROBLEMS = 4
+# Working-set sizes the exchange NLP is built for (unused directions masked out). An IPOPT
+# iteration costs about in proportion to the size (on the lamp's rounds, 40 directions 0.96 ms
+# against 64's 1.62 ms, the same optimum within 2e-12), so the sizes are close together; a run
+# grows its set by one direction a round, and one plan on the lamp builds 5 of them.
+DIRECTION_BUCKETS = (16, 24, 32, 40, 48, 56, 64, 80, 96, 112, 128, 160, 192, 224, 256)
+# Exchange NLPs kept per cache: 8-30 MB each (40-128 directions, 4-7 contacts). Unbounded, the
+# fixture study's pistol 7-PCwF tasks run serially left 11 after the 7th, 275 MB of 440 MiB.
+MAX_EXCHANGE_PROBLEMS = 6
 # Weak directions of earlier exchange runs on the same elements that start a later run's working
 # set: with the random ones and one run's rounds (max_rounds 40) it stays within 128.
 SHARED_DIRECTIONS = 64
