@@ -90,6 +90,24 @@ def test_the_rho_command_loads_only_the_kernels_of_rho(tmp_path):
     assert _run(code, env, tmp_path) == ["True False False False True"]
 
 
+def test_the_declared_signatures_are_those_the_library_calls():
+    # a cold compile compiles each entry point for its declared signature, in two processes:
+    # a call of other types would compile the kernel again inside an answer's timing
+    import importlib
+
+    from closure_nlp import kernels
+
+    kernels.warm_up()  # rho, slot values, row terms, Wolfe's nearest point: every entry point
+    declared = kernels.signatures()
+    assert set(declared) == {(m, n) for m, names in kernels.ENTRY_POINTS.items() for n in names}
+    assert sorted(n for names in kernels.COMPILE_GROUPS for n in names) == sorted(
+        kernels.ENTRY_POINTS
+    )
+    for (module, name), types in declared.items():
+        dispatcher = getattr(importlib.import_module(f"closure_nlp.kernels.{module}"), name)
+        assert dispatcher.signatures == [types], (module, name)
+
+
 def test_read_only_and_strided_inputs_reuse_the_compiled_kernels():
     # a read-only or strided array is another numba type: the API's wrappers pass C-ordered
     # writeable copies, so no call compiles a kernel again inside an answer's timing

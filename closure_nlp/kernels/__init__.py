@@ -61,6 +61,75 @@ ENTRY_POINTS = {
     "nearest_point": ("min_norm_point", "nearest_point_bounds"),
     "descent": ("descend_many", "local_minimum"),
 }
+# A cold compile splits the kernels in two halves of about equal compile time, one per process
+# (numba compiles under a lock: one process compiles on one core); both write the disk cache.
+COMPILE_GROUPS = (("branch_bound",), ("support", "nearest_point", "descent"))
+
+
+def signatures() -> dict:
+    """Each entry point's one signature (the argument types the Python wrappers pass: see
+    :func:`kernel_array`), so that a compile needs no inputs: ``{(module, name): types}``."""
+    from numba import types
+
+    f1, f2, f3 = (types.Array(types.float64, d, "C") for d in (1, 2, 3))
+    i1 = types.Array(types.int64, 1, "C")
+    slots = (f3, f1, f3, i1, i1)  # G, f, W, npc, ends (:mod:`.support`)
+    cells = (i1, f1, f2, f2)  # axis, sign, lo, hi (:mod:`.branch_bound`)
+    samples = (f3, f3, f2)  # U, points, values
+    f8, i8 = types.float64, types.int64
+    out = {("support", name): (*slots, f2) for name in ENTRY_POINTS["support"]}
+    out["branch_bound", "consider"] = (*slots, f2, f2, f1, f1)
+    out["branch_bound", "advance"] = (
+        *slots, *cells, *samples, types.boolean, f1, f1, f1, f2, f1, f1, f1,
+    )  # fmt: skip
+    out["nearest_point", "min_norm_point"] = (f2, f8)
+    out["nearest_point", "nearest_point_bounds"] = (*slots, f2, f8, i8)
+    out["descent", "descend_many"] = (*slots, f2, i8, f8)
+    out["descent", "local_minimum"] = (*slots, f1, i8, f8)
+    return out
+
+
+def compile_group(group: int) -> None:
+    """Compile (or load from the disk cache) the entry points of ``COMPILE_GROUPS[group]``."""
+    import importlib
+
+    for (module, name), types in signatures().items():
+        if module in COMPILE_GROUPS[group]:
+            getattr(importlib.import_module(f"{__name__}.{module}"), name).compile(types)
+
+
+def _compile_in_parallel() -> None:
+    """The first half of the kernels compiled here while another process compiles the second
+    (on a machine of one core, or should the other process fail, this one compiles it after:
+    the same kernels, the same cache)."""
+    import subprocess
+
+    helper = None
+    if (os.cpu_count() or 1) > 1:
+        root = str(Path(__file__).resolve().parents[2])  # this package, first on the path
+        env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+            p for p in (root, os.environ.get("PYTHONPATH")) if p
+        )}  # fmt: skip
+        code = f"from {__name__} import compile_group; compile_group(1)"
+        try:
+            helper = subprocess.Popen(
+                [sys.executable, "-c", code],
+                env=env,
+                stdin=subprocess.DEVNULL,
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL,
+            )
+        except (OSError, ValueError):  # no interpreter to start: compile it all here
+            helper = None
+    try:
+        compile_group(0)
+    except BaseException:
+        if helper is not None:
+            helper.kill()
+            helper.wait()
+        raise
+    if helper is not None:
+        helper.wait()  # its kernels then load from the disk cache (or compile here if it failed)
 
 
 def _cached() -> bool:
@@ -113,6 +182,8 @@ def warm_up(notify=None, *, rho_only: bool = False) -> float | None:
         if notify is not None:
             notify(text)
     start = time.perf_counter()  # loading from the cache costs too: done here, not in an answer
+    if compiles:
+        _compile_in_parallel()
     from ..contacts import Contact, ContactSet
     from ..quality import rho
 
