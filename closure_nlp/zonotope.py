@@ -99,7 +99,18 @@ class _Chart:
         k = len(vertices)
         dim = 0 if k == 1 or size == 0.0 else (1 if k == 2 else 2)
         self.dim = dim
-        self.axes = np.linalg.svd(centred)[2][:dim] * size if dim else np.zeros((0, 3))
+        # axes from the vertices themselves (not an SVD, whose basis of a square's plane turns
+        # with round-off): along the first edge, and across it towards the other vertices (all
+        # on one side of it, the piece being convex)
+        axes = np.zeros((dim, 3))
+        if dim:
+            edges = vertices[1:] - vertices[0]
+            axes[0] = edges[0] / np.linalg.norm(edges[0])
+        if dim == 2:
+            across = edges - np.outer(edges @ axes[0], axes[0])
+            j = int(np.argmax(np.linalg.norm(across, axis=1)))
+            axes[1] = across[j] / np.linalg.norm(across[j])
+        self.axes = axes * size
         # vertices in coordinates (k, dim): unit size, so one step length fits every piece
         self.corners = centred @ self.axes.T / size**2 if dim else np.zeros((k, 0))
         # the wrench is affine in the position: exact least squares through the vertices

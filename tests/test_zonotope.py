@@ -115,3 +115,23 @@ def test_the_ceiling_search_improves_a_poor_frictionless_placement():
     assert found.capacity == pytest.approx(-found.placement.bounds[1])
     assert found.capacity > max(1.05 * -poor.bounds[1], 0.0)
     assert found.value >= found.capacity
+
+
+def test_climb_takes_the_same_steps_in_any_unit():
+    """The box in metres and in millimetres (positions x1000, torque scale /1000): the climb's
+    placements are the same ones, scaled."""
+    model = box_model(1.0)
+    elements = (0, 1, 2, 3, 4, 5, 0)
+    runs = []
+    for factor in (1.0, 1000.0):
+        vertices = [np.asarray(model.elements[e].vertices, float) * factor for e in elements]
+        rows = []
+        for e, v in zip(elements, vertices):
+            n = model.elements[e].inward_normal
+            rows.append(np.hstack([np.tile(n, (len(v), 1)), np.cross(v, n) / factor]))
+        starts = [np.random.default_rng(4).dirichlet(np.ones(4), 30) for _ in elements]
+        runs.append(climb(vertices, rows, starts, 30, seed=5))
+    (small, a), (big, b) = runs
+    np.testing.assert_allclose(b, a, rtol=1e-9)
+    for x, y in zip(small, big):
+        np.testing.assert_allclose(y / 1000.0, x, rtol=1e-9, atol=1e-12)
