@@ -684,9 +684,10 @@ def capacity_bound(
     def try_placement(cell: _Cell):
         nonlocal polish_seconds, polished_at
         started, polished_at = time.perf_counter(), nodes
+        starts = []
         if frictionless:  # the climb's best from the LP's placement and random ones
             starts = _climbed(lp, cell, CLIMB_CELL, seed=nodes)[:1]
-        else:
+        if not starts:  # (none of them force closure: the LP's placement, as for other types)
             starts = [_lp_placement(lp, cell)]
         for ids, positions in starts:
             polish(ids, positions)
