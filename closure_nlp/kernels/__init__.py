@@ -123,13 +123,13 @@ def _compile_in_parallel() -> None:
             helper = None
     try:
         compile_group(0)
-    except BaseException:
         if helper is not None:
+            helper.wait()  # its kernels then load from the disk cache (or compile here, failed)
+    except BaseException:  # an interrupt: no process left compiling behind
+        if helper is not None and helper.poll() is None:
             helper.kill()
             helper.wait()
         raise
-    if helper is not None:
-        helper.wait()  # its kernels then load from the disk cache (or compile here if it failed)
 
 
 def _cached() -> bool:
