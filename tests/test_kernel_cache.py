@@ -108,6 +108,27 @@ def test_the_declared_signatures_are_those_the_library_calls():
         assert dispatcher.signatures == [types], (module, name)
 
 
+def test_a_stale_declaration_compiles_at_the_first_call(tmp_path):
+    # a declared signature the kernel cannot take: the cold compile skips it and the first
+    # call compiles the kernel for the types it is given, the answer unchanged
+    code = (
+        "from numba import types\n"
+        "from closure_nlp import kernels\n"
+        "declared = kernels.signatures()\n"
+        "key = ('nearest_point', 'min_norm_point')\n"
+        "declared[key] = (types.Array(types.float64, 3, 'C'), types.float64)\n"
+        "kernels.signatures = lambda: declared\n"
+        "kernels.compile_group(kernels.COMPILE_GROUPS.index(next(g for g in kernels.COMPILE_GROUPS"
+        " if 'nearest_point' in g)))\n"
+        "import numpy as np\n"
+        "from closure_nlp.kernels.nearest_point import min_norm_point\n"
+        "x = min_norm_point(np.array([[1.0, 1.0], [1.0, -1.0]]), 1e-12)\n"
+        "print(np.round(x[0], 9).tolist())\n"
+    )
+    lines = _run(code, _env(NUMBA_CACHE_DIR=str(tmp_path)), tmp_path)
+    assert lines == ["[1.0, 0.0]"]
+
+
 def test_read_only_and_strided_inputs_reuse_the_compiled_kernels():
     # a read-only or strided array is another numba type: the API's wrappers pass C-ordered
     # writeable copies, so no call compiles a kernel again inside an answer's timing
