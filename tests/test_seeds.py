@@ -58,10 +58,12 @@ def test_seeds_over_processes_equal_the_seeds_one_by_one_and_the_spread_is_their
     assert [r["seed"] for r in runs] == [4, 5, 6] and spread["workers"] == 1
     assert parallel.seeds.workers == 2
     rhos = [r["rho"] for r in runs]
-    # seeds 4 and 6 end on one placement, in other contact orders: rho to 2e-13 apart, a tie
-    # that goes to the lower seed (raw float order would pick seed 6)
-    assert spread["best_rho"] == serial.placement.rho == rhos[0] and spread["chosen_seed"] == 4
-    assert 0 <= rhos[0] - min(rhos) <= 1e-6 * abs(rhos[0])
+    # the lowest rho, rhos within the certified accuracy of it tied and the lowest seed of the
+    # tie chosen (the rule's own cases, with round-off ties: the fake plans' tests below)
+    tie = 1e-6 * max(abs(min(rhos)), *(r["rho_unit"] for r in runs))
+    best = min(r["seed"] for r in runs if r["force_closure"] and r["rho"] <= min(rhos) + tie)
+    assert spread["chosen_seed"] == best
+    assert spread["best_rho"] == serial.placement.rho == rhos[[4, 5, 6].index(best)]
     assert spread["median_rho"] == float(np.median(rhos))
     assert spread["worst_rho"] == max(rhos)
     assert spread["force_closure"] == sum(r["force_closure"] for r in runs) == 3
