@@ -92,3 +92,28 @@ def test_no_positive_slot_gives_the_largest_alone():
     value, point = slots.evaluate(u[None])
     assert value[0] == reference.support(u, ref) == -1.0  # f 1: the larger of -1 and -2
     np.testing.assert_allclose(point[0], ref[0][0][0][:, 0], atol=1e-15)
+
+
+def test_local_minimum_converges_on_soft_fingers():
+    """The local minimiser on the sphere (round cones, soft fingers: smooth pieces where plain
+    steps crawl) converges within its iteration cap from every start, never ends above its
+    start, and ends at a local minimum of the reference support function: no direction of a
+    small circle around its end is lower (to the wrench scale's round-off)."""
+    from closure_nlp.quality import _local_minimum
+    from closure_nlp.random_sets import random_contact_set
+    from closure_nlp.sphere_search import sphere_samples
+
+    rng = np.random.default_rng(3)
+    for _ in range(6):
+        cs = random_contact_set(rng, ["sfce"] * 4)
+        slots, ref = WrenchSlots.from_contacts(cs), reference.from_contact_set(cs)
+        scale = max(np.abs(ref_g).max() for ref_g in slots.G)
+        for u0 in sphere_samples(8):
+            u, _, status, converged = _local_minimum(slots, u0)
+            assert converged, status
+            value = reference.support(u, ref)
+            assert value <= reference.support(u0, ref) + 1e-12 * scale
+            near = u + 1e-4 * unit(rng, 40)
+            near /= np.linalg.norm(near, axis=1, keepdims=True)
+            lowest = min(reference.support(v, ref) for v in near)
+            assert lowest >= value - 1e-9 * scale, (value, lowest)
