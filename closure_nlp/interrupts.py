@@ -3,9 +3,11 @@
 CasADi polls Python's signal handlers during IPOPT and, when one raises, stops the solver and
 returns its last iterate as if it were the answer, status and all: the interrupt is lost and a
 half-solved value looks like a result. Inside :func:`interruptible` the SIGINT handler only notes
-an interrupt that lands inside CasADi and raises as soon as Python code runs again (a 2 ms timer),
-or when the block ends. The CLI holds it around a whole command; every solver call of the API
-holds it too, so library users get the interrupt as well. Nested uses cost nothing.
+an interrupt that lands while CasADi (or another package that swallows interrupts,
+:data:`SWALLOWING_PACKAGES`) is on the stack and raises as soon as Python code runs outside it
+again (a 2 ms timer), or when the block ends. The CLI holds it around a whole command; every
+solver call of the API holds it too, so library users get the interrupt as well. Nested uses
+cost nothing.
 """
 
 from __future__ import annotations
@@ -29,15 +31,13 @@ def interruptible():
     if threading.current_thread() is not threading.main_thread() or getattr(_active, "on", False):
         yield
         return
-    import casadi
-
-    casadi_dir = os.path.dirname(casadi.__file__)
+    folders = _swallowing_folders()
     interrupted: list[int] = []
     silenced: list[bool] = []
 
     def on_signal(signum, frame):
         if signum != signal.SIGALRM or interrupted:
-            if frame is not None and frame.f_code.co_filename.startswith(casadi_dir):
+            if _inside(frame, folders):
                 interrupted.append(signum)
                 signal.setitimer(signal.ITIMER_REAL, 0.002)
                 return
@@ -63,6 +63,33 @@ def interruptible():
             signal.signal(signum, handler)
         if silenced:  # only what this block disabled: every solve passes here
             logging.disable(logging.NOTSET)  # an in-process caller gets its logging back
+
+
+# Packages that catch every exception somewhere, a KeyboardInterrupt included: CasADi inside a
+# solve (see above), trimesh round its optional imports (an interrupt while it is imported was
+# lost, and the command ran on to its end).
+SWALLOWING_PACKAGES = ("casadi", "trimesh")
+
+
+def _swallowing_folders() -> tuple[str, ...]:
+    """The folders of :data:`SWALLOWING_PACKAGES` that are installed (none imported here)."""
+    import importlib.util
+
+    folders = []
+    for name in SWALLOWING_PACKAGES:
+        spec = importlib.util.find_spec(name)
+        if spec is not None and spec.submodule_search_locations:
+            folders.extend(os.path.join(p, "") for p in spec.submodule_search_locations)
+    return tuple(folders)
+
+
+def _inside(frame, folders: tuple[str, ...]) -> bool:
+    """Whether a frame of ``frame``'s stack runs code from one of ``folders``."""
+    while frame is not None:
+        if frame.f_code.co_filename.startswith(folders):
+            return True
+        frame = frame.f_back
+    return False
 
 
 def leave_to_parent() -> None:

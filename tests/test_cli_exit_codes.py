@@ -127,6 +127,41 @@ def test_sigint_during_ipopt_exits_130_with_one_line(tmp_path):
     assert not out.exists()
 
 
+SWALLOWER = """
+import os, signal, time
+
+
+def run():
+    # as trimesh round its optional imports: every exception caught, an interrupt included
+    try:
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(0.2)
+    except BaseException:
+        pass
+    return "went on"
+"""
+
+
+def test_an_interrupt_inside_a_package_that_swallows_it_is_not_lost(tmp_path, monkeypatch):
+    """Ctrl-C while a package that catches every exception is on the stack (CasADi in a solve,
+    trimesh while imported) raises once that package returns."""
+    from closure_nlp import interrupts
+
+    (tmp_path / "swallower").mkdir()
+    (tmp_path / "swallower" / "__init__.py").write_text(SWALLOWER)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setattr(interrupts, "SWALLOWING_PACKAGES", ("casadi", "trimesh", "swallower"))
+    import swallower
+
+    went_on = []
+    with pytest.raises(KeyboardInterrupt):
+        with interrupts.interruptible():
+            went_on.append(swallower.run())  # the package returns, as it would
+            time.sleep(1.0)  # the interrupt is raised here, not when the block ends
+            went_on.append("after the package")
+    assert went_on == ["went on"]
+
+
 @pytest.mark.parametrize(
     "argv",
     [
