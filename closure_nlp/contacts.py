@@ -74,6 +74,12 @@ def friction_pieces(kind: ContactType, mu: float, mu_s: float) -> np.ndarray:
     }[kind]
 
 
+def is_frictionless(kind: ContactType, mu: float, mu_s: float) -> bool:
+    """No friction piece (FPC, or zero friction): the contact pushes along its normal only, and
+    its wrench set is a segment."""
+    return not friction_pieces(kind, mu, mu_s).any()
+
+
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``np.cross`` of 3-vectors along the last axis (broadcast), by the same products: numpy's
     own spends ~30 us moving axes per call, which models of thousands of elements pay per

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .contact_count import require_closure_count
-from .contacts import ContactSet, friction_pieces
+from .contacts import ContactSet, is_frictionless
 from .elements import simplex_weights
 from .eligibility import Eligibility
 from .interrupts import interruptible
@@ -660,9 +660,7 @@ class Placer:
 
     def _frictionless(self) -> tuple[bool, ...]:
         """Per contact: no friction piece (FPC, or mu = mu_s = 0)."""
-        return tuple(
-            not friction_pieces(s.type, s.mu, s.mu_s).any() for s in self.eligibility.specs
-        )
+        return tuple(is_frictionless(s.type, s.mu, s.mu_s) for s in self.eligibility.specs)
 
     def exchange_solver(self) -> str:
         """``"highs"`` when the restricted problems are linear programmes solved as such (every

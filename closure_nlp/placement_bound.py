@@ -73,7 +73,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .certify import tolerance_unit
-from .contacts import ContactType, grasp_matrices
+from .contacts import grasp_matrices, is_frictionless
 from .eligibility import Eligibility
 from .sphere_search import descend, sphere_samples
 from .wrenches import WrenchSlots
@@ -856,7 +856,8 @@ def _lp_placement(lp: CellLP, cell: _Cell):
 def _frictionless(eligibility: Eligibility) -> bool:
     """Every contact frictionless, and few enough for :func:`~closure_nlp.zonotope.climb`."""
     specs = eligibility.specs
-    return all(s.type == ContactType.FPC for s in specs) and 7 <= len(specs) <= MAX_CONTACTS
+    frictionless = all(is_frictionless(s.type, s.mu, s.mu_s) for s in specs)
+    return frictionless and 7 <= len(specs) <= MAX_CONTACTS
 
 
 def _climbed(lp: CellLP, cell: _Cell, size: tuple[int, int], seed: int) -> list:
