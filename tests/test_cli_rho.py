@@ -102,3 +102,21 @@ def test_seconds_is_the_whole_cost_with_its_parts(capsys):
     assert code == 0 and set(parts) == {"search", "certificate"}
     assert parts["search"] > 0 and parts["certificate"] > 0
     assert answer["seconds"] == pytest.approx(parts["search"] + parts["certificate"], rel=1e-9)
+
+
+def test_timing_search_is_the_search_alone(capsys, monkeypatch):
+    """``timing.search`` is the result's own search time, not the search and certificate."""
+    import dataclasses
+
+    import closure_nlp.cli as cli
+
+    real = cli.rho
+
+    def timed(*args, **kwargs):
+        result = real(*args, **kwargs)
+        return dataclasses.replace(result, timing=(1e-6, 5.0))
+
+    monkeypatch.setattr(cli, "rho", timed)
+    code, out, _ = run(["rho", str(EXAMPLE), "--json"], capsys)
+    parts = json.loads(out)["timing"]
+    assert code == 0 and parts["search"] == 1e-6
