@@ -87,9 +87,10 @@ class BranchBoundOptions:
         placements of the test suite, a pistol and a stepped-shaft placement: 100k-150k cells;
         a box's one-plane bound loses ``1 - cos(delta)`` of ``p``, so the cells alive are those
         within ``delta sqrt(p / curvature)`` of the minimum). Some keep 1,500-4,000 alive
-        throughout; the shaft's were 9,000 at 40k cells, then fell. A continuum of minima (two
-        opposite soft fingers) grows past both limits at 70k-90k cells and would never
-        converge. ``max_cells`` or less: no extension.
+        throughout; a shaft fixture's (7 PCwF, torque scale 1) rose from 1,900 at 40k cells to
+        about 5,000, then fell to under 100 and converged at 84k. A continuum of minima (two
+        opposite soft fingers, searched over the whole sphere) grows level after level and may
+        need all of ``extended_cells``. ``max_cells`` or less: no extension.
     max_rounds : int
         Rounds of splitting (each halves every live cell once).
     fw_steps : int
@@ -110,7 +111,7 @@ class BranchBoundOptions:
     initial_splits: int = 1
     max_cells: int = 40_000
     extended_cells: int = 400_000
-    extension_alive: int = 5_000
+    extension_alive: int = 20_000
     max_rounds: int = 200
     fw_steps: int = 12
     refine_below: float = 0.4  # 0.05 -> 0.4: eligible lamp sets 2.3x faster (CPU), others 0.9-1.15x

@@ -3,12 +3,16 @@ cell bounds against the reference support function, and its budget."""
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 import numpy as np
 import pytest
 from scipy.optimize import linprog
 
 from closure_nlp.branch_bound import BranchBoundOptions, _initial_cells, sphere_minimum
-from closure_nlp.contacts import Contact, ContactSet, ContactType
+from closure_nlp.certify import certified_bounds
+from closure_nlp.contacts import Contact, ContactSet, ContactType, contact_set_from_dict
 from closure_nlp.kernels import branch_bound as kernels
 from closure_nlp.quality import SupportMinimizer
 from closure_nlp.random_sets import random_contact_set
@@ -16,6 +20,8 @@ from closure_nlp.wrenches import WrenchSlots
 
 from . import reference
 from .test_certify import symmetric_sets
+
+DATA = Path(__file__).parent / "data"
 
 
 def _game_upper_bound(M: np.ndarray) -> float:
@@ -186,3 +192,20 @@ def test_a_continuum_of_minima_stops_soon_after_the_budget():
     _, found = _min_over_sphere(pair, 1000, extension_alive=1000, symmetry=False)
     assert not found.converged
     assert 1000 < found.cells < BranchBoundOptions().extended_cells // 10
+
+
+@pytest.mark.slow
+def test_a_fixture_whose_live_cells_swell_past_the_budget_converges():
+    # Seven locators with friction on a stepped shaft, torques unscaled (lever arms up to
+    # 110 mm): its live cells swell to about 5,000 after the 40k-cell budget, then fall; the
+    # default extension carries it to a converged bracket (it stopped at [-1.27, -0.147]).
+    data = json.loads((DATA / "stepped_shaft_fixture_pcwf.json").read_text())
+    contact_set = contact_set_from_dict(data)
+    bounds = certified_bounds(WrenchSlots.from_contacts(contact_set))
+    assert bounds.converged and bounds.force_closure
+    # The bracket holds an independent estimate of min p: dense samples, locally polished.
+    p_ref, _ = reference.reference_min(
+        reference.from_contact_set(contact_set), samples=300, starts=3
+    )
+    assert -bounds.hi <= p_ref + 1e-9 * max(1.0, p_ref)
+    assert bounds.hi - bounds.lo <= 1e-6 * max(1.0, abs(bounds.lo))
