@@ -77,7 +77,7 @@ from .contacts import grasp_matrices, is_frictionless
 from .eligibility import Eligibility
 from .sphere_search import descend, sphere_samples
 from .wrenches import WrenchSlots
-from .zonotope import MAX_CONTACTS, climb
+from .zonotope import MAX_CONTACTS, climb, facet_rows
 
 try:  # HiGHS's own module (a dependency of cvxpy); its plain class prints no banner
     from highspy._core import HighsLp as _HighsLp
@@ -112,6 +112,11 @@ CUT_ITERATIONS = 60
 CLIMB_ROOT = (200, 100)
 CLIMB_CELL = (100, 60)
 CLIMB_POLISHES = 2
+# The zonotope's facet bound is computed on cells whose pieces are all at most this size
+# against their elements: above it the signs it needs are seldom fixed (pistol 7 FPC around its
+# best placement: bound at pieces of 0.1 of their elements, none at 0.25), and it costs about
+# as much as a cell's LP.
+FACET_SIZE = 0.2
 
 
 @dataclass(frozen=True)
@@ -317,6 +322,7 @@ class CellLP:
         self.reference = model.reference_point
         self.directions = np.asarray(sphere_samples(40, seed=3), float).copy()
         self.cuts = 0
+        self.frictionless = _frictionless(eligibility)
 
     def rows(self, cell) -> tuple[WrenchSlots, list[np.ndarray], list[int]]:
         """The cell's vertex rows: slots (one per contact, one row per piece vertex), each
@@ -341,13 +347,20 @@ class CellLP:
         hint=None,
         rows: int = 0,
         samples: int = ROOT_CUT_SAMPLES,
+        floor: float = -np.inf,
     ) -> CellBound:
         """The cell's certified LP bound after at most ``rounds`` cutting-plane rounds (none
         begun after ``deadline``, a :func:`time.perf_counter` value). With ``rows`` > 0 the LP
         starts on ``hint`` (optional (K, 6) directions, a parent cell's active ones) and the
         ``rows`` directions of the working set lowest at uniform weights; the others join only
         where the LP's weights fall below its value on them (:meth:`_solve_rows`). ``samples``:
-        quasi-random starts of the cut descent."""
+        quasi-random starts of the cut descent. For frictionless contacts each on one piece the
+        bound is the least of this LP's and the zonotope's facet bound (:meth:`facet_bound`),
+        and the LP is skipped when the facet bound is at most ``floor`` (the cell closes)."""
+        facet = self.facet_bound(cell)
+        if facet <= floor:
+            lam = np.concatenate([np.full(len(p.vertices), 1.0 / len(p.vertices)) for (p,) in cell])
+            return CellBound(facet, lam, np.zeros(0), np.zeros((0, 6)), facet)
         slots, _, counts = self.rows(cell)
         owner = np.repeat(np.arange(len(counts)), counts)
         pool = self.directions if hint is None else np.vstack([hint, self.directions])
@@ -367,7 +380,29 @@ class CellLP:
             pool = np.vstack([pool, keep])
             A = np.vstack([A, np.maximum(slots.row_values(keep), 0.0)])
             self.directions = np.vstack([self.directions, keep])[-MAX_DIRECTIONS:]
+        if facet < result.value:
+            result = replace(result, value=facet)
         return result
+
+    def facet_bound(self, cell) -> float:
+        """Frictionless contacts each on one piece: the certified bound of the zonotope's facets
+        (:func:`~closure_nlp.zonotope.facet_rows`, second order in the pieces' sizes), the weak
+        dual of its LP as in :func:`dual_bound` (``>= 0``); ``inf`` otherwise."""
+        if not self.frictionless or any(len(pieces) != 1 for pieces in cell):
+            return np.inf
+        elements = self.eligibility.model.elements
+        if max(p.size / elements[p.element].size for (p,) in cell) > FACET_SIZE:
+            return np.inf
+        ts = self.eligibility.torque_scale
+        vertex_wrenches = [
+            spec.f_max * grasp_matrices(p.vertices - self.reference, p.inward_normal, ts)[:, :, 0]
+            for spec, (p,) in zip(self.eligibility.specs, cell)
+        ]
+        A = facet_rows(vertex_wrenches)
+        if not len(A):
+            return np.inf
+        owner = np.repeat(np.arange(len(cell)), [len(w) for w in vertex_wrenches])
+        return max(0.0, _solve_lp(A, owner, np.zeros((len(A), 6))).value)
 
     @staticmethod
     def _first_rows(A: np.ndarray, owner: np.ndarray, hinted: int, rows: int) -> np.ndarray:
@@ -733,6 +768,7 @@ def capacity_bound(
                 hint,
                 options.lp_rows,
                 options.cut_samples,
+                best_value,
             )
             if bound.value > cell.bound.value:  # the parent's bound holds for its parts too
                 bound = replace(bound, value=cell.bound.value)

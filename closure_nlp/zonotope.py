@@ -87,6 +87,227 @@ def frictionless_capacity(W: np.ndarray) -> np.ndarray:
     return best * unit[:, 0, 0]
 
 
+# Relative margin of :func:`facet_rows` for the round-off of its determinants (about 1e-15 of the
+# product of their rows' lengths each, divided by the facet normal's length).
+FACET_ROUND_OFF = 1e-10
+
+
+def facet_rows(vertex_wrenches: list[np.ndarray]) -> np.ndarray:
+    """Affine upper bounds of the frictionless capacity over a cell (each contact on one piece),
+    second order in the pieces' sizes.
+
+    Parameters
+    ----------
+    vertex_wrenches : list of (k_i, 6) float
+        Each contact's wrench ``f_max (n, torque_scale * r x n)`` at the vertices of its piece
+        (``k_i = 1`` for a point); ``7 <= m <=`` :data:`MAX_CONTACTS` contacts.
+
+    Returns
+    -------
+    (K, R) float
+        ``R = sum_i k_i`` columns (contact by contact): for every placement in the cell with
+        barycentric weights ``lam`` (one simplex per contact),
+        ``max(0, min_{|u|=1} s(u)) <= min_k (A lam)_k``. ``K = 0`` when no facet's sign pattern
+        is fixed on the cell (no bound from here).
+
+    Notes
+    -----
+    Proof. Write contact ``i``'s wrench as ``w_i = sum_r lam_ir V_ir``, ``lam0`` the pieces'
+    vertex means, ``w0_i = sum_r lam0_ir V_ir``, ``e_i = w_i - w0_i`` (in the hull of
+    ``V_ir - w0_i``, so ``|e_i| <= eps_i := max_r |V_ir - w0_i|``) and
+    ``delta = lam - lam0``. For six rows, each a contact or a fixed vector, ``P = det[rows]`` is
+    multilinear in the rows, so ``P = P0 + a.delta + sum_{|T| >= 2} det[e_T; w0_rest]`` over the
+    sets ``T`` of contact rows (``a_ir = det`` with row ``i`` replaced by ``V_ir``; the ``lam0``
+    part cancels as ``sum_r delta_ir = 0``). A pair term is bilinear in ``(e_i, e_k)``; its
+    absolute value is convex in each, so its largest value is at a pair of vertices ``V_ir -
+    w0_i``, ``V_ks - w0_k`` (enumerated). A larger ``T`` has ``|det[e_T; w0_rest]| <=
+    prod_T eps_i vol(w0_rest)`` (Fischer's and Hadamard's inequalities). So
+    ``|P - P0 - a.delta| <= R``.
+
+    For a five-subset ``S`` let ``n`` be its generalized cross product (``<z, n> =
+    det[w_S; z]``), ``n0`` its value at ``lam0`` (unit ``nh``), ``x_j = det[w_S; w_j]`` and
+    ``nu = det[w_S; nh] = <nh, n> <= |n|``. By the above ``nu >= L0 + b.delta - R_n`` with
+    ``L0 = |n0|``; on the cell ``|nu - L0| <= H`` (``H``: the largest ``|b.delta|`` over the
+    cell's vertices plus ``R_n``), so ``|n| >= nu >= L0 - H =: Lmin``; ``S`` is used only when
+    ``Lmin > 0``. Likewise each ``x_j`` (``j`` not in ``S``) is used only when its interval
+    ``x0_j +- (max |a_j.delta| + R_j)`` excludes 0: its sign ``s_j`` is fixed on the cell.
+    When every ``j`` has a fixed sign, ``s(+-n) = sum_{s_j = +-1} +-x_j =: X_+-`` (the terms of
+    ``S`` vanish) and the capacity is at most ``X / |n| <= X / nu`` for both (``X >= 0``); when
+    one of them sums over no ``j`` it is 0 on the whole cell (a facet through the origin),
+    a zero row. With ``X = X0 + xi``, ``xi <= a_X.delta + R_X``, ``nu = L0 + eta`` and
+    ``q0 = X0 / L0 >= 0``:
+
+        X / nu - q0 = (xi - q0 eta) / (L0 + eta)
+                    <= (xi - q0 eta) / L0 + |xi - q0 eta| |eta| / (L0 Lmin)
+                    <= q0 + ((a_X - q0 b).delta + R_X + q0 R_n) / L0 + Z H / (L0 Lmin) - q0,
+
+    ``Z`` the largest ``|xi - q0 eta|`` (the largest ``|(a_X - q0 b).delta|`` plus ``R_X +
+    q0 R_n``). That is affine in ``lam``; its constant is spread over the contacts' columns
+    (each ``lam_i`` sums to 1). The capacity is the least facet distance (:func:`
+    frictionless_capacity`), below each of these, and the rows' minimum is their bound; every
+    remainder is of second order in the pieces' sizes, so the bound's excess shrinks with the
+    square of the cell, where the interpolation bound of :mod:`closure_nlp.placement_bound` is
+    first order at contacts on a facet (their ``<w_i, n> = 0``: the kink of ``max(0, .)``).
+    """
+    V = [np.asarray(v, float) for v in vertex_wrenches]
+    m = len(V)
+    if not 7 <= m <= MAX_CONTACTS:
+        raise ValueError(f"vertex_wrenches: expected 7 to {MAX_CONTACTS} contacts, got {m}")
+    k = np.array([len(v) for v in V])
+    offsets = np.r_[0, np.cumsum(k)]
+    # a common unit: determinants of order one whatever the units; the rows scale back
+    unit = max(float(np.max(np.abs(v))) for v in V)
+    unit = unit if unit > 0.0 else 1.0
+    V = [v / unit for v in V]
+    lam0 = [np.full(len(v), 1.0 / len(v)) for v in V]
+    w0 = np.array([lam @ v for lam, v in zip(lam0, V)])
+    D = [v - w for v, w in zip(V, w0)]
+    eps = np.array([float(np.max(np.linalg.norm(d, axis=1))) for d in D])
+    volume = {(): 1.0}
+    for size in (1, 2, 3):
+        for T in combinations(range(m), size):
+            A = w0[list(T)]
+            volume[T] = float(np.sqrt(max(np.linalg.det(A @ A.T), 0.0)))
+
+    subsets = list(combinations(range(m), 5))
+    bases = w0[np.array(subsets)]  # (nS, 5, 6)
+    n0 = np.linalg.det(
+        np.concatenate(
+            [
+                np.broadcast_to(bases[:, None], (len(subsets), 6, 5, 6)),
+                np.broadcast_to(np.eye(6)[None, :, None], (len(subsets), 6, 1, 6)),
+            ],
+            axis=2,
+        )
+    )  # (nS, 6): <e_k, n>
+    L0 = np.linalg.norm(n0, axis=1)
+    live = L0 > 0.0
+    nh = n0 / np.where(live, L0, 1.0)[:, None]
+
+    # the polynomials: per subset, nu (fixed row nh) then x_j for j outside it
+    rows, matrices, owner_subset = [], [], []
+    for s, S in enumerate(subsets):
+        if not live[s]:
+            continue
+        rows.append(S + (-1,))
+        matrices.append(np.vstack([bases[s], nh[s]]))
+        owner_subset.append(s)
+        for j in range(m):
+            if j not in S:
+                rows.append(S + (j,))
+                matrices.append(np.vstack([bases[s], w0[j]]))
+                owner_subset.append(s)
+    if not rows:
+        return np.zeros((0, int(offsets[-1])))
+    base = np.array(matrices)  # (P, 6, 6)
+    P = len(base)
+    P0 = np.linalg.det(base)
+
+    # linear coefficients a[p, ir]: row i replaced by each vertex wrench
+    index, position, column, vector = [], [], [], []
+    for p, r in enumerate(rows):
+        for a, i in enumerate(r):
+            if i >= 0:
+                index.append(np.full(k[i], p))
+                position.append(np.full(k[i], a))
+                column.append(offsets[i] + np.arange(k[i]))
+                vector.append(V[i])
+    index, position = np.concatenate(index), np.concatenate(position)
+    column, vector = np.concatenate(column), np.concatenate(vector)
+    M = base[index]
+    M[np.arange(len(M)), position] = vector
+    grad = np.zeros((P, int(offsets[-1])))
+    grad[index, column] = np.linalg.det(M)
+
+    def spread(coefficients):  # largest |c.delta| over the cell, (Q, R) -> (Q,)
+        lo = hi = 0.0
+        for i in range(m):
+            c = coefficients[:, offsets[i] : offsets[i + 1]]
+            centre = c @ lam0[i]
+            lo = lo + c.min(axis=1) - centre
+            hi = hi + c.max(axis=1) - centre
+        return np.maximum(-lo, hi)
+
+    # a subset whose nu or some x_j spans 0 by its linear part alone fails with the remainder
+    # too: its polynomials are left out before the costly remainders
+    owner_subset = np.array(owner_subset)
+    linear = spread(grad)
+    near_zero = np.abs(P0) <= linear
+    keep = np.ones(P, bool)
+    for s in np.unique(owner_subset):
+        members = owner_subset == s
+        keep[members] = not np.any(near_zero[members]) and P0[members][0] > 0.0
+    if not keep.any():
+        return np.zeros((0, int(offsets[-1])))
+    rows = [r for r, k in zip(rows, keep) if k]
+    base, P0, grad, owner_subset = base[keep], P0[keep], grad[keep], owner_subset[keep]
+    P = len(base)
+
+    # pair terms: largest |det| over vertex pairs of the differences, per (polynomial, pair)
+    index, pos1, pos2, vec1, vec2, group = [], [], [], [], [], []
+    g = 0
+    for p, r in enumerate(rows):
+        contacts = [(a, i) for a, i in enumerate(r) if i >= 0]
+        for (a, i), (b, j) in combinations(contacts, 2):
+            n = k[i] * k[j]
+            index.append(np.full(n, p))
+            pos1.append(np.full(n, a))
+            pos2.append(np.full(n, b))
+            vec1.append(np.repeat(D[i], k[j], axis=0))
+            vec2.append(np.tile(D[j], (k[i], 1)))
+            group.append(np.full(n, g))
+            g += 1
+    index, group = np.concatenate(index), np.concatenate(group)
+    M = base[index]
+    at = np.arange(len(M))
+    M[at, np.concatenate(pos1)] = np.concatenate(vec1)
+    M[at, np.concatenate(pos2)] = np.concatenate(vec2)
+    largest = np.zeros(g)
+    np.maximum.at(largest, group, np.abs(np.linalg.det(M)))
+    remainder = np.zeros(P)
+    starts = np.r_[0, np.flatnonzero(np.diff(group)) + 1]
+    np.add.at(remainder, index[starts], largest)
+    # three rows or more: Fischer (a fixed row nh is orthogonal to the others at lam0)
+    for p, r in enumerate(rows):
+        contacts = [i for i in r if i >= 0]
+        for size in range(3, len(contacts) + 1):
+            for T in combinations(contacts, size):
+                rest = tuple(sorted(i for i in contacts if i not in T))
+                remainder[p] += float(np.prod(eps[list(T)])) * volume[rest]
+    # round-off of the determinants
+    row_eps = np.array([[eps[i] if i >= 0 else 0.0 for i in r] for r in rows])
+    lengths = np.prod(np.linalg.norm(base, axis=2) + row_eps, axis=1)
+    remainder += FACET_ROUND_OFF * lengths
+
+    width = spread(grad) + remainder
+    centre = np.concatenate(lam0)
+    out = []
+    for s in np.unique(owner_subset):
+        nu, *xs = np.flatnonzero(owner_subset == s)  # nu first, then the x_j
+        xs = np.array(xs)
+        L, H = P0[nu], width[nu]
+        Lmin = L - H
+        sign = np.where(P0[xs] - width[xs] > 0.0, 1, np.where(P0[xs] + width[xs] < 0.0, -1, 0))
+        if not Lmin > 0.0 or np.any(sign == 0):
+            continue
+        for side in (1, -1):
+            chosen = xs[sign == side]
+            if not len(chosen):  # s(side n) = 0 on the whole cell
+                out.append(np.zeros(int(offsets[-1])))
+                continue
+            X0 = side * P0[chosen].sum()
+            RX = remainder[chosen].sum()
+            q0 = max(X0 / L, 0.0)
+            c = side * grad[chosen].sum(axis=0) - q0 * grad[nu]
+            slack = RX + q0 * remainder[nu]
+            Z = spread(c[None])[0] + slack
+            row = c / L
+            const = q0 + slack / L + Z * H / (L * Lmin) - row @ centre
+            out.append(row + const / m)
+    A = np.array(out).reshape(-1, int(offsets[-1]))
+    return A * unit
+
+
 class _Chart:
     """Coordinates of a convex piece (its vertices (k, 3) in order around it) in units of its
     size: 0 for a point, 1 for a segment, 2 for a polygon; with the nearest point of the piece
@@ -207,4 +428,4 @@ def climb(
     return [c.position(p) for c, p in zip(charts, x)], f
 
 
-__all__ = ["MAX_CONTACTS", "climb", "frictionless_capacity"]
+__all__ = ["MAX_CONTACTS", "climb", "facet_rows", "frictionless_capacity"]

@@ -320,3 +320,27 @@ def test_the_split_halves_the_piece_largest_against_its_element():
     )
     bound = lp.bound(points, rounds=0, tolerance=1e-3)
     assert placement_bound._split(lp, placement_bound._Cell(points, bound, 0)) is None
+
+
+def test_frictionless_cells_take_the_facet_bound():
+    """7 frictionless contacts on small pieces of the box: a cell's bound is at most the
+    zonotope's facet bound (where that one holds) and above every sampled placement's certified
+    capacity; a facet bound at most ``floor`` closes the cell without its LP."""
+    model = box_model(2.0)
+    eligibility = Eligibility(model, contact_specs(7, type="fpc"), 0.5)
+    lp = CellLP(eligibility)
+    rng = np.random.default_rng(0)
+    with_facets = 0
+    for _ in range(8):
+        pieces = _random_cell(rng, eligibility, (0, 1, 2, 3, 4, 5, 0), (10, 14))
+        cell = tuple([p[0]] for p in pieces)
+        facet = lp.facet_bound(cell)
+        bound = lp.bound(cell, rounds=2, tolerance=1e-3)
+        assert bound.value <= facet
+        for _ in range(3):
+            assert -rho(_sample(rng, eligibility, cell)).bounds[1] <= bound.value
+        if np.isfinite(facet):
+            with_facets += 1
+            closed = lp.bound(cell, rounds=2, tolerance=1e-3, floor=facet)
+            assert closed.value == facet and len(closed.y) == 0
+    assert with_facets >= 3

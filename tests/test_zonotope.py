@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from closure_nlp.contacts import contact_specs
+from closure_nlp.contacts import contact_specs, grasp_matrices
 from closure_nlp.eligibility import Eligibility
 from closure_nlp.placement import PlacementOptions, Placer
-from closure_nlp.placement_bound import BoundOptions, capacity_bound
+from closure_nlp.placement_bound import BoundOptions, _solve_lp, capacity_bound
 from closure_nlp.quality import rho
 from closure_nlp.random_sets import random_contact_set
-from closure_nlp.zonotope import climb, frictionless_capacity
+from closure_nlp.zonotope import climb, facet_rows, frictionless_capacity
 from tests.shapes import box_model
 
 
@@ -135,3 +135,112 @@ def test_climb_takes_the_same_steps_in_any_unit():
     np.testing.assert_allclose(b, a, rtol=1e-9)
     for x, y in zip(small, big):
         np.testing.assert_allclose(y / 1000.0, x, rtol=1e-9, atol=1e-12)
+
+
+def _facet_cells(seed: int, count: int, size: float):
+    """Force-closure sets of 7 frictionless contacts (random positions and normals) and around
+    each contact a piece of radius ``size`` in its tangent plane (a point, a segment, a triangle
+    or a hexagon): per cell, each contact's vertices (k, 3) and its wrench map (positions (k, 3)
+    -> wrenches (k, 6))."""
+    rng = np.random.default_rng(seed)
+    cells = []
+    while len(cells) < count:
+        cs = random_contact_set(rng, ["fpc"] * 7, tilt=0.1)
+        if not frictionless_capacity(_wrenches(cs))[0] > 0.0:
+            continue
+        vertices, maps = [], []
+        for c in cs.contacts:
+            n = c.inward_normal / np.linalg.norm(c.inward_normal)
+            t1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+            t1 /= np.linalg.norm(t1)
+            t2 = np.cross(n, t1)
+            k = int(rng.choice([1, 2, 3, 6]))
+            angles = rng.uniform(0, 2 * np.pi) + 2 * np.pi * np.arange(k) / k
+            offsets = np.outer(np.cos(angles), t1) + np.outer(np.sin(angles), t2)
+            vertices.append(c.position + size * offsets * (k > 1))
+
+            def wrenches(x, n=n, cs=cs, f=c.f_max):
+                G = grasp_matrices(x - cs.reference_point, n, cs.torque_scale)
+                return f * G[:, :, 0]
+
+            maps.append(wrenches)
+        cells.append((vertices, maps))
+    return cells
+
+
+def _facet_value(pieces) -> float:
+    """The certified value of ``facet_rows`` (its LP's weak dual), inf without rows."""
+    A = facet_rows(pieces)
+    if not len(A):
+        return np.inf
+    owner = np.repeat(np.arange(len(pieces)), [len(p) for p in pieces])
+    return max(0.0, _solve_lp(A, owner, np.zeros((len(A), 6))).value)
+
+
+def _best_in_cell(vertices, rows, seed: int):
+    """A climb's best placement in the cell (positions per contact) and its capacity."""
+    rng = np.random.default_rng(seed)
+    starts = [rng.dirichlet(np.full(len(v), 0.5), 40) for v in vertices]
+    positions, values = climb(vertices, rows, starts, 120, seed=seed)
+    b = int(np.argmax(values))
+    return [p[b] for p in positions], float(values[b])
+
+
+def _facet_violations(cells, seed: int, value=_facet_value):
+    """(cells where a placement (200 random ones and a climb's best) beats the cell's bound,
+    cells with a bound, climbed capacities)."""
+    rng = np.random.default_rng(seed)
+    bad, bounded, best = 0, 0, []
+    for vertices, maps in cells:
+        rows = [f(v) for f, v in zip(maps, vertices)]
+        bound = value(rows)
+        bounded += np.isfinite(bound)
+        weights = [rng.dirichlet(np.full(len(v), 0.5), 200) for v in vertices]
+        W = np.stack([w @ r for w, r in zip(weights, rows)], axis=1)  # the wrench is affine
+        _, climbed = _best_in_cell(vertices, rows, seed)
+        best.append(climbed)
+        bad += max(climbed, frictionless_capacity(W).max()) > bound
+    return bad, bounded, np.array(best)
+
+
+@pytest.mark.parametrize("size", [0.001, 0.005])
+def test_facet_bound_is_above_every_sampled_placement(size):
+    """On 8 random cells (points, segments, triangles, hexagons around force-closure sets) no
+    placement (random, or the best of a climb) has a closed-form capacity above the facet bound;
+    most cells have one."""
+    bad, bounded, best = _facet_violations(_facet_cells(0, 8, size), seed=1)
+    assert bad == 0
+    assert bounded >= 6 and np.all(best > 0.0)
+
+
+def test_the_sampling_check_catches_a_bound_too_tight():
+    """The same check fails with the bound lowered by 1% on the smaller cells: the climbs come
+    that close to it."""
+
+    def lowered(pieces):
+        return 0.99 * _facet_value(pieces)
+
+    bad, _, _ = _facet_violations(_facet_cells(0, 8, 0.001), seed=1, value=lowered)
+    assert bad > 0
+
+
+def test_facet_bound_shrinks_with_the_square_of_the_cell():
+    """Cells around a climb's best placement, halved in size: the bound's excess over that
+    placement's capacity falls by about 4 (second order), where a first-order bound's would
+    halve."""
+    ratios = []
+    for vertices, maps in _facet_cells(2, 5, 0.05):
+        rows = [f(v) for f, v in zip(maps, vertices)]
+        best, value = _best_in_cell(vertices, rows, seed=1)
+        excess = []
+        for h in (0.1, 0.05):
+            pieces = [f(b + h * (v - b)) for f, v, b in zip(maps, vertices, best)]
+            excess.append(_facet_value(pieces) - value)
+        assert excess[1] >= 0.0 and np.isfinite(excess[0])
+        ratios.append(excess[1] / excess[0])
+    assert np.median(ratios) < 0.4
+
+
+def test_facet_rows_are_checked():
+    with pytest.raises(ValueError, match="vertex_wrenches"):
+        facet_rows([np.ones((1, 6))] * 6)
