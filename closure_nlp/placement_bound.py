@@ -54,6 +54,12 @@ of largest dual-weighted Jensen gap at the LP's point). Cells whose bound is at 
 the certified capacity of the best placement known are closed; the ceiling is the largest bound
 of all leaves (open or closed).
 
+*Facets*: with frictionless contacts only, a cell whose pieces are all small (at most
+:data:`FACET_SIZE` of their elements) is also bounded by the facets of its zonotope
+(:func:`closure_nlp.zonotope.facet_rows`, proved there): affine rows in the same weights whose
+error is of second order in the pieces' sizes, with no kink at the contacts on a facet; the
+cell's bound is the least of the two LPs' weak duals (both certified).
+
 Incumbents come from the exchange method (:class:`~closure_nlp.placement.Placer`) started at the
 LP's placement in the best cell, every value certified by :func:`closure_nlp.quality.rho`. With
 frictionless contacts only, a climb on the closed-form capacity of their zonotope
