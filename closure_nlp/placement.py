@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .analytic_centre import analytic_centre
 from .contact_count import require_closure_count
 from .contacts import ContactSet, is_frictionless
 from .elements import simplex_weights
@@ -31,6 +32,7 @@ from .quality import SearchOptions, certificate_keys, rho, search_rho
 from .selection import SCREEN_SEARCH
 from .solver_cache import PerThread, cached
 from .sphere_search import sphere_samples
+from .ties import first_largest, lowest_first
 from .validation import as_flag, is_whole
 from .wrenches import WrenchSlots, pad_rows
 
@@ -547,9 +549,12 @@ class ExchangeLP:
         )
         owner = np.repeat(np.arange(len(frames)), [len(frame.G) for frame in frames])
         flat = np.concatenate(c0)
-        lam, r = max_min_lp(
-            A, owner, np.maximum(flat - radius, 0.0), np.minimum(flat + radius, 1.0)
-        )
+        lower, upper = np.maximum(flat - radius, 0.0), np.minimum(flat + radius, 1.0)
+        lam, r = max_min_lp(A, owner, lower, upper)
+        # the LP solver's point of a non-unique optimum moves with round-off: its centre does not
+        centre = analytic_centre(A, owner, lower, upper, r, lam)
+        if centre is not None:
+            lam, r = centre, float(np.min(A @ centre))
         weights, at = [], 0
         for c in c0:
             weights.append(lam[at : at + len(c)])
@@ -560,10 +565,11 @@ class ExchangeLP:
 def _subsets(P: np.ndarray, f_max: np.ndarray, margin: float) -> np.ndarray:
     """``S_k`` of :class:`ExchangeProblem` from the contacts' support values ``P`` (n, m) at the
     current weights: contacts with ``P_ik > -margin f_i``, the largest alone if none; (m, n)
-    of 0 and 1."""
+    of 0 and 1; the largest is the first within :data:`~closure_nlp.ties.TIE` of it."""
     mask = (P > -margin * f_max[None, :]).T.astype(float)
     none = ~mask.any(axis=0)
-    mask[np.argmax(P[none], axis=1), np.flatnonzero(none)] = 1.0
+    # contacts on one facet often tie for the largest: the first of them, in any unit
+    mask[first_largest(P[none], float(f_max.max())), np.flatnonzero(none)] = 1.0
     return mask
 
 
@@ -754,7 +760,8 @@ class Placer:
                 warm = best.direction
                 if self.options.round_search:
                     values = trial_slots.support(np.array(U))
-                    warm = np.vstack([warm, np.array(U)[np.argsort(values)[:WARM_DIRECTIONS]]])
+                    weakest = lowest_first(values, float(f_max.sum()), WARM_DIRECTIONS)
+                    warm = np.vstack([warm, np.array(U)[weakest]])
                 if self.options.screen:
                     # the light search alone: a certificate per screened round cost more than
                     # the full search it was meant to spare (bench plan: fast mode 5-20x slower)
