@@ -518,6 +518,25 @@ def max_min_lp(A: np.ndarray, owner: np.ndarray, lower=None, upper=None):
 _SOLVERS = threading.local()
 
 
+def max_min_model(A: np.ndarray, owner: np.ndarray, m: int, lower=None, upper=None):
+    """HiGHS's model of the LP of :func:`max_min_lp`: columns ``lam`` (R,) then ``t``; rows the
+    N directions (``t - A lam <= 0``) then one simplex per contact."""
+    N, R = A.shape
+    lp = _HighsLp()
+    lp.num_col_, lp.num_row_ = R + 1, N + m
+    lp.col_cost_ = np.r_[np.zeros(R), -1.0]
+    lp.col_lower_ = np.r_[np.zeros(R) if lower is None else lower, -_INF]
+    lp.col_upper_ = np.r_[np.full(R, _INF) if upper is None else upper, _INF]
+    lp.row_lower_ = np.r_[np.full(N, -_INF), np.ones(m)]
+    lp.row_upper_ = np.r_[np.zeros(N), np.ones(m)]
+    lp.a_matrix_.format_ = _ROWWISE
+    counts = np.bincount(owner, minlength=m)
+    lp.a_matrix_.start_ = np.r_[np.arange(N + 1) * (R + 1), N * (R + 1) + np.cumsum(counts)]
+    lp.a_matrix_.index_ = np.r_[np.tile(np.arange(R + 1), N), np.argsort(owner, kind="stable")]
+    lp.a_matrix_.value_ = np.r_[np.hstack([-A, np.ones((N, 1))]).ravel(), np.ones(R)]
+    return lp
+
+
 def _highs(A: np.ndarray, owner: np.ndarray, m: int, lower=None, upper=None, interior=False):
     """The LP ``min -t`` s.t. ``t - A lam <= 0``, ``sum_{r of i} lam_r = 1``, ``lam >= 0`` by
     HiGHS itself, one solver per thread (scipy's ``linprog`` around the same solver spends
@@ -536,20 +555,8 @@ def _highs(A: np.ndarray, owner: np.ndarray, m: int, lower=None, upper=None, int
             solver.setOptionValue("run_crossover", "off")
             solver.setOptionValue("ipm_optimality_tolerance", 1e-10)
         setattr(_SOLVERS, name, solver)
-    N, R = A.shape
-    lp = _HighsLp()
-    lp.num_col_, lp.num_row_ = R + 1, N + m
-    lp.col_cost_ = np.r_[np.zeros(R), -1.0]
-    lp.col_lower_ = np.r_[np.zeros(R) if lower is None else lower, -_INF]
-    lp.col_upper_ = np.r_[np.full(R, _INF) if upper is None else upper, _INF]
-    lp.row_lower_ = np.r_[np.full(N, -_INF), np.ones(m)]
-    lp.row_upper_ = np.r_[np.zeros(N), np.ones(m)]
-    lp.a_matrix_.format_ = _ROWWISE
-    counts = np.bincount(owner, minlength=m)
-    lp.a_matrix_.start_ = np.r_[np.arange(N + 1) * (R + 1), N * (R + 1) + np.cumsum(counts)]
-    lp.a_matrix_.index_ = np.r_[np.tile(np.arange(R + 1), N), np.argsort(owner, kind="stable")]
-    lp.a_matrix_.value_ = np.r_[np.hstack([-A, np.ones((N, 1))]).ravel(), np.ones(R)]
-    solver.passModel(lp)
+    N = len(A)
+    solver.passModel(max_min_model(A, owner, m, lower, upper))
     solver.run()
     if solver.getModelStatus() != _OPTIMAL:
         # always feasible and bounded: a numerical failure of this solve, so the same LP once

@@ -118,23 +118,23 @@ def test_contact_moves_to_a_neighbour_only_when_that_helps():
         assert move.rho == pytest.approx(stay.rho, abs=1e-9)
 
 
-def test_rounds_count_every_exchange_round(monkeypatch):
+@pytest.mark.parametrize("solver", ["auto", "ipopt"])
+def test_rounds_count_every_exchange_round(monkeypatch, solver):
     """Neighbour trials that do not help still cost rounds: ``rounds`` counts every solve of
-    the exchange NLP, with and without shared working sets."""
+    the restricted problem (sequential LP or IPOPT), with and without shared working sets."""
     from closure_nlp import placement
 
     solves = []
-    solve = placement.ExchangeProblem.solve
-    monkeypatch.setattr(
-        placement.ExchangeProblem,
-        "solve",
-        lambda self, *args: solves.append(1) or solve(self, *args),
-    )
+    kind = placement.ExchangeSLP if solver == "auto" else placement.ExchangeProblem
+    solve = kind.solve
+    monkeypatch.setattr(kind, "solve", lambda self, *args: solves.append(1) or solve(self, *args))
     model = _strip_model()
     eligibility = Eligibility(model, contact_specs(4, type="pcwf", mu=0.5), torque_scale=0.5)
     for share in (True, False):
         solves.clear()
-        options = PlacementOptions(bound=False, starts=2, share_directions=share)
+        options = PlacementOptions(
+            bound=False, starts=2, share_directions=share, exchange_solver=solver
+        )
         result = Placer(eligibility, options)([0, 2, 3, 4])
         assert result.rounds == len(solves) > 0
         assert result.force_closure and result.rho <= result.start_rho
@@ -192,7 +192,7 @@ def test_frictionless_exchange_is_a_linear_programme(monkeypatch):
     assert all(key[-1] == (True,) * 7 for key in general._problems)
     for result in (fast, slow):
         assert result.rho <= result.start_rho
-    with pytest.raises(ValueError, match="exchange_solver"):
+    with pytest.raises(ValueError, match="exchange_solver.*'highs'"):
         PlacementOptions(exchange_solver="highs")
 
 
@@ -435,10 +435,11 @@ def test_exchange_nlp_cache_keeps_the_most_recent_shapes(monkeypatch):
 
     model = _strip_model()
     eligibility = Eligibility(model, contact_specs(4, type="pcwf", mu=0.5), torque_scale=0.5)
-    reference_run = Placer(eligibility, PlacementOptions(bound=False, starts=2))([0, 2, 3, 4])
+    options = PlacementOptions(bound=False, starts=2, exchange_solver="ipopt")
+    reference_run = Placer(eligibility, options)([0, 2, 3, 4])
     monkeypatch.setattr(placement, "MAX_EXCHANGE_PROBLEMS", 2)
     caches = PerThread(dict)
-    placer = Placer(eligibility, PlacementOptions(bound=False, starts=2), caches)
+    placer = Placer(eligibility, options, caches)
     shared = caches.get()
     a = placer._problem((1, 1, 1, 1), 10)
     b = placer._problem((1, 1, 1, 1), 20)
@@ -448,8 +449,6 @@ def test_exchange_nlp_cache_keeps_the_most_recent_shapes(monkeypatch):
     assert placer._problem((1, 1, 1, 1), 20) is not b  # rebuilt
     assert len(shared) == 2
     monkeypatch.setattr(placement, "MAX_EXCHANGE_PROBLEMS", 1)
-    again = Placer(eligibility, PlacementOptions(bound=False, starts=2), PerThread(dict))(
-        [0, 2, 3, 4]
-    )
+    again = Placer(eligibility, options, PerThread(dict))([0, 2, 3, 4])
     assert again.rho == reference_run.rho
     assert [c.element for c in again.contacts] == [c.element for c in reference_run.contacts]

@@ -1,0 +1,183 @@
+"""The exchange method's restricted problem by sequential linear programming.
+
+The restricted problem is ``max_c min_k p(u_k; c)`` over a working set of directions ``u_k``,
+the weights ``c_i`` of each contact in its simplex and within a trust region. On a facet or a
+segment the grasp matrix is affine in the position, ``G_i(c_i) = sum_j c_ij G_ij``, and
+``p(u; c) = max_{w in W_c} u . w`` is a maximum of functions linear in ``c`` (a fixed force of
+each contact of a fixed subset), so each ``p(u_k; .)`` is convex in the weights. With ``F_ik``
+the support force of contact ``i`` in direction ``u_k`` at the current weights ``c0`` (zero for
+the contacts outside the support point's subset),
+
+    p(u_k; c) >= L_k(c) = sum_i sum_j c_ij (G_ij^T u_k) . F_ik    for every c,
+
+with equality at ``c0``: the linearisation is a global under-estimator. The linear programme
+``max_c min_k L_k(c)`` (HiGHS, :func:`~closure_nlp.placement_bound.max_min_lp`) therefore has
+``c0`` feasible at the true value, and its optimum ``c1`` has a true value at least the LP's:
+each step is monotone (the convex-concave procedure). Re-linearising at ``c1`` and repeating
+ends at a point no linearisation can improve. A local maximum of a minimum of convex functions
+sits where enough of them (or the simplex and trust-region bounds) are active, as in a linear
+programme, so the steps are few (2-4 on the paper's examples).
+
+Against IPOPT on the smooth restriction of :class:`~closure_nlp.placement.ExchangeProblem`:
+the true support function is modelled (every subset and friction piece re-chosen at each step,
+no smoothing), nothing is built per problem size, and a step is one small LP.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .wrenches import WrenchSlots
+
+# A step that raises the restricted value by at most this much of the data's scale (the largest
+# support term per unit weight) ends the steps; a step's LP is solved to 1e-10 of that scale.
+STEP_GAIN = 1e-9
+MAX_STEPS = 30
+
+
+def linearised_support(local, c, slots: WrenchSlots):
+    """The true ``p(u_k; c)`` of the working set and its linearisation in the weights.
+
+    Parameters
+    ----------
+    local : list of (rows_i, 4, n) float
+        ``G_ij^T u_k`` of each contact's vertex rows (:meth:`ElementFrame.local`).
+    c : list of (rows_i,) float
+        Each contact's weights (summing to one).
+    slots : WrenchSlots
+        One slot per contact: their friction pieces and force bounds (the grasp matrices are
+        not used).
+
+    Returns
+    -------
+    values : (n,) float
+        ``p(u_k; c)`` (eq 26: the sum of the positive contact values, else the largest).
+    A : (n, sum rows_i) float
+        ``A[k, (i, j)] = (G_ij^T u_k) . F_ik``: ``A @ concat(c) == values``, and ``A @ x <=
+        p(u_k; x)`` for all weights ``x``.
+    """
+    n = local[0].shape[2]
+    terms, coefficients = [], []
+    for i, (D, ci) in enumerate(zip(local, c)):
+        d = np.einsum("j,jck->ck", ci, D)  # G_i(c)^T u_k: (4, n)
+        f = slots.f_max[slots.starts[i]]
+        W = slots.pieces[slots.starts[i], : slots.n_pieces[i]]  # (pieces, 4)
+        force = np.zeros((4, n))
+        force[0] = f
+        value = f * d[0]
+        if len(W):
+            q = W @ d**2  # (pieces, n)
+            piece = np.argmax(q, axis=0)  # the first of equal pieces
+            top = q[piece, np.arange(n)]
+            root = np.sqrt(np.maximum(top, 0.0))
+            value = value + f * root
+            # the rim's point f (e_n + W d / sqrt(q)); none where q = 0 (any force of the disc)
+            inv = np.divide(f, root, out=np.zeros(n), where=root > 0.0)
+            force += W[piece].T * d * inv
+        terms.append(value)
+        coefficients.append(np.einsum("jck,ck->kj", D, force))  # (n, rows_i)
+    P = np.array(terms)  # (m, n)
+    positive = P > 0.0
+    chosen = positive.copy()
+    none = ~positive.any(axis=0)
+    chosen[np.argmax(P[:, none], axis=0), np.flatnonzero(none)] = True
+    values = np.where(chosen, P, 0.0).sum(axis=0)
+    A = np.hstack([chosen[i][:, None] * coefficients[i] for i in range(len(local))])
+    return values, A
+
+
+class ExchangeSLP:
+    """The restricted problem of the exchange method by sequential linear programming
+    (module docstring): from the weights ``c0``, steps of ``max_c min_k L_k(c)`` over the
+    simplices and the trust region, each from the linearisation at the last step's weights,
+    while one raises the true restricted value. Every contact type; no problem to build.
+
+    Each step's LP is solved by HiGHS's dual simplex from the last step's optimal basis (the
+    rows of directions added since then enter basic): about one pivot per step where a cold
+    start takes 30, half the time of a step. One object per thread (it keeps its solver);
+    :meth:`start_run` at the start of each exchange run.
+
+    ``steps`` after each :meth:`solve`: the LPs it solved.
+    """
+
+    solver = "slp"
+
+    def __init__(self, max_steps: int = MAX_STEPS):
+        self.max_steps = max_steps
+        self.steps = 0
+        self._highs = None
+        self._basis = None  # the last optimal basis, and the LP's (columns, direction rows)
+
+    def start_run(self) -> None:
+        """Forget the last basis: a run's answers then depend on its own inputs alone, not on
+        what this thread solved before (a seed gives the same plan in any worker)."""
+        self._basis = None
+
+    def solve(self, frames, slots_at_c, f_max, U, c0, radius):
+        """As :meth:`ExchangeProblem.solve`: the new padded weights (list) and the restricted
+        value ``min_k p(u_k; c)`` there (exact, not a model's)."""
+        local = [frame.local(U) for frame in frames]
+        sizes = [len(ci) for ci in c0]
+        owner = np.repeat(np.arange(len(c0)), sizes)
+        flat = np.concatenate(c0)
+        lower, upper = np.maximum(flat - radius, 0.0), np.minimum(flat + radius, 1.0)
+        c = [np.asarray(ci, float) for ci in c0]
+        values, A = linearised_support(local, c, slots_at_c)
+        value = float(values.min())
+        scale = max(float(np.max(np.abs(A), initial=0.0)), np.finfo(float).tiny)
+        self.steps = 0
+        while self.steps < self.max_steps:
+            self.steps += 1
+            lam = self._step(A / scale, owner, lower, upper)
+            # within the solver's tolerance of the bounds and the simplices
+            lam = np.clip(lam, lower, upper)
+            trial = [w / w.sum() for w in np.split(lam, np.cumsum(sizes)[:-1])]
+            trial_values, trial_A = linearised_support(local, trial, slots_at_c)
+            gain = float(trial_values.min()) - value
+            if gain > 0.0:
+                c, value, A = trial, value + gain, trial_A
+            if gain <= STEP_GAIN * scale:
+                break
+        return c, value
+
+    def _step(self, A, owner, lower, upper) -> np.ndarray:
+        """``lam`` (R,) maximising ``min_k (A lam)_k`` over the simplices and bounds."""
+        from . import placement_bound as lp
+
+        m = len(np.unique(owner))
+        if lp._Highs is None:  # pragma: no cover - scipy's linprog instead
+            return lp.max_min_lp(A, owner, lower, upper)[0]
+        if self._highs is None:
+            self._highs = lp._Highs()
+            self._highs.setOptionValue("output_flag", False)
+            self._highs.setOptionValue("presolve", "off")
+            self._highs.setOptionValue("solver", "simplex")
+        highs = self._highs
+        highs.passModel(lp.max_min_model(A, owner, m, lower, upper))
+        basis = self._warm_basis(A.shape)
+        if basis is not None:
+            highs.setBasis(basis)
+        highs.run()
+        if highs.getModelStatus() != lp._OPTIMAL:  # a numerical failure: once more, cold
+            self._basis = None
+            return lp.max_min_lp(A, owner, lower, upper)[0]
+        self._basis = (highs.getBasis(), A.shape)
+        return np.asarray(highs.getSolution().col_value, float)[: A.shape[1]]
+
+    def _warm_basis(self, shape):
+        """The last optimal basis fitted to an LP of ``shape`` (directions, columns): directions
+        added since enter with their rows basic; None when the columns differ or rows left."""
+        if self._basis is None:
+            return None
+        (basis, (n_old, cols)), (n, cols_new) = self._basis, shape
+        if cols != cols_new or n < n_old:
+            return None
+        if n > n_old:
+            from highspy._core import HighsBasisStatus
+
+            rows = list(basis.row_status)
+            basis.row_status = rows[:n_old] + [HighsBasisStatus.kBasic] * (n - n_old) + rows[n_old:]
+        return basis
+
+
+__all__ = ["ExchangeSLP", "linearised_support"]

@@ -1,0 +1,137 @@
+"""The exchange method's restricted problem by sequential linear programming: the linearisation
+of the support function in the weights, the solver against IPOPT, and its use by placement."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from closure_nlp.contacts import ContactType, contact_specs
+from closure_nlp.elements import load_model
+from closure_nlp.eligibility import Eligibility
+from closure_nlp.placement import (
+    ElementFrame,
+    ExchangeProblem,
+    ExchangeSLP,
+    PlacementOptions,
+    Placer,
+    _unpadded,
+)
+from closure_nlp.sequential_lp import linearised_support
+from closure_nlp.wrenches import WrenchSlots
+
+MODELS = Path(__file__).resolve().parents[1] / "models"
+TYPES = [ContactType.FPC, ContactType.PCWF, ContactType.SFCL, ContactType.SFCE]
+
+
+def _setup(name, elements, kinds, seed):
+    """A placer on ``elements`` of an example model with one contact type each, random unit
+    directions and random weights: (placer, frames, directions, rng)."""
+    rng = np.random.default_rng(seed)
+    model = load_model(MODELS / f"{name}.model.json")
+    specs = tuple(contact_specs(1, type=kind, mu=0.4, model=model)[0] for kind in kinds)
+    eligibility = Eligibility(model, specs)
+    placer = Placer(eligibility, PlacementOptions(bound=False))
+    frames = [ElementFrame.padded(model.elements[e], eligibility.torque_scale) for e in elements]
+    U = rng.standard_normal((30, 6))
+    U /= np.linalg.norm(U, axis=1, keepdims=True)
+    return placer, frames, U, rng
+
+
+def _true_values(placer, elements, weights, U):
+    """``p(u_k; c)`` by the compiled support function of the contacts placed at ``weights``
+    (unpadded): the path the placement's searches use, independent of the linearisation."""
+    model = placer.eligibility.model
+    real = [_unpadded(w, len(model.elements[e].vertices)) for w, e in zip(weights, elements)]
+    return WrenchSlots.from_contacts(placer.contact_set(elements, real)).support(U)
+
+
+def _random_weights(rng, frames):
+    return [rng.dirichlet(np.full(len(f.G), 0.3)) for f in frames]
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_linearisation_is_exact_at_its_point_and_below_everywhere(seed):
+    """``A @ c`` equals ``p(u_k; c)`` at the weights it was taken at, and ``A @ x`` is at most
+    ``p(u_k; x)`` at any other weights: mixed contact types on facets, segments and points of
+    the lamp and the pistol (the convexity of the support function in the weights)."""
+    name, elements = [("lamp", [14, 10, 55, 47]), ("pistol", [6, 5, 1, 3])][seed % 2]
+    rng0 = np.random.default_rng(100 + seed)
+    kinds = [TYPES[i] for i in rng0.permutation(4)]
+    placer, frames, U, rng = _setup(name, elements, kinds, seed)
+    local = [frame.local(U) for frame in frames]
+    # the contacts' types, friction and force bounds (their positions are not used)
+    counts = [len(placer.eligibility.model.elements[e].vertices) for e in elements]
+    centroids = [np.full(k, 1.0 / k) for k in counts]
+    slot_specs = WrenchSlots.from_contacts(placer.contact_set(elements, centroids))
+    for _ in range(5):
+        c = _random_weights(rng, frames)
+        values, A = linearised_support(local, c, slot_specs)
+        true = _true_values(placer, elements, c, U)
+        scale = max(1.0, np.abs(true).max())
+        np.testing.assert_allclose(values, true, rtol=0, atol=1e-12 * scale)
+        np.testing.assert_allclose(A @ np.concatenate(c), true, rtol=0, atol=1e-12 * scale)
+        for _ in range(5):
+            x = _random_weights(rng, frames)
+            below = A @ np.concatenate(x)
+            assert np.all(below <= _true_values(placer, elements, x, U) + 1e-12 * scale)
+
+
+@pytest.mark.parametrize("kind", ["pcwf", "sfce"])
+def test_sequential_lp_never_loses_and_keeps_ipopts_optimum(kind):
+    """On random restricted problems: the SLP's value is the true ``min_k p(u_k; c)`` at its
+    weights (never below its start's), its weights in their simplices and the trust region;
+    started at IPOPT's optimum it keeps at least IPOPT's value (IPOPT's model is a restriction
+    of the true support function, so its value is met there)."""
+    elements = [14, 10, 55, 47]
+    placer, frames, U, rng = _setup("lamp", elements, [kind] * 4, 7)
+    rows = tuple(len(f.G) for f in frames)
+    f_max = np.ones(4)
+    ipopt = ExchangeProblem(rows, 32, 1e-10, 0.01)
+    slp = ExchangeSLP()
+    model = placer.eligibility.model
+    for trial in range(4):
+        weights = [rng.dirichlet(np.ones(len(model.elements[e].vertices))) for e in elements]
+        slots = WrenchSlots.from_contacts(placer.contact_set(elements, weights))
+        start = [np.pad(w, (0, k - len(w))) for w, k in zip(weights, rows)]
+        radius = [0.1, 0.3, 1.0, 0.5][trial]
+        before = _true_values(placer, elements, start, U).min()
+        c, value = slp.solve(frames, slots, f_max, U, start, radius)
+        scale = max(1.0, abs(before))
+        assert value >= before - 1e-12 * scale
+        assert value == pytest.approx(_true_values(placer, elements, c, U).min(), abs=1e-9 * scale)
+        for ci, si in zip(c, start):
+            assert ci.sum() == pytest.approx(1.0) and ci.min() >= 0.0
+            assert np.abs(ci - si).max() <= radius + 1e-9
+        c_ip, r = ipopt.solve(frames, slots, f_max, U, start, radius)
+        c_ip = [np.maximum(ci, 0.0) / np.maximum(ci, 0.0).sum() for ci in c_ip]
+        at_ipopt = _true_values(placer, elements, c_ip, U).min()
+        assert at_ipopt >= r - 1e-7 * scale
+        again, value_again = slp.solve(frames, slots, f_max, U, c_ip, radius / 2)
+        assert value_again >= at_ipopt - 1e-12 * scale
+        assert slp.steps >= 1
+
+
+def test_friction_contacts_use_the_sequential_lp_and_build_no_nlp():
+    """Placement with friction: the default solves its restricted problems by the sequential
+    LP (no CasADi NLP built), ``exchange_solver="ipopt"`` by IPOPT; both never end worse than
+    their start, and the result says which ran."""
+    model = load_model(MODELS / "lamp.model.json")
+    eligibility = Eligibility(model, contact_specs(4, type="pcwf", mu=0.2))
+    options = PlacementOptions(bound=False, starts=1, extra_starts=0, neighbour_moves=0)
+    placer = Placer(eligibility, options)
+    fast = placer([14, 10, 55, 47])
+    assert fast.exchange_solver == "slp" and fast.to_dict()["exchange_solver"] == "slp"
+    assert not any(isinstance(p, ExchangeProblem) for p in placer._problems.values())
+    assert fast.rho <= fast.start_rho and fast.rounds > 0
+    general = Placer(eligibility, dataclasses.replace(options, exchange_solver="ipopt"))
+    slow = general([14, 10, 55, 47])
+    assert slow.exchange_solver == "ipopt" and slow.rho <= slow.start_rho
+    # each exchange run starts from a cold basis: a placer that solved something else first
+    # gives the same answer
+    warmed = Placer(eligibility, options)
+    warmed([13, 11, 54, 46])
+    assert warmed([14, 10, 55, 47]).rho == fast.rho
