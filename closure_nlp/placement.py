@@ -28,7 +28,7 @@ import numpy as np
 
 from .analytic_centre import analytic_centre
 from .contact_count import require_closure_count
-from .contacts import ContactSet, is_frictionless
+from .contacts import ContactSet, friction_pieces, is_frictionless
 from .elements import simplex_weights
 from .eligibility import Eligibility
 from .interrupts import interruptible
@@ -159,14 +159,14 @@ class PlacementOptions:
         budget ends first, the gap reached is reported as such.
     exchange_solver : {"auto", "ipopt", "slp"}
         The solver of the restricted problems: ``"auto"`` (default), HiGHS when every contact
-        is frictionless (the problem is then a linear programme, :class:`ExchangeLP`), else
-        sequential linear programming by HiGHS
-        (:class:`~closure_nlp.sequential_lp.ExchangeSLP`); ``"slp"``: sequential linear
-        programming always; ``"ipopt"``: IPOPT's NLP always (:class:`ExchangeProblem`).
-        Measured in one process on 5 seeds of the lamp (4 PCwF) and the cup (4 SFCe), plans
-        of the command line's defaults: plan CPU 1.7x (lamp) and 1.1x (cup) less than with
-        IPOPT, the final rho better on 4 seeds, worse on 2, equal within 2e-6 on 4
-        (docs/placement.md).
+        is frictionless (the problem is then a linear programme, :class:`ExchangeLP`),
+        IPOPT's NLP (:class:`ExchangeProblem`) when a contact is a soft finger (spin
+        friction), else sequential linear programming by HiGHS
+        (:class:`~closure_nlp.sequential_lp.ExchangeSLP`); ``"slp"``, ``"ipopt"``: that
+        solver always. Measured in one process, 8 seeds of the command line's default plan
+        (docs/placement.md): on the lamp (4 PCwF) the sequential LP takes 0.55x the plan's CPU
+        of IPOPT and gives the same median rho; on the cup (4 SFCe) it is no faster, and its
+        median rho is 0.2% lower (better on 5 seeds, worse on 1), so soft fingers keep IPOPT.
     """
 
     gap: float = 1e-6
@@ -682,20 +682,25 @@ class Placer:
         return tuple(is_frictionless(s.type, s.mu, s.mu_s) for s in self.eligibility.specs)
 
     def exchange_solver(self) -> str:
-        """``"highs"`` when the restricted problems are linear programmes solved as such (every
-        contact frictionless, ``exchange_solver="auto"``), ``"slp"`` when they are solved by
-        sequential linear programming (:class:`~closure_nlp.sequential_lp.ExchangeSLP`), else
-        ``"ipopt"``."""
+        """The solver of the restricted problems: with ``exchange_solver="auto"``, ``"highs"``
+        when they are linear programmes (every contact frictionless), ``"ipopt"`` when a
+        contact resists spin (a soft finger), else ``"slp"``
+        (:class:`~closure_nlp.sequential_lp.ExchangeSLP`); otherwise the one asked for."""
         choice = self.options.exchange_solver
-        if choice == "auto":
-            return "highs" if all(self._frictionless()) else "slp"
-        return choice
+        if choice != "auto":
+            return choice
+        if all(self._frictionless()):
+            return "highs"
+        spin = any(
+            friction_pieces(s.type, s.mu, s.mu_s)[:, 3].any() for s in self.eligibility.specs
+        )
+        return "ipopt" if spin else "slp"
 
     def _problem(self, rows, count) -> ExchangeProblem | ExchangeLP | ExchangeSLP:
         solver = self.exchange_solver()
         if solver == "highs":
             return ExchangeLP(self.options.subset_margin)  # the same problem, linear
-        if solver == "slp":  # one per thread: it keeps its LP solver and last basis
+        if solver == "slp":  # one per thread: it keeps its LP solver
             return cached(self._problems, "slp", ExchangeSLP, MAX_EXCHANGE_PROBLEMS)
         capacity = next((b for b in DIRECTION_BUCKETS if count <= b), count)
         frictionless = self._frictionless()
@@ -768,8 +773,6 @@ class Placer:
         at_best = WrenchSlots.from_contacts(self.contact_set(elements, best_w))
         limit = max_rounds or self.options.max_rounds
         checked = True  # best's value is the default search's (a start's, or validated)
-        if self.exchange_solver() == "slp":
-            self._problem(rows, len(U)).start_run()
         while True:
             while rounds < limit:
                 rounds += 1

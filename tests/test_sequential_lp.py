@@ -130,8 +130,10 @@ def test_friction_contacts_use_the_sequential_lp_and_build_no_nlp():
     general = Placer(eligibility, dataclasses.replace(options, exchange_solver="ipopt"))
     slow = general([14, 10, 55, 47])
     assert slow.exchange_solver == "ipopt" and slow.rho <= slow.start_rho
-    # each exchange run starts from a cold basis: a placer that solved something else first
-    # gives the same answer
-    warmed = Placer(eligibility, options)
-    warmed([13, 11, 54, 46])
-    assert warmed([14, 10, 55, 47]).rho == fast.rho
+    # soft fingers keep IPOPT unless asked
+    soft = Eligibility(model, contact_specs(4, type="sfce", mu=0.2, model=model))
+    assert Placer(soft, options).exchange_solver() == "ipopt"
+    asked = dataclasses.replace(options, exchange_solver="slp")
+    assert Placer(soft, asked).exchange_solver() == "slp"
+    frictionless = Eligibility(model, contact_specs(7, type="sfce", mu=0.0, mu_s=0.0))
+    assert Placer(frictionless, options).exchange_solver() == "highs"
