@@ -167,6 +167,14 @@ class PlacementOptions:
         (docs/placement.md): on the lamp (4 PCwF) the sequential LP takes 0.55x the plan's CPU
         of IPOPT and gives the same median rho; on the cup (4 SFCe) it is no faster, and its
         median rho is 0.2% lower (better on 5 seeds, worse on 1), so soft fingers keep IPOPT.
+    lp_centre : bool
+        Take each linear restricted problem's weights at the analytic centre of its near-optimal
+        set (:class:`ExchangeLP`), not where the LP solver stops inside a non-unique optimum:
+        frictionless contacts then get the same placement in metres and in millimetres (a box
+        x1000: the same positions to 3e-10 of the part's size; off: 11% apart in rho). Off by
+        default: on the pistol's plans (7 FPC, seeds 1-9, one process, load 6-8) it ended worse
+        on 4 seeds (by 20-55%), better on 4 (by 1-3%), the median rho -0.121 against -0.145,
+        and 1.1-1.6x slower.
     """
 
     gap: float = 1e-6
@@ -190,6 +198,7 @@ class PlacementOptions:
     bound_cells: int = 1
     time_budget: float | None = None
     exchange_solver: str = "auto"
+    lp_centre: bool = False
 
     def __post_init__(self) -> None:
         if self.exchange_solver not in EXCHANGE_SOLVERS:
@@ -230,7 +239,8 @@ class PlacementOptions:
             or not 0 <= budget < np.inf
         ):
             raise ValueError(f"time_budget: expected seconds >= 0 or None, got {budget!r}")
-        for name in ("certify", "screen", "share_directions", "round_search", "validate", "bound"):
+        flags = ("certify", "screen", "share_directions", "round_search", "validate", "bound")
+        for name in (*flags, "lp_centre"):
             object.__setattr__(self, name, as_flag(getattr(self, name), name))
 
 
@@ -539,13 +549,18 @@ class ExchangeLP:
     each ``p_i(u_k; c)`` is then ``f_i d_n``, linear in the weights, and the problem is the
     linear programme ``max r`` s.t. ``sum_{i in S_k} f_i d_n(u_k; c_i) >= r``, weights in
     their simplices and the trust region; HiGHS solves it exactly (IPOPT's NLP is the same
-    problem: on the pistol's 7 FPC about a tenth of its time per solve).
+    problem: on the pistol's 7 FPC about a tenth of its time per solve). With ``centre``, its
+    weights are the analytic centre of the weights within
+    :data:`~closure_nlp.analytic_centre.SLAB` of the optimum
+    (:func:`~closure_nlp.analytic_centre.analytic_centre`): where the optimum is not unique, the
+    solver's own point of the optimal face moves with round-off, the centre does not, so the same
+    part in any unit takes the same path (:attr:`PlacementOptions.lp_centre`).
     """
 
     solver = "highs"
 
-    def __init__(self, margin: float = 0.0):
-        self.margin = margin
+    def __init__(self, margin: float = 0.0, centre: bool = False):
+        self.margin, self.centre = margin, centre
 
     def solve(self, frames, slots_at_c, f_max, U, c0, radius):
         """As :meth:`ExchangeProblem.solve`: the new padded weights (list) and ``r``."""
@@ -565,7 +580,7 @@ class ExchangeLP:
         lower, upper = np.maximum(flat - radius, 0.0), np.minimum(flat + radius, 1.0)
         lam, r = max_min_lp(A, owner, lower, upper)
         # the LP solver's point of a non-unique optimum moves with round-off: its centre does not
-        centre = analytic_centre(A, owner, lower, upper, r, lam)
+        centre = analytic_centre(A, owner, lower, upper, r, lam) if self.centre else None
         if centre is not None:
             lam, r = centre, float(np.min(A @ centre))
         weights, at = [], 0
@@ -699,7 +714,8 @@ class Placer:
     def _problem(self, rows, count) -> ExchangeProblem | ExchangeLP | ExchangeSLP:
         solver = self.exchange_solver()
         if solver == "highs":
-            return ExchangeLP(self.options.subset_margin)  # the same problem, linear
+            # the same problem, linear
+            return ExchangeLP(self.options.subset_margin, self.options.lp_centre)
         if solver == "slp":  # one per thread: it keeps its LP solver
             return cached(self._problems, "slp", ExchangeSLP, MAX_EXCHANGE_PROBLEMS)
         capacity = next((b for b in DIRECTION_BUCKETS if count <= b), count)
