@@ -176,7 +176,12 @@ class Eligibility:
         return WrenchSlots.build(rows)
 
     def __call__(
-        self, elements, warm_start=None, partial: bool = False, certify: bool = True
+        self,
+        elements,
+        warm_start=None,
+        partial: bool = False,
+        certify: bool = True,
+        stop_above: float | None = None,
     ) -> EligibilityResult:
         """rho_hat of ``elements`` (m ids; with ``partial``, the first ``k <= m`` contacts).
 
@@ -184,15 +189,23 @@ class Eligibility:
         ``certify`` (the default) the result carries certified bounds and the verdict is theirs;
         without, it is the search's value alone (for comparisons inside search loops; certify
         what is reported with :meth:`certify`).
+
+        ``stop_above`` (only without ``certify``): the caller only needs to know whether
+        rho_hat is below it; the search returns as soon as a direction shows a value at or
+        above it. A result at or above ``stop_above`` is then only a value never above the full
+        search's (which goes on from there and can only raise it); one below is the full value.
         """
         certify = as_flag(certify, "certify")
+        if certify and stop_above is not None:
+            raise ValueError("stop_above: a certified result has no early stop")
         elements = self.check_elements(elements, partial=partial)
         slots = self.slots(elements)
         self._counts.get()["evaluations"] += 1
         if certify:
             found = certified_search(self.minimizer, slots, warm_start)
             return self._result(elements, self._robust(found, slots))
-        found = self.minimizer(slots, warm_start)
+        stop = None if stop_above is None else -float(stop_above)
+        found = self.minimizer(slots, warm_start, stop)
         value = signed_distance(found, slots, self.minimizer.tolerances)
         return EligibilityResult(elements, value, value < 0.0, found.direction, found.stats)
 

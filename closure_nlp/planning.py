@@ -361,9 +361,17 @@ def _alternatives(eligibility, seed, selection, second, recall: _Recall):
 
 def _pool(pool, run: SelectionResult, eligibility: Eligibility) -> list:
     """``pool`` with ``run``'s evaluated and screened sets, (elements, value, proven), lowest
-    value first; its unranked sets (screens stopped once they could not win) get their light
-    value now, from the screen's start: the value it would have given, so they rank as before."""
-    pool = pool + [(e, v, True) for e, v in run.eligible_sets]
+    value first; its unfinished sets (full searches stopped once they could not win) get their
+    full value now, from the same start, so they rank as if never stopped; its unranked sets
+    (screens stopped once they could not win) get their light value now, from the screen's
+    start: the value it would have given, so they rank as before."""
+    finished = []
+    for elements, warm in run.unfinished_sets:
+        found = eligibility(elements, warm, certify=False)
+        if found.eligible:
+            finished.append((found.rho_hat, tuple(elements)))
+    evaluated = sorted([(v, tuple(e)) for e, v in run.eligible_sets] + finished)
+    pool = pool + [(e, v, True) for v, e in evaluated]
     unproven = [(v, tuple(e)) for e, v in run.candidate_sets]
     for elements, warm in run.unranked_sets:
         value, _ = light_rho_hat(eligibility, elements, warm)

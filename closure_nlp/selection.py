@@ -107,6 +107,11 @@ class SelectionResult:
         could not win (so they have no light value), and that may be eligible, each with the
         direction its screen started from. A plan that needs more element sets runs their
         light search then, from that direction: the value the screen would have given.
+    unfinished_sets : tuple of (tuple of int, (6,) float)
+        Iterative algorithm: neighbour sets whose full search stopped as soon as it showed that
+        they could not win, each with the direction that search started from. A plan that needs
+        more element sets runs their full search then, from that direction: the value the
+        iterative run would have found, so they rank among :attr:`eligible_sets` as before.
     bounds : (float, float)
         Certified ``lo <= rho_hat <= hi`` of the final set (the search steered by the search's
         values; the reported one is certified).
@@ -126,6 +131,7 @@ class SelectionResult:
     candidate_sets: tuple[tuple[tuple[int, ...], float], ...] = ()
     screened: int = 0
     unranked_sets: tuple[tuple[tuple[int, ...], np.ndarray], ...] = ()
+    unfinished_sets: tuple[tuple[tuple[int, ...], np.ndarray | None], ...] = ()
     bounds: tuple[float, float] | None = None
     marginal: bool = False
     converged: bool = True
@@ -262,10 +268,20 @@ def iterative(
     # the bar (else None)
     screened: dict[tuple, tuple[float, np.ndarray, tuple[int, ...], np.ndarray | None]] = {}
 
-    def evaluate(elements, warm):
+    # sets whose full search stopped once it showed they could not win: (value never above
+    # their full rho_hat and at or above every later bar, elements, the search's start)
+    unfinished: dict[tuple, tuple[float, tuple[int, ...], np.ndarray]] = {}
+
+    def evaluate(elements, warm, stop_above=None):
+        """The full search's result, or None when ``stop_above`` (< 0) is given and the search
+        showed rho_hat at or above it (the set cannot win: the step's choice is the same)."""
         key = _multiset(eligibility, elements)
         if key not in seen:
-            seen[key] = eligibility(elements, warm, certify=False)
+            found = eligibility(elements, warm, certify=False, stop_above=stop_above)
+            if stop_above is not None and found.rho_hat >= stop_above:
+                unfinished[key] = (found.rho_hat, tuple(elements), warm)
+                return None
+            seen[key] = found
         return seen[key]
 
     def screen(elements, warm, bar) -> tuple[float, np.ndarray]:
@@ -275,6 +291,8 @@ def iterative(
         key = _multiset(eligibility, elements)
         if key in seen:
             return seen[key].rho_hat, seen[key].direction
+        if key in unfinished:  # at or above every later bar: ranks past the break, as before
+            return unfinished[key][0], screened[key][1]
         if key not in screened:
             value, direction = light_rho_hat(eligibility, elements, warm, stop_below=-bar)
             stopped = warm if value >= bar else None
@@ -311,8 +329,10 @@ def iterative(
                     break
                 if candidate is not None and value >= candidate.rho_hat:
                     break
-                found = evaluate(trial, direction)
-                if candidate is None or found.rho_hat < candidate.rho_hat:
+                # only a value below the bar and the candidate's can change the step's choice
+                stop = bar if candidate is None else min(bar, candidate.rho_hat)
+                found = evaluate(trial, direction, stop if stop < 0 else None)
+                if found is not None and (candidate is None or found.rho_hat < candidate.rho_hat):
                     candidate = found
         else:
             for trial in trials:
@@ -330,14 +350,14 @@ def iterative(
     unproven = sorted(
         (value, elements)
         for key, (value, _, elements, stopped) in screened.items()
-        if key not in seen and value < 0 and stopped is None
+        if key not in seen and key not in unfinished and value < 0 and stopped is None
     )
     # a stopped screen's value is below the light one (never above the full rho_hat): >= 0
     # proves the set is not eligible; below, it could be, and cannot be ranked by that value
     unranked = tuple(
         (elements, stopped)
         for key, (value, _, elements, stopped) in screened.items()
-        if key not in seen and value < 0 and stopped is not None
+        if key not in seen and key not in unfinished and value < 0 and stopped is not None
     )
     return _certified_result(
         eligibility,
@@ -349,6 +369,7 @@ def iterative(
         candidate_sets=tuple((elements, value) for value, elements in unproven),
         screened=len(screened),
         unranked_sets=unranked,
+        unfinished_sets=tuple((elements, warm) for _, elements, warm in unfinished.values()),
     )
 
 

@@ -10,7 +10,7 @@ import pytest
 
 from closure_nlp import cli
 from closure_nlp.contacts import contact_specs
-from closure_nlp.elements import Element, Model, save_model
+from closure_nlp.elements import Element, Model, load_model, save_model
 from closure_nlp.eligibility import Eligibility
 from closure_nlp.selection import SelectionOptions, heuristic, iterative, run_selection
 from tests.shapes import corner_model
@@ -286,3 +286,43 @@ def test_a_lone_frictionless_contact_on_a_flat_makes_a_set_hopeless(torque_scale
     specs = list(contact_specs(7, type="fpc"))
     specs[4] = contact_specs(1, type="pcwf", mu=0.3)[0]
     assert lone_contact(Eligibility(model, specs, torque_scale=torque_scale), ONE_FLAT) is None
+
+
+def test_full_searches_that_stop_early_change_no_decision_nor_the_plans_pool(monkeypatch):
+    """The iterative run's full searches of neighbours stop once a set is shown unable to win
+    (its value at or above the bar or the step's candidate): the run takes the same steps, and
+    the plan's pool of further sets (:func:`~closure_nlp.planning._pool`, which finishes those
+    searches from the same start) is the same, value for value, as with searches to the end."""
+    from closure_nlp.planning import _pool
+
+    model = load_model(SHAFT)
+    eligibility = Eligibility(model, contact_specs(7, type="fpc"), torque_scale=1.0)
+    start = [73, 82, 30, 0, 10, 69, 59]  # the heuristic's set of seed 0; ONE_FLAT is the result
+    early = iterative(eligibility, start)
+    assert early.elements == tuple(ONE_FLAT)
+    assert early.unfinished_sets, "some full searches stop early on the shaft"
+    for elements, warm in early.unfinished_sets:  # indeed no better than the result
+        full_value = eligibility(elements, warm, certify=False).rho_hat
+        assert full_value >= early.rho_hat
+    early_pool = _pool([], early, eligibility)
+    call, evaluated = Eligibility.__call__, {}
+
+    def to_the_end(self, elements, *args, stop_above=None, **kwargs):
+        found = call(self, elements, *args, **kwargs)
+        evaluated[tuple(sorted(elements))] = (found.rho_hat, tuple(found.elements))
+        return found
+
+    monkeypatch.setattr(Eligibility, "__call__", to_the_end)
+    full = iterative(eligibility, start)
+    assert early.elements == full.elements and early.history == full.history
+    assert early.evaluations == full.evaluations
+    # every set the run searched to the end, eligible and not the result, lowest value first
+    evaluated.pop(tuple(sorted(full.elements)))
+    expected = sorted(item for item in evaluated.values() if item[0] < 0)
+    proven = [(tuple(e), v) for e, v, is_proven in early_pool if is_proven]
+    assert proven == [(e, v) for v, e in expected]
+
+
+def test_a_certified_rho_hat_has_no_early_stop(ring):
+    with pytest.raises(ValueError, match="stop_above"):
+        ring([0, 4, 13], stop_above=-0.1)
