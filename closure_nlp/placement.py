@@ -7,13 +7,13 @@ best ones; the rho solver then computes the true rho of the new contacts (accept
 better) and its worst direction joins the working set. It stops when the restricted problem
 shows no gain. The method is local, so it runs from several starts (centroids first).
 
-Each ``p(u_k; .)`` is convex in the weights, so its linearisation is a global under-estimator:
-by default the restricted problem is solved by sequential linear programming
-(:class:`~closure_nlp.sequential_lp.ExchangeSLP`), a linear programme outright when every
-contact is frictionless (:class:`ExchangeLP`). ``exchange_solver="ipopt"`` solves it by a CasADi
-NLP instead, in which ``p(u_k; c)`` is replaced by a smooth lower bound (one subset, one
-friction piece per contact, see :class:`ExchangeProblem`), so whatever it achieves the true one
-achieves.
+By default the restricted problem is a CasADi NLP solved by IPOPT, in which ``p(u_k; c)`` is
+replaced by a smooth lower bound (one subset, one friction piece per contact, see
+:class:`ExchangeProblem`), so whatever it achieves the true one achieves; a linear programme
+when every contact is frictionless (:class:`ExchangeLP`). Each ``p(u_k; .)`` is convex in the
+weights, so its linearisation is a global under-estimator: ``exchange_solver="slp"`` solves the
+restricted problem by sequential linear programming instead
+(:class:`~closure_nlp.sequential_lp.ExchangeSLP`).
 
 Afterwards a contact whose optimum sits on its element's boundary may move into a neighbouring
 element sharing that boundary, if that raises the optimum ("occupied and adjacent areas").
@@ -28,7 +28,7 @@ import numpy as np
 
 from .analytic_centre import analytic_centre
 from .contact_count import require_closure_count
-from .contacts import ContactSet, friction_pieces, is_frictionless
+from .contacts import ContactSet, is_frictionless
 from .elements import simplex_weights
 from .eligibility import Eligibility
 from .interrupts import interruptible
@@ -159,22 +159,14 @@ class PlacementOptions:
         budget ends first, the gap reached is reported as such.
     exchange_solver : {"auto", "ipopt", "slp"}
         The solver of the restricted problems: ``"auto"`` (default), HiGHS when every contact
-        is frictionless (the problem is then a linear programme, :class:`ExchangeLP`),
-        IPOPT's NLP (:class:`ExchangeProblem`) when a contact is a soft finger (spin
-        friction), else sequential linear programming by HiGHS
-        (:class:`~closure_nlp.sequential_lp.ExchangeSLP`); ``"slp"``, ``"ipopt"``: that
-        solver always. Measured in one process, 8 seeds of the command line's default plan
-        (docs/placement.md): on the lamp (4 PCwF) the sequential LP takes 0.55x the plan's CPU
-        of IPOPT and gives the same median rho; on the cup (4 SFCe) it is no faster, and its
-        median rho is 0.2% lower (better on 5 seeds, worse on 1), so soft fingers keep IPOPT.
-    lp_centre : bool
-        Take each linear restricted problem's weights at the analytic centre of its near-optimal
-        set (:class:`ExchangeLP`), not where the LP solver stops inside a non-unique optimum:
-        frictionless contacts then get the same placement in metres and in millimetres (a box
-        x1000: the same positions to 3e-10 of the part's size; off: 11% apart in rho). Off by
-        default: on the pistol's plans (7 FPC, seeds 1-9, one process, load 6-8) it ended worse
-        on 4 seeds (by 20-55%), better on 4 (by 1-3%), the median rho -0.121 against -0.145,
-        and 1.1-1.6x slower.
+        is frictionless (the problem is then a linear programme, :class:`ExchangeLP`), IPOPT's
+        NLP (:class:`ExchangeProblem`) otherwise; ``"ipopt"``: IPOPT always; ``"slp"``:
+        sequential linear programming by HiGHS
+        (:class:`~closure_nlp.sequential_lp.ExchangeSLP`), any contact type. Measured on 8
+        seeds of the lamp's default plan (4 PCwF, docs/placement.md), each in its own
+        process: ``"slp"`` places 1.9x faster, and its rho is better on 2 seeds, worse on 3
+        and equal on 3, the median 0.03% lower; on the cup (4 SFCe) it is no faster. So it
+        is not the default.
     """
 
     gap: float = 1e-6
@@ -698,18 +690,13 @@ class Placer:
 
     def exchange_solver(self) -> str:
         """The solver of the restricted problems: with ``exchange_solver="auto"``, ``"highs"``
-        when they are linear programmes (every contact frictionless), ``"ipopt"`` when a
-        contact resists spin (a soft finger), else ``"slp"``
-        (:class:`~closure_nlp.sequential_lp.ExchangeSLP`); otherwise the one asked for."""
+        when they are linear programmes (every contact frictionless), else ``"ipopt"``;
+        otherwise the one asked for (``"slp"``:
+        :class:`~closure_nlp.sequential_lp.ExchangeSLP`)."""
         choice = self.options.exchange_solver
         if choice != "auto":
             return choice
-        if all(self._frictionless()):
-            return "highs"
-        spin = any(
-            friction_pieces(s.type, s.mu, s.mu_s)[:, 3].any() for s in self.eligibility.specs
-        )
-        return "ipopt" if spin else "slp"
+        return "highs" if all(self._frictionless()) else "ipopt"
 
     def _problem(self, rows, count) -> ExchangeProblem | ExchangeLP | ExchangeSLP:
         solver = self.exchange_solver()

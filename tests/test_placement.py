@@ -117,14 +117,14 @@ def test_contact_moves_to_a_neighbour_only_when_that_helps():
         assert move.rho == pytest.approx(stay.rho, abs=1e-9)
 
 
-@pytest.mark.parametrize("solver", ["auto", "ipopt"])
+@pytest.mark.parametrize("solver", ["slp", "auto"])
 def test_rounds_count_every_exchange_round(monkeypatch, solver):
     """Neighbour trials that do not help still cost rounds: ``rounds`` counts every solve of
     the restricted problem (sequential LP or IPOPT), with and without shared working sets."""
     from closure_nlp import placement
 
     solves = []
-    kind = placement.ExchangeSLP if solver == "auto" else placement.ExchangeProblem
+    kind = placement.ExchangeSLP if solver == "slp" else placement.ExchangeProblem
     solve = kind.solve
     monkeypatch.setattr(kind, "solve", lambda self, *args: solves.append(1) or solve(self, *args))
     model = _strip_model()

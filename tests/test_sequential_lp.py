@@ -115,25 +115,23 @@ def test_sequential_lp_never_loses_and_keeps_ipopts_optimum(kind):
         assert slp.steps >= 1
 
 
-def test_friction_contacts_use_the_sequential_lp_and_build_no_nlp():
-    """Placement with friction: the default solves its restricted problems by the sequential
-    LP (no CasADi NLP built), ``exchange_solver="ipopt"`` by IPOPT; both never end worse than
-    their start, and the result says which ran."""
+def test_placement_by_the_sequential_lp_builds_no_nlp():
+    """``exchange_solver="slp"``: placement with friction solves its restricted problems by the
+    sequential LP (no CasADi NLP built); the default keeps IPOPT with friction and HiGHS's LP
+    without; both never end worse than their start, and the result says which ran."""
     model = load_model(MODELS / "lamp.model.json")
     eligibility = Eligibility(model, contact_specs(4, type="pcwf", mu=0.2))
     options = PlacementOptions(bound=False, starts=1, extra_starts=0, neighbour_moves=0)
-    placer = Placer(eligibility, options)
+    asked = dataclasses.replace(options, exchange_solver="slp")
+    placer = Placer(eligibility, asked)
     fast = placer([14, 10, 55, 47])
     assert fast.exchange_solver == "slp" and fast.to_dict()["exchange_solver"] == "slp"
     assert not any(isinstance(p, ExchangeProblem) for p in placer._problems.values())
     assert fast.rho <= fast.start_rho and fast.rounds > 0
-    general = Placer(eligibility, dataclasses.replace(options, exchange_solver="ipopt"))
+    general = Placer(eligibility, options)
     slow = general([14, 10, 55, 47])
     assert slow.exchange_solver == "ipopt" and slow.rho <= slow.start_rho
-    # soft fingers keep IPOPT unless asked
     soft = Eligibility(model, contact_specs(4, type="sfce", mu=0.2, model=model))
-    assert Placer(soft, options).exchange_solver() == "ipopt"
-    asked = dataclasses.replace(options, exchange_solver="slp")
     assert Placer(soft, asked).exchange_solver() == "slp"
     frictionless = Eligibility(model, contact_specs(7, type="sfce", mu=0.0, mu_s=0.0))
     assert Placer(frictionless, options).exchange_solver() == "highs"
