@@ -158,3 +158,47 @@ def test_read_only_and_strided_inputs_reuse_the_compiled_kernels():
     after = [len(descent.local_minimum.signatures), len(kernel.min_norm_point.signatures)]
     assert after == counts
     assert _start_directions(np.full(6, 0.5)).flags.c_contiguous  # Gilbert's starts
+
+
+def test_a_change_to_any_kernel_module_drops_every_cached_kernel(tmp_path):
+    """numba checks a cached kernel against its own file only: one compiled with an older
+    callee from another module must not load. Any kernel source changed -> all dropped."""
+    import shutil
+
+    from closure_nlp import kernels
+
+    package = Path(kernels.__file__).resolve().parent
+    sources = tmp_path / "kernels"
+    shutil.copytree(package, sources, ignore=shutil.ignore_patterns("__pycache__"))
+    before = kernels.sources_digest(sources)
+    assert before == kernels.sources_digest(package)
+    callee = sources / "arrays.py"
+    callee.write_text(callee.read_text() + "\n# edited\n")
+    after = kernels.sources_digest(sources)
+    assert after != before
+
+    cache = tmp_path / "cache"
+    cache.mkdir()
+    ours = ["support.support_many-127.py311.nbi", "branch_bound.advance-519.py311.1.nbc"]
+    theirs = ["other.f-1.py311.nbi", "support.cpython-311.pyc"]
+    for name in ours + theirs:
+        (cache / name).write_text("x")
+    modules = {"support", "branch_bound", "arrays"}
+    kernels.drop_stale_cache(cache, before, modules)  # no stamp yet: dropped, stamp written
+    assert sorted(p.name for p in cache.iterdir() if p.suffix != ".sha256") == sorted(theirs)
+    for name in ours:
+        (cache / name).write_text("x")
+    kernels.drop_stale_cache(cache, before, modules)  # same sources: kept
+    assert all((cache / name).exists() for name in ours)
+    kernels.drop_stale_cache(cache, after, modules)  # a callee changed: dropped
+    assert not any((cache / name).exists() for name in ours)
+    assert all((cache / name).exists() for name in theirs)
+
+
+def test_the_package_cache_is_stamped_with_its_sources():
+    from closure_nlp import kernels
+
+    package = Path(kernels.__file__).resolve().parent
+    cache = kernels._cache_folder(package)
+    stamp = cache / "closure_nlp_kernels.sha256"
+    assert stamp.read_text() == kernels.sources_digest(package)

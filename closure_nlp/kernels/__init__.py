@@ -11,6 +11,7 @@ Every kernel is compiled on first use and cached on disk (``cache=True``), relea
 
 from __future__ import annotations
 
+import hashlib
 import os
 import sys
 import tempfile
@@ -44,6 +45,59 @@ def _cache_dir_fallback() -> None:
 
 
 _cache_dir_fallback()
+
+
+def sources_digest(folder: Path) -> str:
+    """A digest of every kernel module's source in ``folder``."""
+    digest = hashlib.sha256()
+    for source in sorted(folder.glob("*.py")):
+        digest.update(source.name.encode() + b"\0" + source.read_bytes() + b"\0")
+    return digest.hexdigest()
+
+
+def drop_stale_cache(cache: Path, digest: str, modules) -> None:
+    """Remove ``modules``' compiled kernels from ``cache`` unless they were compiled from the
+    sources of ``digest``: numba checks a cached kernel against its own file only, and a kernel
+    compiled with an older version of a callee in another module would load unchanged."""
+    stamp = cache / "closure_nlp_kernels.sha256"
+    try:
+        if stamp.read_text() == digest:
+            return
+    except OSError:
+        pass
+    try:
+        for entry in cache.iterdir():
+            if entry.suffix in (".nbi", ".nbc") and entry.name.split(".")[0] in modules:
+                entry.unlink(missing_ok=True)
+        cache.mkdir(parents=True, exist_ok=True)
+        stamp.write_text(digest)
+    except OSError:  # no cache folder yet (nothing stale) or none writable (numba caches none)
+        pass
+
+
+def _cache_folder(here: Path) -> Path | None:
+    """Where numba caches the kernels of ``here``: the user's ``NUMBA_CACHE_DIR`` (numba's own
+    sub-folder for this folder) or the package's ``__pycache__``."""
+    if "NUMBA_CACHE_DIR" not in os.environ:
+        return here / "__pycache__"
+    try:
+        from numba.core.caching import _CacheLocator  # private: its folder naming
+
+        sub = _CacheLocator.get_suitable_cache_subpath(str(here / "__init__.py"))
+    except Exception:
+        return None
+    return Path(os.environ["NUMBA_CACHE_DIR"]) / sub
+
+
+def _drop_stale_kernels() -> None:
+    here = Path(__file__).resolve().parent
+    cache = _cache_folder(here)
+    if cache is not None:
+        modules = {source.stem for source in here.glob("*.py")}
+        drop_stale_cache(cache, sources_digest(here), modules)
+
+
+_drop_stale_kernels()
 
 
 def kernel_array(a) -> np.ndarray:
