@@ -167,6 +167,16 @@ class PlacementOptions:
         process: ``"slp"`` places 1.9x faster, and its rho is better on 2 seeds, worse on 3
         and equal on 3, the median 0.03% lower; on the cup (4 SFCe) it is no faster. So it
         is not the default.
+    lp_centre : bool
+        Take each linear restricted problem's weights at the analytic centre of its near-optimal
+        set (:class:`ExchangeLP`), not where the LP solver stops inside a non-unique optimum,
+        and resolve ties between contacts and between working-set directions at the scale of
+        the data, in index order (:mod:`closure_nlp.ties`), not by round-off:
+        frictionless contacts then get the same placement in metres and in millimetres (a box
+        x1000: the same positions to 3e-10 of the part's size; off: 11% apart in rho). Off by
+        default: on the pistol's plans (7 FPC, seeds 1-9, one process, load 6-8) it ended worse
+        on 4 seeds (by 20-55%), better on 4 (by 1-3%), the median rho -0.121 against -0.145,
+        and 1.1-1.6x slower.
     """
 
     gap: float = 1e-6
@@ -546,7 +556,8 @@ class ExchangeLP:
     :data:`~closure_nlp.analytic_centre.SLAB` of the optimum
     (:func:`~closure_nlp.analytic_centre.analytic_centre`): where the optimum is not unique, the
     solver's own point of the optimal face moves with round-off, the centre does not, so the same
-    part in any unit takes the same path (:attr:`PlacementOptions.lp_centre`).
+    part in any unit takes the same path (:attr:`PlacementOptions.lp_centre`); so do the
+    subsets' ties (:func:`_subsets`).
     """
 
     solver = "highs"
@@ -559,7 +570,7 @@ class ExchangeLP:
         from .placement_bound import max_min_lp
 
         P, _ = slots_at_c.row_terms(U)  # (n, m)
-        mask = _subsets(P, f_max, self.margin)  # (m, n)
+        mask = _subsets(P, f_max, self.margin, self.centre)  # (m, n)
         # A[k, (i, j)] = mask_ik f_i (G_ij^T u_k)_n: row k's value is linear in the weights
         A = np.hstack(
             [
@@ -582,14 +593,18 @@ class ExchangeLP:
         return weights, float(r)
 
 
-def _subsets(P: np.ndarray, f_max: np.ndarray, margin: float) -> np.ndarray:
+def _subsets(P: np.ndarray, f_max: np.ndarray, margin: float, ties: bool = False) -> np.ndarray:
     """``S_k`` of :class:`ExchangeProblem` from the contacts' support values ``P`` (n, m) at the
     current weights: contacts with ``P_ik > -margin f_i``, the largest alone if none; (m, n)
-    of 0 and 1; the largest is the first within :data:`~closure_nlp.ties.TIE` of it."""
+    of 0 and 1. ``ties``: the largest is the first within :data:`~closure_nlp.ties.TIE` of it
+    (contacts on one facet often tie for it exactly, and round-off picks one of them)."""
     mask = (P > -margin * f_max[None, :]).T.astype(float)
     none = ~mask.any(axis=0)
-    # contacts on one facet often tie for the largest: the first of them, in any unit
-    mask[first_largest(P[none], float(f_max.max())), np.flatnonzero(none)] = 1.0
+    if ties:
+        largest = first_largest(P[none], float(f_max.max()))
+    else:
+        largest = np.argmax(P[none], axis=1)
+    mask[largest, np.flatnonzero(none)] = 1.0
     return mask
 
 
@@ -788,7 +803,10 @@ class Placer:
                 warm = best.direction
                 if self.options.round_search:
                     values = trial_slots.support(np.array(U))
-                    weakest = lowest_first(values, float(f_max.sum()), WARM_DIRECTIONS)
+                    if self.options.lp_centre:  # ties in index order, in any unit
+                        weakest = lowest_first(values, float(f_max.sum()), WARM_DIRECTIONS)
+                    else:
+                        weakest = np.argsort(values)[:WARM_DIRECTIONS]
                     warm = np.vstack([warm, np.array(U)[weakest]])
                 if self.options.screen:
                     # the light search alone: a certificate per screened round cost more than
