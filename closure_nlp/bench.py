@@ -1005,7 +1005,9 @@ def bench_gap(
 UNITS_GRASPS = {"4 PCwF": (4, "pcwf"), "7 FPC": (7, "fpc")}
 
 
-def bench_units(margins=(0.0, 0.02, 0.05), seed: int = 0, cells: int = 200) -> dict:
+def bench_units(
+    margins=(0.0, 0.02, 0.05), seed: int = 0, cells: int = 200, lp_centre: bool = False
+) -> dict:
     """Same part, same answer: pybullet's domino characterized in metres and, from the same
     triangles scaled x1000, in millimetres; elements selected once (``plan`` in metres, seed
     ``seed``), then placed in both units on those elements (no neighbour moves; automatic
@@ -1014,7 +1016,9 @@ def bench_units(margins=(0.0, 0.02, 0.05), seed: int = 0, cells: int = 200) -> d
     under margins of ``margins`` times the part's size (the largest side of its bounding box).
     Each pair's certified capacities must differ by at most the larger gap times the smaller
     ceiling (``agree``); ``work`` compares the exchange rounds, cells and seconds of the two
-    units (mm over m). Needs pybullet's data (``pybullet_data``)."""
+    units (mm over m); ``lp_centre``: placed with
+    :attr:`~closure_nlp.placement.PlacementOptions.lp_centre`. Needs pybullet's data
+    (``pybullet_data``)."""
     import trimesh
 
     from .characterize import characterize_mesh
@@ -1032,7 +1036,13 @@ def bench_units(margins=(0.0, 0.02, 0.05), seed: int = 0, cells: int = 200) -> d
         mesh = trimesh.load(str(path), force="mesh")
         mesh.apply_scale(factor)
         models[units] = characterize_mesh(mesh, units=units, name="domino").model
-    report = {"benchmark": "units", "part": "pybullet domino", "seed": seed, "grasps": {}}
+    report = {
+        "benchmark": "units",
+        "part": "pybullet domino",
+        "seed": seed,
+        "lp_centre": lp_centre,
+        "grasps": {},
+    }
     for grasp, (m, kind) in UNITS_GRASPS.items():
         rows = []
         elements = None
@@ -1050,7 +1060,9 @@ def bench_units(margins=(0.0, 0.02, 0.05), seed: int = 0, cells: int = 200) -> d
                     row[units] = {"error": "an element is too small for the margin"}
                     continue
                 load, t0 = _load(), time.perf_counter()
-                options = PlacementOptions(neighbour_moves=0, bound_cells=cells)
+                options = PlacementOptions(
+                    neighbour_moves=0, bound_cells=cells, lp_centre=lp_centre
+                )
                 placed = Placer(eligibility, options)(elements)
                 row[units] = {
                     "rounds": placed.rounds,
@@ -1133,6 +1145,7 @@ def main(argv=None) -> int:
     p = sub.add_parser("units", help="pybullet's domino in m and mm, placed under margins")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--cells", type=int, default=200, help="cells of each ceiling (default 200)")
+    p.add_argument("--lp-centre", action="store_true", help="PlacementOptions(lp_centre=True)")
     args = parser.parse_args(argv)
     if args.what == "startup":  # its own processes and caches: nothing to warm up here
         report = bench_startup(args.repeats, args.baseline)
@@ -1163,7 +1176,7 @@ def main(argv=None) -> int:
         seeds = [int(x) for x in args.seeds.split(",")]
         report = bench_plans(seeds, args.baseline, args.models.split(","), args.flags.split())
     elif args.what == "units":
-        report = bench_units(seed=args.seed, cells=args.cells)
+        report = bench_units(seed=args.seed, cells=args.cells, lp_centre=args.lp_centre)
     elif args.what == "gap":
         names = args.models.split(",")
         budgets = {name: args.budget for name in names} if args.budget else None
