@@ -135,3 +135,29 @@ def test_placement_by_the_sequential_lp_builds_no_nlp():
     assert Placer(soft, asked).exchange_solver() == "slp"
     frictionless = Eligibility(model, contact_specs(7, type="sfce", mu=0.0, mu_s=0.0))
     assert Placer(frictionless, options).exchange_solver() == "highs"
+
+
+def test_sequential_lp_then_ipopt_ends_on_ipopt_rounds():
+    """``exchange_solver="slp-ipopt"``: the run's rounds are the sequential LP's until one of
+    them does not pay off, IPOPT's from then on, so the run ends where IPOPT's rounds end it;
+    the placement never ends worse than its start."""
+    model = load_model(MODELS / "lamp.model.json")
+    eligibility = Eligibility(model, contact_specs(4, type="pcwf", mu=0.2))
+    options = PlacementOptions(
+        bound=False, starts=1, extra_starts=0, neighbour_moves=0, exchange_solver="slp-ipopt"
+    )
+    placer = Placer(eligibility, options)
+    used = []
+    build = placer._problem
+
+    def recorded(rows, count, solver=None):
+        problem = build(rows, count, solver)
+        used.append(type(problem))
+        return problem
+
+    placer._problem = recorded
+    result = placer([14, 10, 55, 47])
+    assert result.exchange_solver == "slp-ipopt" and result.rho <= result.start_rho
+    switch = used.index(ExchangeProblem)
+    assert switch > 0 and set(used[:switch]) == {ExchangeSLP}
+    assert set(used[switch:]) == {ExchangeProblem}
