@@ -39,9 +39,9 @@ from .selection import SCREEN_SEARCH
 from .sequential_lp import ExchangeSLP
 from .solver_cache import PerThread, cached
 from .sphere_search import sphere_samples
-from .ties import first_largest, lowest_first
+from .ties import lowest_first
 from .validation import as_flag, is_whole
-from .wrenches import WrenchSlots, pad_rows
+from .wrenches import WrenchSlots, pad_rows, pushing_subsets
 
 # Working-set sizes the exchange NLP is built for (unused directions masked out). An IPOPT
 # iteration costs about in proportion to the size (on the lamp's rounds, 40 directions 0.96 ms
@@ -515,7 +515,7 @@ class ExchangeProblem:
         n = len(U)
         P, piece = slots_at_c.row_terms(U)  # (n, m) each
         mask = np.zeros((m, K))
-        mask[:, :n] = _subsets(P, f_max, self.margin)
+        mask[:, :n] = pushing_subsets(P, f_max, self.margin)
         chosen = slots_at_c.pieces[np.arange(m)[None, :], piece]  # (n, m, 4)
 
         def padded(a):  # (rows, n) -> (rows, K), flattened column-major as CasADi reads it
@@ -562,7 +562,7 @@ class ExchangeLP:
     (:func:`~closure_nlp.analytic_centre.analytic_centre`): where the optimum is not unique, the
     solver's own point of the optimal face moves with round-off, the centre does not, so the same
     part in any unit takes the same path (:attr:`PlacementOptions.lp_centre`); so do the
-    subsets' ties (:func:`_subsets`).
+    subsets' ties (:func:`~closure_nlp.wrenches.pushing_subsets`).
     """
 
     solver = "highs"
@@ -575,7 +575,7 @@ class ExchangeLP:
         from .placement_bound import max_min_lp
 
         P, _ = slots_at_c.row_terms(U)  # (n, m)
-        mask = _subsets(P, f_max, self.margin, self.centre)  # (m, n)
+        mask = pushing_subsets(P, f_max, self.margin, self.centre)  # (m, n)
         # A[k, (i, j)] = mask_ik f_i (G_ij^T u_k)_n: row k's value is linear in the weights
         A = np.hstack(
             [
@@ -596,21 +596,6 @@ class ExchangeLP:
             weights.append(lam[at : at + len(c)])
             at += len(c)
         return weights, float(r)
-
-
-def _subsets(P: np.ndarray, f_max: np.ndarray, margin: float, ties: bool = False) -> np.ndarray:
-    """``S_k`` of :class:`ExchangeProblem` from the contacts' support values ``P`` (n, m) at the
-    current weights: contacts with ``P_ik > -margin f_i``, the largest alone if none; (m, n)
-    of 0 and 1. ``ties``: the largest is the first within :data:`~closure_nlp.ties.TIE` of it
-    (contacts on one facet often tie for it exactly, and round-off picks one of them)."""
-    mask = (P > -margin * f_max[None, :]).T.astype(float)
-    none = ~mask.any(axis=0)
-    if ties:
-        largest = first_largest(P[none], float(f_max.max()))
-    else:
-        largest = np.argmax(P[none], axis=1)
-    mask[largest, np.flatnonzero(none)] = 1.0
-    return mask
 
 
 class ElementFrame:

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .wrenches import WrenchSlots
+from .wrenches import WrenchSlots, pushing_subsets
 
 # A step that raises the restricted value by at most this much of the data's scale (the largest
 # support term per unit weight) ends the steps; a step's LP is solved to 1e-10 of that scale.
@@ -77,10 +77,7 @@ def linearised_support(local, c, slots: WrenchSlots):
         terms.append(value)
         coefficients.append(np.einsum("jck,ck->kj", D, force))  # (n, rows_i)
     P = np.array(terms)  # (m, n)
-    positive = P > 0.0
-    chosen = positive.copy()
-    none = ~positive.any(axis=0)
-    chosen[np.argmax(P[:, none], axis=0), np.flatnonzero(none)] = True
+    chosen = pushing_subsets(P.T, slots.f_max[slots.starts]).astype(bool)  # (m, n)
     values = np.where(chosen, P, 0.0).sum(axis=0)
     A = np.hstack([chosen[i][:, None] * coefficients[i] for i in range(len(local))])
     return values, A

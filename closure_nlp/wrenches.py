@@ -21,6 +21,7 @@ import numpy as np
 from .contacts import ContactSet, ContactType, friction_pieces
 from .kernels import kernel_array
 from .kernels import support as kernels
+from .ties import first_largest
 
 MAX_PIECES = 2  # SFCl has two friction pieces, the others fewer
 # The NLPs (support minimum, exchange) take an element's vertex rows padded up to one of these
@@ -211,6 +212,23 @@ class WrenchSlots:
     def support_point(self, u: np.ndarray) -> np.ndarray:
         """A wrench of the set attaining ``p(u)``: (6,) -> (6,)."""
         return self.evaluate(np.asarray(u, dtype=float)[None])[1][0]
+
+
+def pushing_subsets(
+    P: np.ndarray, f_max: np.ndarray, margin: float = 0.0, ties: bool = False
+) -> np.ndarray:
+    """The contacts that push in each direction (eq 26's subset) from their support values ``P``
+    (n, m): those with ``P_ik > -margin f_i``, the largest alone if none; (m, n) of 0 and 1.
+    ``ties``: the largest is the first within :data:`~closure_nlp.ties.TIE` of it (contacts on
+    one facet often tie for it exactly, and round-off picks one of them)."""
+    mask = (P > -margin * f_max[None, :]).T.astype(float)
+    none = ~mask.any(axis=0)
+    if ties:
+        largest = first_largest(P[none], float(f_max.max()))
+    else:
+        largest = np.argmax(P[none], axis=1)
+    mask[largest, np.flatnonzero(none)] = 1.0
+    return mask
 
 
 def _directions(U) -> np.ndarray:
