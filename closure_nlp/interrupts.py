@@ -13,6 +13,7 @@ cost nothing.
 from __future__ import annotations
 
 import contextlib
+import functools
 import logging
 import os
 import signal
@@ -71,6 +72,7 @@ def interruptible():
 SWALLOWING_PACKAGES = ("casadi", "trimesh")
 
 
+@functools.cache  # entered by every outermost API call: a search of the path costs 0.1 ms
 def _swallowing_folders() -> tuple[str, ...]:
     """The folders of :data:`SWALLOWING_PACKAGES` that are installed (none imported here)."""
     import importlib.util
