@@ -32,7 +32,7 @@ def interruptible():
     if threading.current_thread() is not threading.main_thread() or getattr(_active, "on", False):
         yield
         return
-    folders = _swallowing_folders()
+    folders = _swallowing_folders(SWALLOWING_PACKAGES)
     interrupted: list[int] = []
     silenced: list[bool] = []
 
@@ -72,13 +72,13 @@ def interruptible():
 SWALLOWING_PACKAGES = ("casadi", "trimesh")
 
 
-@functools.cache  # entered by every outermost API call: a search of the path costs 0.1 ms
-def _swallowing_folders() -> tuple[str, ...]:
-    """The folders of :data:`SWALLOWING_PACKAGES` that are installed (none imported here)."""
+@functools.cache  # every IPOPT solve of the API enters interruptible(): a path search is 0.1 ms
+def _swallowing_folders(names: tuple[str, ...]) -> tuple[str, ...]:
+    """The folders of the packages ``names`` that are installed (none imported here)."""
     import importlib.util
 
     folders = []
-    for name in SWALLOWING_PACKAGES:
+    for name in names:
         spec = importlib.util.find_spec(name)
         if spec is not None and spec.submodule_search_locations:
             folders.extend(os.path.join(p, "") for p in spec.submodule_search_locations)
