@@ -35,6 +35,37 @@ STEP_GAIN = 1e-9
 MAX_STEPS = 30
 
 
+def _contact_linearisation(D, c, f, W):
+    """One contact's term ``f (d_n + sqrt(q))``, ``d = G(c)^T u_k``, ``q = W_k . d**2`` with the
+    friction piece ``W_k`` of each direction given, and its gradient in the weights.
+
+    Parameters
+    ----------
+    D : (rows, 4, n) float
+        ``G_j^T u_k`` of the contact's vertex rows.
+    c : (rows,) float
+        Its weights.
+    f : float
+        Its force bound.
+    W : (4, n) float
+        The friction piece of each direction (zero: no friction term).
+
+    Returns
+    -------
+    value : (n,) float
+    coefficients : (n, rows) float
+        ``coefficients @ c == value``: the term is positively homogeneous of degree one and
+        convex in the weights, so ``coefficients @ x`` is at most its value at any ``x``.
+    """
+    d = np.einsum("j,jck->ck", c, D)  # (4, n)
+    root = np.sqrt(np.maximum(np.sum(W * d**2, axis=0), 0.0))
+    # the rim's point f (e_n + W d / sqrt(q)); none where q = 0 (any force of the disc)
+    inv = np.divide(f, root, out=np.zeros_like(root), where=root > 0.0)
+    force = W * d * inv
+    force[0] += f
+    return f * (d[0] + root), np.einsum("jck,ck->kj", D, force)
+
+
 def linearised_support(local, c, slots: WrenchSlots):
     """The true ``p(u_k; c)`` of the working set and its linearisation in the weights.
 
@@ -59,28 +90,65 @@ def linearised_support(local, c, slots: WrenchSlots):
     n = local[0].shape[2]
     terms, coefficients = [], []
     for i, (D, ci) in enumerate(zip(local, c)):
-        d = np.einsum("j,jck->ck", ci, D)  # G_i(c)^T u_k: (4, n)
-        f = slots.f_max[slots.starts[i]]
+        d = np.einsum("j,jck->ck", ci, D)
         W = slots.pieces[slots.starts[i], : slots.n_pieces[i]]  # (pieces, 4)
-        force = np.zeros((4, n))
-        force[0] = f
-        value = f * d[0]
+        chosen = np.zeros((4, n))
         if len(W):
-            q = W @ d**2  # (pieces, n)
-            piece = np.argmax(q, axis=0)  # the first of equal pieces
-            top = q[piece, np.arange(n)]
-            root = np.sqrt(np.maximum(top, 0.0))
-            value = value + f * root
-            # the rim's point f (e_n + W d / sqrt(q)); none where q = 0 (any force of the disc)
-            inv = np.divide(f, root, out=np.zeros(n), where=root > 0.0)
-            force += W[piece].T * d * inv
+            chosen = W[np.argmax(W @ d**2, axis=0)].T  # the first of equal pieces
+        value, coefficient = _contact_linearisation(D, ci, slots.f_max[slots.starts[i]], chosen)
         terms.append(value)
-        coefficients.append(np.einsum("jck,ck->kj", D, force))  # (n, rows_i)
+        coefficients.append(coefficient)
     P = np.array(terms)  # (m, n)
     chosen = pushing_subsets(P.T, slots.f_max[slots.starts]).astype(bool)  # (m, n)
     values = np.where(chosen, P, 0.0).sum(axis=0)
     A = np.hstack([chosen[i][:, None] * coefficients[i] for i in range(len(local))])
     return values, A
+
+
+def restricted_model(slots_at_c: WrenchSlots, f_max, U, margin: float):
+    """The exchange method's restricted model of ``p(u_k; .)`` chosen at the weights of
+    ``slots_at_c`` (:class:`~closure_nlp.placement.ExchangeProblem`): each direction's subset of
+    contacts with ``P_ik > -margin f_i`` (the largest alone if none) and each contact's largest
+    friction piece there.
+
+    Returns
+    -------
+    P : (n, m) float
+        The contacts' support values at those weights.
+    mask : (m, n) float
+        1 where contact ``i`` counts in direction ``k``.
+    pieces : (n, m, 4) float
+        The friction piece of contact ``i`` in direction ``k`` (zero without friction).
+    """
+    P, piece = slots_at_c.row_terms(U)  # (n, m) each
+    m = P.shape[1]
+    mask = pushing_subsets(P, f_max, margin)
+    return P, mask, slots_at_c.pieces[np.arange(m)[None, :], piece]
+
+
+def model_linearisation(local, c, mask, pieces, f_max):
+    """The restricted model's ``sum_{i in S_k} f_i (d_n + sqrt(q_ik))`` at weights ``c`` and its
+    linearisation, as :func:`linearised_support` for the true support function.
+
+    Parameters
+    ----------
+    local : list of (rows_i, 4, n) float
+    c : list of (rows_i,) float
+    mask, pieces : as :func:`restricted_model` returns them.
+    f_max : (m,) float
+
+    Returns
+    -------
+    values : (n,) float
+    A : (n, sum rows_i) float
+        ``A @ concat(c) == values`` and ``A @ x`` at most the model's value at any ``x``.
+    """
+    values, columns = 0.0, []
+    for i, (D, ci) in enumerate(zip(local, c)):
+        value, coefficient = _contact_linearisation(D, ci, f_max[i], pieces[:, i, :].T)
+        values = values + mask[i] * value
+        columns.append(mask[i][:, None] * coefficient)
+    return values, np.hstack(columns)
 
 
 class ExchangeSLP:
@@ -109,27 +177,45 @@ class ExchangeSLP:
         """As :meth:`ExchangeProblem.solve`: the new padded weights (list) and the restricted
         value ``min_k p(u_k; c)`` there (exact, not a model's)."""
         local = [frame.local(U) for frame in frames]
+        return self._ascend(lambda c: linearised_support(local, c, slots_at_c), c0, radius)
+
+    def _ascend(self, linearise, c0, radius, centre: bool = False):
+        """Steps of the linear programme from ``c0`` within ``radius``: ``linearise(c)`` gives
+        the values at ``c`` and their linearisation. ``centre``: once a step gains nothing, one
+        more step by the interior point method (:func:`~closure_nlp.placement_bound.max_min_lp`),
+        taken unless it loses, so that a non-unique optimum ends inside its optimal face (where
+        IPOPT ends) rather than at a vertex; it goes on by that method while it gains.
+
+        Returns the weights (list) and ``min_k`` of the values there."""
+        from .placement_bound import max_min_lp
+
         sizes = [len(ci) for ci in c0]
         owner = np.repeat(np.arange(len(c0)), sizes)
         flat = np.concatenate(c0)
         lower, upper = np.maximum(flat - radius, 0.0), np.minimum(flat + radius, 1.0)
         c = [np.asarray(ci, float) for ci in c0]
-        values, A = linearised_support(local, c, slots_at_c)
+        values, A = linearise(c)
         value = float(values.min())
         scale = max(float(np.max(np.abs(A), initial=0.0)), np.finfo(float).tiny)
+        interior = False
         self.steps = 0
         while self.steps < self.max_steps:
             self.steps += 1
-            lam = self._step(A / scale, owner, lower, upper)
+            if interior:
+                lam = max_min_lp(A, owner, lower, upper)[0]
+            else:
+                lam = self._step(A / scale, owner, lower, upper)
             # within the solver's tolerance of the bounds and the simplices
             lam = np.clip(lam, lower, upper)
             trial = [w / w.sum() for w in np.split(lam, np.cumsum(sizes)[:-1])]
-            trial_values, trial_A = linearised_support(local, trial, slots_at_c)
+            trial_values, trial_A = linearise(trial)
             gain = float(trial_values.min()) - value
-            if gain > 0.0:
-                c, value, A = trial, value + gain, trial_A
+            if gain > 0.0 or (interior and gain > -STEP_GAIN * scale):
+                c, value, A = trial, float(trial_values.min()), trial_A
             if gain <= STEP_GAIN * scale:
-                break
+                if interior or not centre:
+                    break
+                interior = True
         return c, value
 
     def _step(self, A, owner, lower, upper) -> np.ndarray:
@@ -151,4 +237,38 @@ class ExchangeSLP:
         return np.asarray(highs.getSolution().col_value, float)[: A.shape[1]]
 
 
-__all__ = ["ExchangeSLP", "linearised_support"]
+class ModelSLP(ExchangeSLP):
+    """The restricted problem of :class:`~closure_nlp.placement.ExchangeProblem` itself (IPOPT's
+    model: each direction's subset of contacts and each contact's friction piece fixed at the
+    start weights, :func:`restricted_model`) by sequential linear programming. Each term is
+    convex in the weights (a norm of a linear function plus a linear one), so every step is
+    monotone as for :class:`ExchangeSLP`; the steps end inside the optimal face
+    (:meth:`ExchangeSLP._ascend` with ``centre``), as IPOPT's interior point does. On the
+    restricted problems of a lamp plan (4 PCwF) it ends at IPOPT's weights on 121 of 125
+    (within 1e-4 of the elements' size), 2.7-3.3x faster; on a cup plan's (4 SFCe), 83 of 101.
+    The value returned is the model's, a lower bound of the true ``min_k p(u_k; c)``, as
+    IPOPT's ``r`` is."""
+
+    solver = "slp-model"
+
+    def __init__(self, margin: float = 0.0, max_steps: int = MAX_STEPS):
+        super().__init__(max_steps)
+        self.margin = margin
+
+    def solve(self, frames, slots_at_c, f_max, U, c0, radius):
+        """As :meth:`ExchangeProblem.solve`: the new padded weights (list) and the model's
+        ``min_k`` there."""
+        local = [frame.local(U) for frame in frames]
+        _, mask, pieces = restricted_model(slots_at_c, f_max, U, self.margin)
+        return self._ascend(
+            lambda c: model_linearisation(local, c, mask, pieces, f_max), c0, radius, centre=True
+        )
+
+
+__all__ = [
+    "ExchangeSLP",
+    "ModelSLP",
+    "linearised_support",
+    "model_linearisation",
+    "restricted_model",
+]

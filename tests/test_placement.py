@@ -122,11 +122,17 @@ def test_rounds_count_every_exchange_round(monkeypatch, solver):
     """Neighbour trials that do not help still cost rounds: ``rounds`` counts every solve of
     the restricted problem (sequential LP or IPOPT), with and without shared working sets."""
     from closure_nlp import placement
+    from closure_nlp.sequential_lp import ModelSLP
 
     solves = []
-    kind = placement.ExchangeSLP if solver == "slp" else placement.ExchangeProblem
-    solve = kind.solve
-    monkeypatch.setattr(kind, "solve", lambda self, *args: solves.append(1) or solve(self, *args))
+    kinds = [placement.ExchangeSLP] if solver == "slp" else [placement.ExchangeProblem, ModelSLP]
+    for kind in kinds:  # the default: IPOPT on the first start, the model's LP on the others
+
+        def counted(self, *args, solve=kind.solve):
+            solves.append(1)
+            return solve(self, *args)
+
+        monkeypatch.setattr(kind, "solve", counted)
     model = _strip_model()
     eligibility = Eligibility(model, contact_specs(4, type="pcwf", mu=0.5), torque_scale=0.5)
     for share in (True, False):
