@@ -152,14 +152,15 @@ class WrenchSlots:
 
     @property
     def packed(self) -> tuple:
-        """The rows as the kernels take them: ``G`` (K, 6, 4), ``f_max`` (K,), pieces
-        (K, 2, 4), real pieces per row (K,) int, slot ends (m + 1,) int."""
+        """The rows as the kernels take them, rows last (:mod:`closure_nlp.kernels.support`):
+        ``G`` (6, 4, K), ``f_max`` (K,), pieces (2, 4, K), real pieces per row (K,) int, slot
+        ends (m + 1,) int."""
         if "_packed" not in self.__dict__:
             counts = np.diff(np.append(self.starts, len(self.G)))
             packed = (
-                kernel_array(self.G),
+                kernel_array(self.G.transpose(1, 2, 0)),
                 kernel_array(self.f_max),
-                kernel_array(self.pieces),
+                kernel_array(self.pieces.transpose(1, 2, 0)),
                 np.repeat(np.asarray(self.n_pieces, dtype=np.int64), counts),
                 np.append(self.starts, len(self.G)).astype(np.int64),
             )

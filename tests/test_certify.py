@@ -360,3 +360,47 @@ def test_a_fixture_that_lets_the_part_spin_is_closed_at_zero():
     assert bounds.lo <= 0 <= bounds.hi <= 1e-12
     # Independent: p(spin) is roundoff (rho >= -1e-14), and the bracket's top is a norm.
     assert abs(float(slots.support(spin[None])[0])) <= 1e-14
+
+
+def _eq26_pcwf(ref):
+    """``p(U)`` (N, 6) -> (N,) of a PCwF contact set from the reference's grasp matrices: each
+    contact's ``f (d_n + mu |d_t|)`` (the reference's formula, vectorised) and eq 26 written
+    again (the literal 2^m - 1 subsets are out of reach at a hundred contacts: the sum of the
+    positive values, else the largest)."""
+    G = np.array([c[0] for c in ref])  # (m, 6, 4)
+    mu, f = np.array([c[2] for c in ref]), np.array([c[4] for c in ref])
+
+    def p(U):
+        d = np.einsum("mkc,nk->nmc", G, U / np.linalg.norm(U, axis=1, keepdims=True))
+        values = f * (d[..., 0] + mu * np.hypot(d[..., 1], d[..., 2]))
+        positive = np.where(values > 0, values, 0.0).sum(axis=1)
+        return np.where((values > 0).any(axis=1), positive, values.max(axis=1))
+
+    return p
+
+
+def test_a_hundred_contacts_bracket_holds_the_sampled_minimum():
+    """120 PCwF (the many-contact regime: the row loops in SIMD lanes, most contacts pushing
+    in every cell): the certified bracket holds every value of the reference's support
+    function sampled over the sphere and ever closer around the certificate's direction, and
+    its upper end is the reference's value there."""
+    from scipy.optimize import minimize
+
+    rng = np.random.default_rng(11)
+    cs = random_contact_set(rng, ["pcwf"] * 120)
+    ref = reference.from_contact_set(cs)
+    p = _eq26_pcwf(ref)
+    bounds = certified_bounds(WrenchSlots.from_contacts(cs))
+    assert bounds.force_closure and bounds.converged
+    lo, hi = -bounds.hi, -bounds.lo  # bounds on min p
+    u = bounds.direction
+    each = sum(max(reference.slot_support(u, c), 0.0) for c in ref)  # the scalar formulas
+    assert p(u[None])[0] == pytest.approx(each, rel=1e-12)
+    assert p(u[None])[0] == pytest.approx(hi, rel=1e-12)
+    U = rng.standard_normal((20_000, 6))
+    found = minimize(lambda x: p(x[None])[0], U[np.argmin(p(U))], method="Nelder-Mead")
+    near = [u + scale * rng.standard_normal((2_000, 6)) for scale in (1e-2, 1e-4, 1e-6, 1e-8)]
+    values = np.concatenate([p(U), [found.fun], *(p(V) for V in near)])
+    assert lo <= values.min()  # the lower bound is never above a value p takes
+    assert hi <= values.min() + 1e-6 * abs(hi)  # and the certificate found the minimum
+    assert np.sort(values)[0] - lo <= 2e-6 * abs(hi)  # the samples near u come that close

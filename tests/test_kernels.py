@@ -2,6 +2,7 @@
 set support values and support points, for every contact type, mixed, contacts and elements."""
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -76,6 +77,42 @@ def test_rows_slots_and_set_agree_with_the_reference(case):
     np.testing.assert_allclose(np.einsum("nr,nr->n", points, U), values, rtol=1e-10, atol=1e-12)
     set_bound = np.array([reference.support(v, ref) for v in V])
     assert np.all(points @ V.T <= set_bound[None, :] + 1e-10)
+
+
+def eq26(values):
+    """Eq 26 from slot values (N, m), written again: the sum of the positive ones, else the
+    largest (the literal max over 2^m - 1 subsets is out of reach at hundreds of slots)."""
+    positive = np.where(values > 0, values, 0.0).sum(axis=1)
+    return np.where((values > 0).any(axis=1), positive, values.max(axis=1))
+
+
+@pytest.mark.parametrize("m, max_rows", [(203, 1), (61, 4)])
+def test_many_rows_agree_with_the_reference(m, max_rows):
+    """Hundreds of rows of every type, mixed, as contacts and as elements: the row loops run
+    in SIMD lanes with a remainder (203 rows), each row's terms must still be its own."""
+    rng = np.random.default_rng(m)
+    ref = random_slots(rng, list(rng.choice(TYPES, m)), max_rows)
+    slots = WrenchSlots.build(ref)
+    U = unit(rng, 40)
+    rows = np.array(
+        [[reference.contact_support(Gj.T @ u, k, mu, mu_s, f) for G, k, mu, mu_s, f in ref
+          for Gj in G] for u in U]
+    )  # fmt: skip
+    values, wrenches = slots.row_support(U)
+    np.testing.assert_allclose(values, rows, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(np.einsum("nkr,nr->nk", wrenches, U), rows, rtol=1e-10, atol=1e-12)
+    slot_ref = np.array([[reference.slot_support(u, c) for c in ref] for u in U])
+    np.testing.assert_allclose(slots.slot_values(U), slot_ref, rtol=1e-10, atol=1e-12)
+    for sign in (1.0, -1.0):  # both signs: the set mostly in front of the origin, then not
+        got, points = slots.evaluate(sign * U)
+        want = eq26(np.array([[reference.slot_support(sign * u, c) for c in ref] for u in U]))
+        np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-10)
+        np.testing.assert_allclose(slots.support(sign * U), want, rtol=1e-10, atol=1e-10)
+        # a support point attains the value and lies in the set: no direction sees past it
+        np.testing.assert_allclose(np.einsum("nr,nr->n", points, sign * U), want, rtol=1e-10)
+        V = unit(rng, 30)
+        seen = eq26(np.array([[reference.slot_support(v, c) for c in ref] for v in V]))
+        assert np.all(points @ V.T <= seen[None, :] + 1e-9 * np.abs(seen).max())
 
 
 def test_no_positive_slot_gives_the_largest_alone():

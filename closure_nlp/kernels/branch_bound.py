@@ -359,7 +359,14 @@ def cloud(u, scales, out):
 def consider(G, f, W, npc, ends, U, points, best, best_u):
     """Support values and points (into ``points``) of unit directions ``U``; the lowest value
     updates the incumbent. Returns the index of the lowest of ``U``."""
-    D = scratch(f)
+    return consider_in(G, f, W, npc, ends, U, points, best, best_u, scratch(f))
+
+
+@njit(**OPTIONS)
+def consider_in(G, f, W, npc, ends, U, points, best, best_u, D):
+    """:func:`consider` with the caller's scratch ``D`` (:func:`~.support.scratch`): a loop
+    over cells allocates it once (at 2,000 contacts a fresh one per call cost more than the
+    support points it held)."""
     low, at = np.inf, 0
     for n in range(len(U)):
         v = support_point(G, f, W, npc, ends, U[n], points[n], D)
@@ -422,6 +429,7 @@ def bound_cells(
     first, refined = np.int64(0), np.int64(REFINE_POINTS)
     more = np.empty((REFINE_POINTS + CORNERS, 6))
     directions = np.empty((ANCHORS, 6))
+    D = scratch(f)
     anchored = False
     for n in range(N):
         delta, nearest = cell_geometry(
@@ -445,7 +453,7 @@ def bound_cells(
                 cloud(best_u, anchor_scales, directions)
                 copy_into(anchor_at, best_u)
                 anchor_at[6] = 1.0
-                consider(G, f, W, npc, ends, directions, anchor, best, best_u)
+                consider_in(G, f, W, npc, ends, directions, anchor, best, best_u, D)
             anchored = True
             copy_rows(pool, SAMPLES + 1, anchor)
             cap = frank_wolfe(pool, size, centre, delta, fw_steps, lam, wbar)
@@ -463,8 +471,8 @@ def bound_cells(
                 copy_rows(more, refined, unit)
                 have = size
                 for add in (REFINE_POINTS, CORNERS):
-                    consider(G, f, W, npc, ends, more[have - size : have - size + add],
-                             pool[have : have + add], best, best_u)  # fmt: skip
+                    consider_in(G, f, W, npc, ends, more[have - size : have - size + add],
+                                pool[have : have + add], best, best_u, D)  # fmt: skip
                     have += add
                     exact = exact_bound(pool, have, corners, unit, nearest, stop + 2 * margin, wbar)
                     if exact - margin > bound:

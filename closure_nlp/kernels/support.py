@@ -1,12 +1,14 @@
 """Compiled support function of wrench slots (paper eqs 26-32, 35-36): values and support points.
 
 The one definition of the formulas that :class:`closure_nlp.wrenches.WrenchSlots` evaluates.
-Rows are packed as plain arrays (:class:`~closure_nlp.wrenches.WrenchSlots` holds them):
+Rows are packed as plain arrays (:class:`~closure_nlp.wrenches.WrenchSlots` holds them), each
+quantity of every row contiguous (rows last), so that one direction's loops run over the rows
+in SIMD lanes:
 
-* ``G`` (K, 6, 4): the grasp matrix of each row;
+* ``G`` (6, 4, K): ``G[:, :, r]`` is the grasp matrix of row ``r``;
 * ``f`` (K,): its force bound ``f_max``;
-* ``W`` (K, 2, 4): its friction pieces, ``npc`` (K,) int how many are real (0 FPC, 1 PCwF and
-  SFCe, 2 SFCl): the contact type as an integer, no function passed around;
+* ``W`` (2, 4, K): its friction pieces (``W[k, :, r]``), ``npc`` (K,) int how many are real (0
+  FPC, 1 PCwF and SFCe, 2 SFCl): the contact type as an integer, no function passed around;
 * ``ends`` (m + 1,) int: slot ``i`` holds rows ``ends[i]:ends[i + 1]``.
 
 Row value: with ``d = G^T u``, ``f (d_n + max_k sqrt(q_k))``, ``q_k = sum_j W[k, j] d_j^2``;
@@ -26,22 +28,43 @@ OPTIONS = {"cache": True, "nogil": True, "fastmath": False, "error_model": "nump
 WRAPPER = {**OPTIONS, "inline": "always"}
 
 
-# Scratch columns per row (:func:`scratch`): ``G^T u`` (4), the square of its largest friction
-# piece, that piece, the row's value, whether its wrench enters the support point.
-D_Q, D_PIECE, D_VALUE, D_CHOSEN = 4, 5, 6, 7
+# Scratch rows (:func:`scratch`), a value per row in each: ``G^T u`` (4), the square of its
+# largest friction piece, that piece, the row's value, whether its wrench enters the support
+# point, its support force (4: zero for the rows left out).
+D_Q, D_PIECE, D_VALUE, D_CHOSEN, D_FORCE = 4, 5, 6, 7, 8
+# The sum over rows of the support point may be reordered (SIMD lanes): within a few ulps of
+# the sum in row order.
+SUMS = {**OPTIONS, "fastmath": {"reassoc", "nsz"}}
 
 
 @njit(**OPTIONS)
 def scratch(f):
-    """The per-row scratch (K, 8) of :func:`set_value`: callers allocate it once, not per
+    """The per-row scratch (12, K) of :func:`set_value`: callers allocate it once, not per
     direction."""
-    return np.empty((len(f), 8))
+    return np.empty((12, len(f)))
+
+
+@njit(**SUMS)
+def wrench_sum(G, D, out):
+    """``out[k] = sum_{c, r} G[k, c, r] D[D_FORCE + c, r]``: the support forces mapped to one
+    wrench (6,)."""
+    o0 = o1 = o2 = o3 = o4 = o5 = 0.0
+    F0, F1, F2, F3 = D[D_FORCE], D[D_FORCE + 1], D[D_FORCE + 2], D[D_FORCE + 3]
+    for r in range(D.shape[1]):
+        a, b, c, e = F0[r], F1[r], F2[r], F3[r]
+        o0 += G[0, 0, r] * a + G[0, 1, r] * b + G[0, 2, r] * c + G[0, 3, r] * e
+        o1 += G[1, 0, r] * a + G[1, 1, r] * b + G[1, 2, r] * c + G[1, 3, r] * e
+        o2 += G[2, 0, r] * a + G[2, 1, r] * b + G[2, 2, r] * c + G[2, 3, r] * e
+        o3 += G[3, 0, r] * a + G[3, 1, r] * b + G[3, 2, r] * c + G[3, 3, r] * e
+        o4 += G[4, 0, r] * a + G[4, 1, r] * b + G[4, 2, r] * c + G[4, 3, r] * e
+        o5 += G[5, 0, r] * a + G[5, 1, r] * b + G[5, 2, r] * c + G[5, 3, r] * e
+    out[0], out[1], out[2], out[3], out[4], out[5] = o0, o1, o2, o3, o4, o5
 
 
 @njit(**OPTIONS)
 def set_value(G, f, W, npc, ends, u, D, out, slots, rows):
     """``p(u)`` (eq 26: the sum of the positive slot values, else the largest) of one unit
-    direction ``u`` (6,); ``D`` (K, 8) scratch (:func:`scratch`) holds each row's terms after.
+    direction ``u`` (6,); ``D`` (12, K) scratch (:func:`scratch`) holds each row's terms after.
 
     ``out`` (6,) gets a wrench of the set attaining ``p(u)`` (the sum of the chosen slots'
     support wrenches: the gradient where unique), ``slots`` (m,) the slot values ``P_i`` (eq
@@ -50,64 +73,90 @@ def set_value(G, f, W, npc, ends, u, D, out, slots, rows):
 
     One flat function, no call per row: in numba a call that passes arrays costs more than a
     row's arithmetic (reference counts), and this runs for every direction of every search.
+    Its loops run over the rows, whose numbers lie contiguous (``G`` (6, 4, K)): SIMD lanes.
+    Measured against a loop over each row's (6, 4) matrix: 2.4x faster per direction at 200
+    and 2,000 PCwF, 1.6x at 4 contacts.
     """
     K = len(f)
-    for r in range(K):
-        for c in range(4):
-            s = 0.0
-            for k in range(6):
-                s += G[r, k, c] * u[k]
-            D[r, c] = s
-        piece, q = 0, 0.0
-        for k in range(npc[r]):
-            qk = 0.0
-            for c in range(4):
-                qk += W[r, k, c] * D[r, c] * D[r, c]
-            if k == 0 or qk > q:  # the first of equal pieces
-                piece, q = k, qk
-        D[r, D_Q] = q
-        D[r, D_PIECE] = piece
-        D[r, D_VALUE] = f[r] * (D[r, 0] + np.sqrt(max(q, 0.0)))
-        D[r, D_CHOSEN] = 0.0
+    u0, u1, u2, u3, u4, u5 = u[0], u[1], u[2], u[3], u[4], u[5]
+    two = False  # a second friction piece (SFCl) somewhere
+    for r in range(K):  # one straight body per row, the rows in SIMD lanes
+        d0 = G[0, 0, r] * u0 + G[1, 0, r] * u1 + G[2, 0, r] * u2
+        d0 = d0 + G[3, 0, r] * u3 + G[4, 0, r] * u4 + G[5, 0, r] * u5
+        d1 = G[0, 1, r] * u0 + G[1, 1, r] * u1 + G[2, 1, r] * u2
+        d1 = d1 + G[3, 1, r] * u3 + G[4, 1, r] * u4 + G[5, 1, r] * u5
+        d2 = G[0, 2, r] * u0 + G[1, 2, r] * u1 + G[2, 2, r] * u2
+        d2 = d2 + G[3, 2, r] * u3 + G[4, 2, r] * u4 + G[5, 2, r] * u5
+        d3 = G[0, 3, r] * u0 + G[1, 3, r] * u1 + G[2, 3, r] * u2
+        d3 = d3 + G[3, 3, r] * u3 + G[4, 3, r] * u4 + G[5, 3, r] * u5
+        q = W[0, 0, r] * d0 * d0 + W[0, 1, r] * d1 * d1  # FPC: zero weights, q = 0
+        q = q + W[0, 2, r] * d2 * d2 + W[0, 3, r] * d3 * d3
+        D[0, r], D[1, r], D[2, r], D[3, r] = d0, d1, d2, d3
+        D[D_Q, r], D[D_PIECE, r], D[D_CHOSEN, r] = q, 0.0, 0.0
+        D[D_VALUE, r] = f[r] * (d0 + np.sqrt(max(q, 0.0)))
+        two |= npc[r] > 1
+    if two:
+        for r in range(K):
+            d0, d1, d2, d3 = D[0, r], D[1, r], D[2, r], D[3, r]
+            q = W[1, 0, r] * d0 * d0 + W[1, 1, r] * d1 * d1
+            q = q + W[1, 2, r] * d2 * d2 + W[1, 3, r] * d3 * d3
+            if npc[r] > 1 and q > D[D_Q, r]:  # the first of equal pieces
+                D[D_Q, r], D[D_PIECE, r] = q, 1.0
+                D[D_VALUE, r] = f[r] * (d0 + np.sqrt(max(q, 0.0)))
+    value, chosen_ = D[D_VALUE], D[D_CHOSEN]
     total, top, top_row = 0.0, -np.inf, ends[0]
     any_positive = False
-    for i in range(len(ends) - 1):
-        best, at = -np.inf, ends[i]
-        for r in range(ends[i], ends[i + 1]):
-            if D[r, D_VALUE] > best:  # the first of equal rows
-                best, at = D[r, D_VALUE], r
-        if slots is not None:
-            slots[i] = best
-        if best > 0.0:
-            total += best
-            any_positive = True
-            D[at, D_CHOSEN] = 1.0
-        if best > top:
-            top, top_row = best, at
-    if not any_positive:
-        D[top_row, D_CHOSEN] = 1.0
-    if out is not None:
-        for k in range(6):
-            out[k] = 0.0
-    if out is not None or rows is not None:
+    if ends[-1] == len(ends) - 1:  # a row per slot (contacts): no branch on the signs
         for r in range(K):
-            chosen = out is not None and D[r, D_CHOSEN] > 0.0
-            if not chosen and rows is None:
-                continue
-            # the row's support force f (e_n + W[piece] d / sqrt(q)), then G_r times it
-            q, piece = D[r, D_Q], int(D[r, D_PIECE])
+            best = value[r]
+            if slots is not None:
+                slots[r] = best
+            positive = best > 0.0
+            total += best if positive else 0.0
+            any_positive |= positive
+            chosen_[r] = 1.0 if positive else 0.0
+            if best > top:
+                top, top_row = best, r
+    else:
+        for i in range(len(ends) - 1):
+            best, at = -np.inf, ends[i]
+            for r in range(ends[i], ends[i + 1]):
+                if value[r] > best:  # the first of equal rows
+                    best, at = value[r], r
+            if slots is not None:
+                slots[i] = best
+            if best > 0.0:
+                total += best
+                any_positive = True
+                chosen_[at] = 1.0
+            if best > top:
+                top, top_row = best, at
+    if not any_positive:
+        chosen_[top_row] = 1.0
+    if out is not None or rows is not None:
+        # each row's support force f (e_n + W[piece] d / sqrt(q)); for out, only the chosen
+        every = 1.0 if rows is not None else 0.0
+        for r in range(K):
+            q, second = D[D_Q, r], D[D_PIECE, r] > 0.0
             inv = 1.0 / np.sqrt(q) if q > 0.0 else 0.0
-            for k in range(6):
-                s = 0.0
-                for c in range(4):
-                    force = f[r] * W[r, piece, c] * D[r, c] * inv
-                    if c == 0:
-                        force += f[r]
-                    s += G[r, k, c] * force
-                if rows is not None:
+            fr = f[r] * max(chosen_[r], every)
+            w = W[1, 0, r] if second else W[0, 0, r]  # a select, not an index: SIMD lanes
+            D[D_FORCE, r] = fr * w * D[0, r] * inv + fr
+            for c in range(1, 4):
+                w = W[1, c, r] if second else W[0, c, r]
+                D[D_FORCE + c, r] = fr * w * D[c, r] * inv
+        if rows is not None:
+            for r in range(K):
+                for k in range(6):
+                    s = 0.0
+                    for c in range(4):
+                        s += G[k, c, r] * D[D_FORCE + c, r]
                     rows[r, k] = s
-                if chosen:
-                    out[k] += s
+            for c in range(4):
+                for r in range(K):
+                    D[D_FORCE + c, r] *= chosen_[r]
+        if out is not None:
+            wrench_sum(G, D, out)
     return total + min(top, 0.0)
 
 
@@ -155,7 +204,7 @@ def rows_many(G, f, W, npc, ends, U):
     for n in range(len(U)):
         support_value(G, f, W, npc, ends, U[n], D)
         for r in range(K):
-            values[n, r], pieces[n, r] = D[r, D_VALUE], int(D[r, D_PIECE])
+            values[n, r], pieces[n, r] = D[D_VALUE, r], int(D[D_PIECE, r])
     return values, pieces
 
 
@@ -169,7 +218,7 @@ def row_wrenches_many(G, f, W, npc, ends, U):
     for n in range(len(U)):
         set_value(G, f, W, npc, ends, U[n], D, None, None, wrenches[n])
         for r in range(K):
-            values[n, r] = D[r, D_VALUE]
+            values[n, r] = D[D_VALUE, r]
     return values, wrenches
 
 
