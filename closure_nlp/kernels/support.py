@@ -30,8 +30,8 @@ WRAPPER = {**OPTIONS, "inline": "always"}
 
 # Scratch rows (:func:`scratch`), a value per row in each: ``G^T u`` (4), the square of its
 # largest friction piece, that piece, the row's value, whether its wrench enters the support
-# point, its support force (4: zero for the rows left out).
-D_Q, D_PIECE, D_VALUE, D_CHOSEN, D_FORCE = 4, 5, 6, 7, 8
+# point.
+D_Q, D_PIECE, D_VALUE, D_CHOSEN = 4, 5, 6, 7
 # The sum over rows of the support point may be reordered (SIMD lanes): within a few ulps of
 # the sum in row order.
 SUMS = {**OPTIONS, "fastmath": {"reassoc", "nsz"}}
@@ -39,32 +39,45 @@ SUMS = {**OPTIONS, "fastmath": {"reassoc", "nsz"}}
 
 @njit(**OPTIONS)
 def scratch(f):
-    """The per-row scratch (12, K) of :func:`set_value`: callers allocate it once, not per
+    """The per-row scratch (8, K) of :func:`set_value`: callers allocate it once, not per
     direction."""
-    return np.empty((12, len(f)))
+    return np.empty((8, len(f)))
 
 
 @njit(**SUMS)
-def wrench_sum(G, D, out):
-    """``out[k] = sum_{c, r} G[k, c, r] D[D_FORCE + c, r]``: the support forces mapped to one
-    wrench (6,)."""
+def support_wrench(G, f, W, D, spin, out):
+    """The chosen rows' support forces ``f (e_n + W[piece] d / sqrt(q))`` (from the terms
+    :func:`set_value` left in ``D``) mapped to one wrench ``out`` (6,); the spin column only
+    with ``spin`` (some row has spin friction: others have zero weights there)."""
     o0 = o1 = o2 = o3 = o4 = o5 = 0.0
-    F0, F1, F2, F3 = D[D_FORCE], D[D_FORCE + 1], D[D_FORCE + 2], D[D_FORCE + 3]
     for r in range(D.shape[1]):
-        a, b, c, e = F0[r], F1[r], F2[r], F3[r]
-        o0 += G[0, 0, r] * a + G[0, 1, r] * b + G[0, 2, r] * c + G[0, 3, r] * e
-        o1 += G[1, 0, r] * a + G[1, 1, r] * b + G[1, 2, r] * c + G[1, 3, r] * e
-        o2 += G[2, 0, r] * a + G[2, 1, r] * b + G[2, 2, r] * c + G[2, 3, r] * e
-        o3 += G[3, 0, r] * a + G[3, 1, r] * b + G[3, 2, r] * c + G[3, 3, r] * e
-        o4 += G[4, 0, r] * a + G[4, 1, r] * b + G[4, 2, r] * c + G[4, 3, r] * e
-        o5 += G[5, 0, r] * a + G[5, 1, r] * b + G[5, 2, r] * c + G[5, 3, r] * e
+        q, second = D[D_Q, r], D[D_PIECE, r] > 0.0
+        inv = 1.0 / np.sqrt(q) if q > 0.0 else 0.0
+        fr = f[r] * D[D_CHOSEN, r]  # zero for the rows left out
+        a = fr * (W[1, 0, r] if second else W[0, 0, r]) * D[0, r] * inv + fr
+        b = fr * (W[1, 1, r] if second else W[0, 1, r]) * D[1, r] * inv
+        c = fr * (W[1, 2, r] if second else W[0, 2, r]) * D[2, r] * inv
+        o0 += G[0, 0, r] * a + G[0, 1, r] * b + G[0, 2, r] * c
+        o1 += G[1, 0, r] * a + G[1, 1, r] * b + G[1, 2, r] * c
+        o2 += G[2, 0, r] * a + G[2, 1, r] * b + G[2, 2, r] * c
+        o3 += G[3, 0, r] * a + G[3, 1, r] * b + G[3, 2, r] * c
+        o4 += G[4, 0, r] * a + G[4, 1, r] * b + G[4, 2, r] * c
+        o5 += G[5, 0, r] * a + G[5, 1, r] * b + G[5, 2, r] * c
+        if spin:
+            e = fr * (W[1, 3, r] if second else W[0, 3, r]) * D[3, r] * inv
+            o0 += G[0, 3, r] * e
+            o1 += G[1, 3, r] * e
+            o2 += G[2, 3, r] * e
+            o3 += G[3, 3, r] * e
+            o4 += G[4, 3, r] * e
+            o5 += G[5, 3, r] * e
     out[0], out[1], out[2], out[3], out[4], out[5] = o0, o1, o2, o3, o4, o5
 
 
 @njit(**OPTIONS)
 def set_value(G, f, W, npc, ends, u, D, out, slots, rows):
     """``p(u)`` (eq 26: the sum of the positive slot values, else the largest) of one unit
-    direction ``u`` (6,); ``D`` (12, K) scratch (:func:`scratch`) holds each row's terms after.
+    direction ``u`` (6,); ``D`` (8, K) scratch (:func:`scratch`) holds each row's terms after.
 
     ``out`` (6,) gets a wrench of the set attaining ``p(u)`` (the sum of the chosen slots'
     support wrenches: the gradient where unique), ``slots`` (m,) the slot values ``P_i`` (eq
@@ -79,7 +92,10 @@ def set_value(G, f, W, npc, ends, u, D, out, slots, rows):
     """
     K = len(f)
     u0, u1, u2, u3, u4, u5 = u[0], u[1], u[2], u[3], u[4], u[5]
-    two = False  # a second friction piece (SFCl) somewhere
+    two = spin = False  # a second friction piece (SFCl), spin friction (soft fingers)
+    for r in range(K):
+        two |= npc[r] > 1
+        spin |= (W[0, 3, r] != 0.0) | (W[1, 3, r] != 0.0)
     for r in range(K):  # one straight body per row, the rows in SIMD lanes
         d0 = G[0, 0, r] * u0 + G[1, 0, r] * u1 + G[2, 0, r] * u2
         d0 = d0 + G[3, 0, r] * u3 + G[4, 0, r] * u4 + G[5, 0, r] * u5
@@ -87,14 +103,18 @@ def set_value(G, f, W, npc, ends, u, D, out, slots, rows):
         d1 = d1 + G[3, 1, r] * u3 + G[4, 1, r] * u4 + G[5, 1, r] * u5
         d2 = G[0, 2, r] * u0 + G[1, 2, r] * u1 + G[2, 2, r] * u2
         d2 = d2 + G[3, 2, r] * u3 + G[4, 2, r] * u4 + G[5, 2, r] * u5
-        d3 = G[0, 3, r] * u0 + G[1, 3, r] * u1 + G[2, 3, r] * u2
-        d3 = d3 + G[3, 3, r] * u3 + G[4, 3, r] * u4 + G[5, 3, r] * u5
         q = W[0, 0, r] * d0 * d0 + W[0, 1, r] * d1 * d1  # FPC: zero weights, q = 0
-        q = q + W[0, 2, r] * d2 * d2 + W[0, 3, r] * d3 * d3
-        D[0, r], D[1, r], D[2, r], D[3, r] = d0, d1, d2, d3
+        q = q + W[0, 2, r] * d2 * d2
+        D[0, r], D[1, r], D[2, r], D[3, r] = d0, d1, d2, 0.0
         D[D_Q, r], D[D_PIECE, r], D[D_CHOSEN, r] = q, 0.0, 0.0
         D[D_VALUE, r] = f[r] * (d0 + np.sqrt(max(q, 0.0)))
-        two |= npc[r] > 1
+    if spin:  # the spin column (without spin friction its weight is zero: it adds nothing)
+        for r in range(K):
+            d3 = G[0, 3, r] * u0 + G[1, 3, r] * u1 + G[2, 3, r] * u2
+            d3 = d3 + G[3, 3, r] * u3 + G[4, 3, r] * u4 + G[5, 3, r] * u5
+            q = D[D_Q, r] + W[0, 3, r] * d3 * d3
+            D[3, r], D[D_Q, r] = d3, q
+            D[D_VALUE, r] = f[r] * (D[0, r] + np.sqrt(max(q, 0.0)))
     if two:
         for r in range(K):
             d0, d1, d2, d3 = D[0, r], D[1, r], D[2, r], D[3, r]
@@ -133,30 +153,21 @@ def set_value(G, f, W, npc, ends, u, D, out, slots, rows):
                 top, top_row = best, at
     if not any_positive:
         chosen_[top_row] = 1.0
-    if out is not None or rows is not None:
-        # each row's support force f (e_n + W[piece] d / sqrt(q)); for out, only the chosen
-        every = 1.0 if rows is not None else 0.0
-        for r in range(K):
-            q, second = D[D_Q, r], D[D_PIECE, r] > 0.0
+    if rows is not None:
+        force = np.empty(4)
+        for r in range(K):  # each row's support force f (e_n + W[piece] d / sqrt(q)), wrench
+            q, piece = D[D_Q, r], int(D[D_PIECE, r])
             inv = 1.0 / np.sqrt(q) if q > 0.0 else 0.0
-            fr = f[r] * max(chosen_[r], every)
-            w = W[1, 0, r] if second else W[0, 0, r]  # a select, not an index: SIMD lanes
-            D[D_FORCE, r] = fr * w * D[0, r] * inv + fr
-            for c in range(1, 4):
-                w = W[1, c, r] if second else W[0, c, r]
-                D[D_FORCE + c, r] = fr * w * D[c, r] * inv
-        if rows is not None:
-            for r in range(K):
-                for k in range(6):
-                    s = 0.0
-                    for c in range(4):
-                        s += G[k, c, r] * D[D_FORCE + c, r]
-                    rows[r, k] = s
             for c in range(4):
-                for r in range(K):
-                    D[D_FORCE + c, r] *= chosen_[r]
-        if out is not None:
-            wrench_sum(G, D, out)
+                force[c] = f[r] * W[piece, c, r] * D[c, r] * inv
+            force[0] += f[r]
+            for k in range(6):
+                s = 0.0
+                for c in range(4):
+                    s += G[k, c, r] * force[c]
+                rows[r, k] = s
+    if out is not None:
+        support_wrench(G, f, W, D, spin, out)
     return total + min(top, 0.0)
 
 
