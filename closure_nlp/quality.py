@@ -415,15 +415,16 @@ POLISH_SEARCH = SearchOptions(
     samples=0, descent_iterations=0, smoothing=(), ipopt_starts=1, element_ipopt_starts=1
 )
 # The start strategy when a certificate follows (rho, certified rho_hat): the certificate proves
-# the minimum whatever the incumbent, and lowers it where the search stopped short, so a quarter
-# of the samples, one smoothing temperature and fewer IPOPT runs do. Measured in one process on
-# 20 sets per family, against the default search: every bracket converged either way, the values
-# agree within 8.2e-7 relative (inside the 1e-6 brackets), and the certified medians went
-# 4 PCwF 90 -> 63 ms, 4 SFCe 271 -> 267, 7 FPC 15 -> 5.8, 4 mixed 98 -> 75, lamp rho_hat 73 -> 37.
+# the minimum whatever the incumbent, and lowers it where the search stopped short (polishing
+# it by the local solver), so 16 samples and the plain descent do, without a smoothed one.
+# Measured in one process on 20 sets per family against 32 samples with one smoothing
+# temperature (min of 2 runs per set, CPU): every bracket converged and each pair overlaps;
+# per-set ratios (median) 4 PCwF 1.18x, 4 SFCe 1.05x, 7 FPC 1.11x, 4 mixed 1.12x, rho_hat of 4
+# lamp facets 1.18x (medians 6.4 -> 3.6 ms).
 # Every run counts against its budget (runs_per_basin 1): the certificate lowers the value where
 # the seed stopped short, and extra runs cost the certified rho_hat of 4 lamp facets 32 -> 45 ms.
 SEED_SEARCH = SearchOptions(
-    samples=32, smoothing=(0.03,), ipopt_starts=1, element_ipopt_starts=2, runs_per_basin=1
+    samples=16, smoothing=(), ipopt_starts=1, element_ipopt_starts=2, runs_per_basin=1
 )
 
 

@@ -209,3 +209,30 @@ def test_a_fixture_whose_live_cells_swell_past_the_budget_converges():
     )
     assert -bounds.hi <= p_ref + 1e-9 * max(1.0, p_ref)
     assert bounds.hi - bounds.lo <= 1e-6 * max(1.0, abs(bounds.lo))
+
+
+def test_cell_geometry_holds_the_box_mapped_by_the_metric():
+    """A cell's corners are its box's 32 corners mapped by the metric (numpy's product, for a
+    diagonal and a general metric), and its cap (centre, radius ``delta``) and ``nearest``
+    hold every direction of the box: random points inside lie within ``delta`` of the centre
+    and no nearer the origin than ``nearest``."""
+    rng = np.random.default_rng(5)
+    centre, corners, unit = np.empty(6), np.empty((32, 6)), np.empty((32, 6))
+    for trial in range(60):
+        axis, sign = int(rng.integers(6)), float(rng.choice([-1.0, 1.0]))
+        lo = rng.uniform(-1.0, 0.6, 5)
+        hi = lo + rng.uniform(0.0, 0.4, 5)
+        M = rng.normal(size=(6, 6)) if trial % 2 else np.diag(rng.uniform(0.1, 2.0, 6))
+        floor = np.linalg.svd(M, compute_uv=False).min()
+        delta, nearest = kernels.cell_geometry(
+            axis, sign, lo, hi, M, floor, centre, corners, unit
+        )
+        for q in range(32):
+            y = np.where([(q >> (4 - j)) & 1 for j in range(5)], hi, lo)
+            x = M @ np.insert(y, axis, sign)
+            assert np.allclose(corners[q], x, rtol=0, atol=1e-12 * np.abs(M).max())
+            assert np.allclose(unit[q], x / np.linalg.norm(x), rtol=0, atol=1e-12)
+        inside = M @ np.insert(lo + (hi - lo) * rng.uniform(size=(200, 5)), axis, sign, axis=1).T
+        assert np.linalg.norm(inside, axis=0).min() >= nearest * (1 - 1e-12)
+        cos = centre @ (inside / np.linalg.norm(inside, axis=0))
+        assert np.arccos(np.clip(cos, -1, 1)).max() <= delta + 1e-12

@@ -34,6 +34,11 @@ ANCHORS = 1 + 10 * len(ANCHOR_SCALES)
 REFINE_SCALE = 0.5
 REFINE_POINTS = 11
 MAX_PIVOTS = 300
+# Pivots of a cell's game (:func:`exact_bound`): its weights give a valid bound wherever it
+# stops. Measured on 22 force-closure 4-PCwF sets: 40 instead of 300 pivots, the same cells
+# (1,219 median) and brackets, 21% less time; the games that need more are those of cells that
+# stay alive anyway.
+CELL_PIVOTS = 40
 # Optimality and pivot tolerance of the games, on games scaled to [0, 1]: weights within about
 # this of the value times the spread of the entries, tiny in the small cells near a minimum.
 GAME_EPS = 1e-6
@@ -93,11 +98,24 @@ def cell_geometry(axis, sign, lo, hi, metric, floor, centre, corners, unit):
         y[j] = 0.5 * (lo[j] + hi[j])
     face_point(axis, sign, y, metric, centre)
     normalise(centre)
+    # The map is affine in y: corner q (bit 4 - j of q set: y_j = hi_j) is the corner without
+    # q's lowest set bit plus one edge of the box, six additions instead of a 6x6 product.
+    face_point(axis, sign, lo, metric, corners[0])
+    edge = np.empty((5, 6))
+    j = 0
+    for k in range(6):
+        if k != axis:
+            for r in range(6):
+                edge[j, r] = metric[r, k] * (hi[j] - lo[j])
+            j += 1
     cos = 1.0
     for q in range(CORNERS):
-        for j in range(5):
-            y[j] = hi[j] if (q >> (4 - j)) & 1 else lo[j]
-        face_point(axis, sign, y, metric, corners[q])
+        if q > 0:
+            j, low = 4, 1
+            while not q & low:
+                j, low = j - 1, 2 * low
+            for k in range(6):
+                corners[q, k] = corners[q - low, k] + edge[j, k]
         s = 0.0
         for k in range(6):
             s += corners[q, k] * corners[q, k]
@@ -218,13 +236,13 @@ def frank_wolfe(points, n, c, delta, steps, lam, wbar):
 
 
 @njit(**OPTIONS)
-def game_weights(M, lam, stop=np.inf):
+def game_weights(M, lam, stop=np.inf, max_pivots=MAX_PIVOTS):
     """Convex weights ``lam`` (K,) maximising ``min_c (M lam)_c`` for ``M`` (C, K): the value
     of a small matrix game by a dense primal simplex (Dantzig's rule) on the game scaled to
     [0, 1]; every iterate is feasible, so capped weights still give a valid bound (callers
     recompute the bound from the weights). Pivoting ends early once the iterate's value
-    reaches ``stop`` (a cell's bound needs no more than its target). Returns the pivots
-    taken."""
+    reaches ``stop`` (a cell's bound needs no more than its target), or after ``max_pivots``.
+    Returns the pivots taken."""
     C, K = M.shape
     low, high = np.inf, -np.inf
     for i in range(C):
@@ -257,7 +275,7 @@ def game_weights(M, lam, stop=np.inf):
     basis[C] = j0
     eps = GAME_EPS
     pivots = 0
-    for _ in range(MAX_PIVOTS):
+    for _ in range(max_pivots):
         if low + span * T[C + 1, V] >= stop:  # t <= (M' lam)_c with M' = (M - low) / span
             break
         j, low_obj = 0, np.inf
@@ -302,7 +320,8 @@ def game_weights(M, lam, stop=np.inf):
 @njit(**OPTIONS)
 def exact_bound(points, n, corners, unit, nearest, stop, wbar):
     """The corner bound of the best convex combination of ``points[:n]`` against the cell's
-    unit corners (a matrix game), or of one whose game value reaches ``stop``; the
+    unit corners (a matrix game), or of one whose game value reaches ``stop`` or that
+    :data:`CELL_PIVOTS` pivots reach; the
     combination into ``wbar`` (6,). Valid for any weights the game returns: the bound is
     :func:`box_bound` of their combination, and ``p(u) >= wbar . u`` for every convex
     combination of support points, so stopping early can only weaken it."""
@@ -314,7 +333,7 @@ def exact_bound(points, n, corners, unit, nearest, stop, wbar):
                 s += unit[q, k] * points[i, k]
             M[q, i] = s
     lam = np.empty(n)
-    game_weights(M, lam, stop)
+    game_weights(M, lam, stop, CELL_PIVOTS)
     fill(wbar, len(wbar), 0.0)
     for i in range(n):
         for k in range(6):
