@@ -234,11 +234,10 @@ def _point_at_origin(slots: WrenchSlots) -> float | None:
     rows' wrenches at ``f_max``). The LP's weights are repaired into that set, and the bound
     pays for what is left of their infeasibility, so it does not rest on the LP's tolerances.
     """
-    from scipy.optimize import linprog
-
     c = slots._normal_wrenches()  # (K, 6): the rows' wrenches, None with friction
     if c is None:
         return None
+    from scipy.optimize import linprog  # here: its import costs a command's start 0.2-0.5 s
     K, m = len(c), slots.m
     slot = np.repeat(np.arange(m), slots.rows_per_slot)
     per_slot = np.zeros((m, K))

@@ -139,6 +139,12 @@ class WrenchSlots:
         made a 7-FPC fixture (no spin at all) look 35x longer in torque than it is, and a part
         in metres with soft fingers (``mu_s`` 0.01 R) 1e6 times longer than in millimetres.
         """
+        cached = self.__dict__.setdefault("_scales", {})  # the set is immutable
+        if friction not in cached:
+            cached[friction] = self._row_scales(friction)
+        return cached[friction]
+
+    def _row_scales(self, friction: bool) -> tuple[float, float]:
         spin = np.sqrt(self.pieces[:, :, 3].max(axis=1))  # mu_s, or 0 without spin friction
         G = self.G.copy()
         G[:, :, 3] *= spin[:, None]  # the spin column per unit of normal force
