@@ -226,7 +226,9 @@ def test_mixed_solver_gives_exploring_runs_to_the_model_slp():
     the linear programme; ``"slp-model"`` asked for: every run by the sequential LP."""
     model = load_model(MODELS / "lamp.model.json")
     eligibility = Eligibility(model, contact_specs(4, type="pcwf", mu=0.2))
-    options = PlacementOptions(bound=False, starts=2, extra_starts=0, neighbour_moves=0)
+    options = PlacementOptions(
+        bound=False, starts=2, extra_starts=0, neighbour_moves=0, max_rounds=8
+    )
     placer = Placer(eligibility, options)
     used = []
     build = placer._problem
