@@ -32,8 +32,8 @@ WRAPPER = {**OPTIONS, "inline": "always"}
 # largest friction piece, that piece, the row's value, whether its wrench enters the support
 # point.
 D_Q, D_PIECE, D_VALUE, D_CHOSEN = 4, 5, 6, 7
-# The sum over rows of the support point may be reordered (SIMD lanes): within a few ulps of
-# the sum in row order.
+# Sums over the rows (the support point's, eq 26's with a row per slot) may be reordered into
+# SIMD lanes: within a few ulps of the sum in row order.
 SUMS = {**OPTIONS, "fastmath": {"reassoc", "nsz"}}
 
 
@@ -42,6 +42,18 @@ def scratch(f):
     """The per-row scratch (8, K) of :func:`set_value`: callers allocate it once, not per
     direction."""
     return np.empty((8, len(f)))
+
+
+@njit(**SUMS)
+def positive_sum(value, chosen):
+    """The sum of the positive ``value`` (K,) (eq 26 with a row per slot; reordered into
+    SIMD lanes: within a few ulps of the sum in row order), ``chosen`` (K,) 1 where positive."""
+    total = 0.0
+    for r in range(len(value)):
+        positive = value[r] > 0.0
+        chosen[r] = 1.0 if positive else 0.0
+        total += value[r] if positive else 0.0
+    return total
 
 
 @njit(**SUMS)
@@ -126,17 +138,18 @@ def set_value(G, f, W, npc, ends, u, D, out, slots, rows):
     value, chosen_ = D[D_VALUE], D[D_CHOSEN]
     total, top, top_row = 0.0, -np.inf, ends[0]
     any_positive = False
-    if ends[-1] == len(ends) - 1:  # a row per slot (contacts): no branch on the signs
-        for r in range(K):
-            best = value[r]
-            if slots is not None:
-                slots[r] = best
-            positive = best > 0.0
-            total += best if positive else 0.0
-            any_positive |= positive
-            chosen_[r] = 1.0 if positive else 0.0
-            if best > top:
-                top, top_row = best, r
+    if ends[-1] == len(ends) - 1:  # a row per slot (contacts)
+        total = positive_sum(value, chosen_)
+        any_positive = total > 0.0
+        if slots is not None:
+            for r in range(K):
+                slots[r] = value[r]
+        if any_positive:
+            top = 0.0  # the largest is positive: eq 26's sum alone
+        else:
+            for r in range(K):
+                if value[r] > top:  # the first of equal rows
+                    top, top_row = value[r], r
     else:
         for i in range(len(ends) - 1):
             best, at = -np.inf, ends[i]
