@@ -168,7 +168,8 @@ class PlacementOptions:
         sequential linear programming (:class:`~closure_nlp.sequential_lp.ModelSLP`) on the
         runs that explore (further starts, neighbour-move trials). Against IPOPT everywhere,
         on seeds 1-8 of the lamp, the cup and the pistol with 7 PCwF (docs/placement.md):
-        placement 1.2-1.4x faster, the median rho equal (lamp) or better (cup, pistol).
+        placement 1.2-2x faster; the median rho equal on the lamp, better on the cup, and on
+        the pistol better in one measurement and 0.45% lower in another (one seed).
         ``"slp-model"``: that sequential LP on every run (the lamp's median 0.04% lower).
         ``"ipopt"``: IPOPT always; ``"slp"``:
         sequential linear programming by HiGHS
