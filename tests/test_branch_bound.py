@@ -16,6 +16,7 @@ from closure_nlp.contacts import Contact, ContactSet, ContactType, contact_set_f
 from closure_nlp.kernels import branch_bound as kernels
 from closure_nlp.quality import SupportMinimizer
 from closure_nlp.random_sets import random_contact_set
+from closure_nlp.sphere_search import sphere_samples
 from closure_nlp.wrenches import WrenchSlots
 
 from . import reference
@@ -151,6 +152,35 @@ def test_cells_screened_by_an_inherited_point_hold_the_target():
     for n in dropped:
         low = min(reference.support(u, ref) for u in _cell_directions(rng, axis, sign, lo, hi, n))
         assert low >= target - 1e-12 * max(1.0, abs(target)), (n, low, target)
+        assert tally[kernels.LOWER] <= low
+
+
+def test_cells_screened_by_their_centre_hold_the_target():
+    """Before its other ten samples a cell is bounded by its centre's support point: the cells
+    that bound drops lie at or above the incumbent minus the gap under the reference support
+    function, ``tally[LOWER]`` is below every value seen in them, and the centres' values
+    enter the incumbent."""
+    rng = np.random.default_rng(12)
+    cs = random_contact_set(rng, ["pcwf", "sfce", "sfcl", "pcwf"])
+    slots, ref = WrenchSlots.from_contacts(cs), reference.from_contact_set(cs)
+    axis, sign, lo, hi = _initial_cells(2)
+    pick = rng.choice(len(lo), 150, replace=False)
+    axis, sign, lo, hi = axis[pick], sign[pick], lo[pick], hi[pick]
+    best, best_u = np.array([np.inf, 0.0]), np.zeros(6)
+    start = sphere_samples(8).copy()  # writable: the declared signature
+    kernels.consider(*slots.packed, start, np.empty((len(start), 6)), best, best_u)
+    gap = 0.3 * abs(best[0])  # a coarse gap: some cells dropped, some kept
+    tally = np.array([np.inf, 0, 0, -1, 0, 0], dtype=float)
+    live = kernels.screen_centres(
+        *slots.packed, axis, sign, lo, hi, np.eye(6), 1.0, gap, 0.0, tally, best, best_u
+    )
+    dropped = np.setdiff1d(np.arange(len(pick)), live)
+    assert 0 < len(dropped) < len(pick)
+    assert best[1] == len(start) + len(pick)  # every centre evaluated
+    assert reference.support(best_u, ref) == pytest.approx(best[0], abs=1e-12)
+    for n in dropped:
+        low = min(reference.support(u, ref) for u in _cell_directions(rng, axis, sign, lo, hi, n))
+        assert low >= best[0] - gap - 1e-12, (n, low, best[0] - gap)
         assert tally[kernels.LOWER] <= low
 
 

@@ -527,6 +527,45 @@ def screen(axis, sign, lo, hi, metric, floor, lin, target, margin, tally):
     return keep[:alive]
 
 
+@njit(**OPTIONS)
+def screen_centres(G, f, W, npc, ends, axis, sign, lo, hi, metric, floor, gap, margin, tally,
+                   best, best_u):  # fmt: skip
+    """Which cells (indices) the linear bound of their centre's support point leaves below the
+    incumbent minus ``gap``; the others are dropped before their other ten samples are taken,
+    their bounds entered in ``tally[LOWER]``. The centres' values update the incumbent.
+    Measured on the first round of force-closure 4-PCwF sets: the centre alone drops 53-80% of
+    the 384 cells, the eleven samples and their games 78-92%."""
+    D = scratch(f)
+    y = np.empty(5)
+    u = np.empty(6)
+    w = np.empty(6)
+    centre = np.empty(6)
+    corners = np.empty((CORNERS, 6))
+    unit = np.empty((CORNERS, 6))
+    keep = np.empty(len(axis), np.int64)
+    alive = 0
+    for n in range(len(axis)):
+        for j in range(5):
+            y[j] = 0.5 * (lo[n, j] + hi[n, j])
+        face_point(axis[n], sign[n], y, metric, u)
+        normalise(u)
+        v = support_point(G, f, W, npc, ends, u, w, D)
+        best[1] += 1
+        if v < best[0]:
+            best[0] = v
+            copy_into(best_u, u)
+        _, nearest = cell_geometry(
+            axis[n], sign[n], lo[n], hi[n], metric, floor, centre, corners, unit
+        )
+        bound = box_bound(w, corners, unit, nearest) - margin
+        if bound < best[0] - gap:
+            keep[alive] = n
+            alive += 1
+        else:
+            tally[LOWER] = min(tally[LOWER], bound)
+    return keep[:alive]
+
+
 def no_samples():
     """Empty samples (U, points, values) for :func:`advance`'s first call."""
     return np.empty((0, SAMPLES, 6)), np.empty((0, SAMPLES, 6)), np.empty((0, SAMPLES))
@@ -555,8 +594,9 @@ def advance(
     (``POLISH``: the caller runs its local solver and calls again with the same cells,
     ``evaluated`` true). ``tally[LOWER]`` holds the least bound of the dropped cells, and once
     stopped unconverged, of the live ones too. Halved cells inherit their parent's bounding
-    point and are first :func:`screen`-ed by it: the cells it drops cost no samples (and do
-    not count in ``tally[CELLS]``, the budget of sampled cells).
+    point and are first :func:`screen`-ed by it, then by their centre's support point
+    (:func:`screen_centres`): the cells these drop cost no more samples (and do not count in
+    ``tally[CELLS]``, the budget of sampled cells).
 
     Returns (status, axis, sign, lo, hi, U, points, values): the live cells and their
     samples."""
@@ -567,6 +607,18 @@ def advance(
         fill(lin[n], len(lin[n]), np.nan)  # none inherited on entry
     while True:
         if not evaluated:
+            live = screen_centres(
+                G, f, W, npc, ends, axis, sign, lo, hi, metric, settings[FLOOR], gap, margin,
+                tally, best, best_u,
+            )  # fmt: skip
+            if len(live) < len(axis):
+                axis, sign, lo, hi = take_cells(axis, sign, lo, hi, live)
+                inherited = lin
+                lin = np.empty((len(live), 6))
+                for c in range(len(live)):
+                    copy_into(lin[c], inherited[live[c]])
+            if len(live) == 0:
+                return CONVERGED, axis, sign, lo, hi, U, points, values
             N = len(axis)
             U = np.empty((N, SAMPLES, 6))
             points = np.empty((N, SAMPLES, 6))
