@@ -254,9 +254,7 @@ def test_cell_geometry_holds_the_box_mapped_by_the_metric():
         hi = lo + rng.uniform(0.0, 0.4, 5)
         M = rng.normal(size=(6, 6)) if trial % 2 else np.diag(rng.uniform(0.1, 2.0, 6))
         floor = np.linalg.svd(M, compute_uv=False).min()
-        delta, nearest = kernels.cell_geometry(
-            axis, sign, lo, hi, M, floor, centre, corners, unit
-        )
+        delta, nearest = kernels.cell_geometry(axis, sign, lo, hi, M, floor, centre, corners, unit)
         for q in range(32):
             y = np.where([(q >> (4 - j)) & 1 for j in range(5)], hi, lo)
             x = M @ np.insert(y, axis, sign)
@@ -266,3 +264,15 @@ def test_cell_geometry_holds_the_box_mapped_by_the_metric():
         assert np.linalg.norm(inside, axis=0).min() >= nearest * (1 - 1e-12)
         cos = centre @ (inside / np.linalg.norm(inside, axis=0))
         assert np.arccos(np.clip(cos, -1, 1)).max() <= delta + 1e-12
+
+
+@pytest.mark.parametrize("half", [1e-3, 1e-7, 1e-10, 1e-13])
+def test_a_tiny_cell_keeps_its_angular_radius(half):
+    """The cap's radius of a cell of half-width ``half`` about a face's centre is the angle to
+    its corners, ``atan(half sqrt(5))`` (not 0, where the arccos of a cosine rounds to 1): the
+    cap bounds of a deep search hold."""
+    lo, hi = np.full(5, -half), np.full(5, half)
+    centre, corners, unit = np.empty(6), np.empty((32, 6)), np.empty((32, 6))
+    delta, _ = kernels.cell_geometry(0, 1.0, lo, hi, np.eye(6), 1.0, centre, corners, unit)
+    angle = np.arctan(half * np.sqrt(5.0))
+    assert angle <= delta <= angle * (1 + 1e-6) + 1e-14

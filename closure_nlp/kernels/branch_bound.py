@@ -108,8 +108,8 @@ def cell_geometry(axis, sign, lo, hi, metric, floor, centre, corners, unit):
             for r in range(6):
                 edge[j, r] = metric[r, k] * (hi[j] - lo[j])
             j += 1
-    cos = 1.0
-    for q in range(CORNERS):
+    chord = 0.0  # the largest |unit corner - centre|: its angle 2 asin(chord / 2) stays exact
+    for q in range(CORNERS):  # for tiny cells, where arccos of the cosine rounds to 0
         if q > 0:
             j, low = 4, 1
             while not q & low:
@@ -123,13 +123,14 @@ def cell_geometry(axis, sign, lo, hi, metric, floor, centre, corners, unit):
         c = 0.0
         for k in range(6):
             unit[q, k] = corners[q, k] / s
-            c += unit[q, k] * centre[k]
-        cos = min(cos, c)
+            c += (unit[q, k] - centre[k]) ** 2
+        chord = max(chord, np.sqrt(c))
     far = 1.0
     for j in range(5):
         v = max(max(lo[j], -hi[j]), 0.0)
         far += v * v
-    delta = np.arccos(min(1.0, max(-1.0, cos)))
+    # a few ulps more: the unit vectors' own roundoff
+    delta = 2.0 * np.arcsin(min(1.0, 0.5 * chord)) + 1e-15
     return delta, np.sqrt(far) * floor
 
 
