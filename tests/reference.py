@@ -160,3 +160,20 @@ def from_contact_set(cs):
         (grasp(c.position, c.inward_normal, cs.torque_scale), c.type.value, c.mu, c.mu_s, c.f_max)
         for c in cs.contacts
     ]
+
+
+def zonotope_capacity(V):
+    """``max(0, min over five-subsets S of full rank of min(s(n_S), s(-n_S)) / |n_S|)`` of one
+    set of frictionless wrenches ``V`` (m, 6), subset by subset with LAPACK determinants:
+    ``<w_j, n_S> = det[w_S; w_j]``, ``|n_S|^2 = det(w_S w_S^T)``; a subset whose volume is at
+    most 1e-8 of the product of its generators' lengths is skipped."""
+    m = len(V)
+    best = np.inf
+    for S in itertools.combinations(range(m), 5):
+        base = V[list(S)]
+        norm2 = np.linalg.det(base @ base.T)
+        if not norm2 > 1e-16 * np.prod(np.sum(base * base, axis=1)):
+            continue
+        x = np.array([np.linalg.det(np.vstack([base, V[j]])) for j in range(m) if j not in S])
+        best = min(best, min(x[x > 0].sum(), -x[x < 0].sum()) / np.sqrt(norm2))
+    return best if np.isfinite(best) else 0.0

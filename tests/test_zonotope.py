@@ -12,6 +12,7 @@ from closure_nlp.placement_bound import BoundOptions, _solve_lp, capacity_bound
 from closure_nlp.quality import rho
 from closure_nlp.random_sets import random_contact_set
 from closure_nlp.zonotope import climb, facet_rows, frictionless_capacity
+from tests.reference import zonotope_capacity
 from tests.shapes import box_model
 
 
@@ -35,6 +36,28 @@ def test_capacity_matches_the_certified_rho(m):
         assert -hi * (1 - 1e-6) <= values[k] <= -lo * (1 + 1e-6)
     for k in other:
         assert rho(pool[k]).bounds[1] >= 0.0
+
+
+@pytest.mark.parametrize("m", [7, 9, 12])
+def test_the_compiled_capacity_matches_the_determinants_subset_by_subset(m):
+    """The compiled loop against LAPACK's determinants of every five-subset one at a time
+    (tests/reference.py), on random sets (force closure and not), sets with a repeated
+    generator (subsets that span no facet) and a set with every generator in one hyperplane
+    (capacity 0); relative to the set's scale."""
+    rng = np.random.default_rng(m)
+    W = rng.standard_normal((40, m, 6)) * rng.uniform(1e-3, 1e3, (40, 1, 1))
+    # the last generator a negative combination of the others: 0 inside, force closure
+    W[:, -1] = -np.einsum("bj,bjk->bk", rng.uniform(0.2, 1.0, (40, m - 1)), W[:, :-1])
+    W[: m - 5, :, :] = np.abs(W[: m - 5])  # all in one orthant: capacity 0
+    W[10, 1] = 2.0 * W[10, 0]
+    W[11, 2:4] = W[11, 0]
+    W[12, :, 5] = 0.0
+    values = frictionless_capacity(W)
+    expected = np.array([zonotope_capacity(w / np.abs(w).max()) * np.abs(w).max() for w in W])
+    assert (expected > 0).sum() >= 10 and (expected == 0).sum() >= m - 5 + 1
+    scale = np.abs(W).max(axis=(1, 2))
+    np.testing.assert_allclose(values, expected, rtol=1e-12, atol=1e-12 * scale.min())
+    assert np.all((values > 0) == (expected > 0))
 
 
 def test_capacity_scales_with_the_wrenches():

@@ -114,10 +114,11 @@ ENTRY_POINTS = {
     "branch_bound": ("consider", "advance"),
     "nearest_point": ("min_norm_point", "nearest_point_bounds"),
     "descent": ("descend_many", "local_minimum"),
+    "zonotope": ("capacity_many",),
 }
 # A cold compile splits the kernels in two halves of about equal compile time, one per process
 # (numba compiles under a lock: one process compiles on one core); both write the disk cache.
-COMPILE_GROUPS = (("branch_bound",), ("support", "nearest_point", "descent"))
+COMPILE_GROUPS = (("branch_bound",), ("support", "nearest_point", "descent", "zonotope"))
 
 
 def signatures() -> dict:
@@ -140,6 +141,8 @@ def signatures() -> dict:
     out["nearest_point", "nearest_point_bounds"] = (*slots, f2, f8, i8)
     out["descent", "descend_many"] = (*slots, f2, i8, f8)
     out["descent", "local_minimum"] = (*slots, f1, i8, f8)
+    i2 = types.Array(types.int64, 2, "C")
+    out["zonotope", "capacity_many"] = (f3, i2, i2, f1)
     return out
 
 
@@ -262,6 +265,9 @@ def warm_up(notify=None, *, rho_only: bool = False) -> float | None:
     slots.row_support(U)
     slots.row_terms(U)
     min_norm_point(slots.support_points(np.vstack([U, -U])))
+    from ..zonotope import frictionless_capacity
+
+    frictionless_capacity(np.ones((1, 7, 6)))
     seconds = time.perf_counter() - start
     if not compiles:
         return None
