@@ -22,8 +22,13 @@ Support points. Besides the cell's own eleven, every cell may combine the point 
 bound its parent kept (a halved cell is first bounded by that point alone, and dropped before
 its samples are taken when that suffices), the support points of a tiny cloud around the
 incumbent (they hold every piece of ``p`` that meets at the minimum), and a cell that survives
-near the minimum gets those of a cloud around its lowest sample (and of its corners when they
-do not suffice), with a longer search of the weights.
+near the minimum gets those of a cloud around its lowest sample, with a longer search of the
+weights. When these do not suffice, a set of few slots gives each slot its own weights
+(:func:`closure_nlp.kernels.branch_bound.slot_bound`): ``p = sum_i max(P_i, 0)`` wherever some
+slot value is positive, so any slot-wise combination of the slots' support points whose bound is
+positive over the cell bounds ``p`` there. A contact seen nearly along its cone's axis has a
+sharply curved support over a cell; with weights of its own, its points no longer share those of
+the other slots. Larger sets add the support points of the cell's corners instead.
 
 Incumbent. Every evaluated direction gives an upper bound ``p(u) >= min p``; the lowest is the
 incumbent. When a cell's samples lower it, an optional local solver (``polish``) runs from there:

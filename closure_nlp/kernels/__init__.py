@@ -2,6 +2,7 @@
 
 * :mod:`.support`: support values and support points of wrench slots (eqs 26-32, 35-36);
 * :mod:`.branch_bound`: cells, bounds and matrix games of the branch and bound over the sphere;
+* :mod:`.slot_game`: the matrix game of a cell with one budget of weights per slot;
 * :mod:`.nearest_point`: Wolfe's nearest point of a hull and Gilbert's iteration;
 * :mod:`.descent`: the batched descent and the local minimiser on the sphere.
 
