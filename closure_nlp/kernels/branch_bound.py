@@ -40,11 +40,11 @@ MAX_PIVOTS = 300
 # (1,219 median) and brackets, 21% less time; the games that need more are those of cells that
 # stay alive anyway.
 CELL_PIVOTS = 40
-# Sets of at most this many slots give a cell that the cloud leaves alive a game with one
-# budget of weights per slot (:func:`slot_bound`) in place of its corners' support points:
-# measured (CPU, best of 2, against the corners) 4 / 6 SFCe round a cylinder 1.35 / 1.30x,
-# 4 SFCe 1.38x, 4 PCwF 1.08x, lamp rho_hat 1.05x, 4 mixed and two opposite soft fingers
-# 1.04x. Its game grows with the slots: larger sets keep the corners.
+# Contact sets of at most this many contacts give a cell that the cloud leaves alive a game
+# with one budget of weights per slot (:func:`slot_bound`) in place of its corners' support
+# points: measured (CPU, best of 2, load 7-8, against the corners) 6 SFCe round a cylinder
+# 1.16x, 4 SFCe 1.24x, 4 SFCe round a cylinder, 4 PCwF, 4 mixed and two opposite soft
+# fingers 0.99-1.02x. Its game grows with the slots: larger sets keep the corners.
 SLOT_GAME_SLOTS = 8
 # Corners a slot game starts with (the lowest under the cell's best combination so far); the
 # others join one by one while the game's weights leave one of them lower than its value.
@@ -557,7 +557,10 @@ def bound_cells(
     directions = np.empty((ANCHORS, 6))
     D = scratch(f)
     slot_dirs = np.empty((1 + REFINE_POINTS, 6))
-    work = slot_work(f, ends, 1 + REFINE_POINTS if len(ends) <= SLOT_GAME_SLOTS + 1 else 0)
+    # contacts only (a row per slot), of few slots: elements keep the corners (lamp facets
+    # measured 0.9x with the slot game)
+    slot_game = len(ends) <= SLOT_GAME_SLOTS + 1 and len(f) == len(ends) - 1
+    work = slot_work(f, ends, 1 + REFINE_POINTS if slot_game else 0)
     anchored = False
     for n in range(N):
         delta, nearest = cell_geometry(
@@ -604,7 +607,7 @@ def bound_cells(
                 if exact - margin > bound:
                     bound = exact - margin
                     copy_into(lin[n], wbar)
-                if bound < target and target > margin and len(ends) <= SLOT_GAME_SLOTS + 1:
+                if bound < target and target > margin and slot_game:
                     copy_into(slot_dirs[0], U[n, low])
                     copy_rows(slot_dirs, one, more[:REFINE_POINTS])
                     split = slot_bound(G, f, W, npc, ends, slot_dirs, corners, unit, nearest,
