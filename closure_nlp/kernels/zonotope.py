@@ -40,18 +40,23 @@ def capacity_many(V, subsets, rests, out):
     ``out[b]``: ``subsets`` (C, 5) the five-subsets of full rank candidates, ``rests``
     (C, m - 5) the contacts outside each; a subset whose Gram determinant is at most 1e-16 of
     the product of its generators' squared lengths spans no facet (skipped)."""
+    m = V.shape[1]
+    dots = np.empty((m, m))  # every pair's dot product, once per set
     gram = np.empty((5, 5))
     A = np.empty((6, 6))
     for b in range(V.shape[0]):
+        for i in range(m):
+            for k in range(m):
+                acc = 0.0
+                for c in range(6):
+                    acc += V[b, i, c] * V[b, k, c]
+                dots[i, k] = acc
         best = np.inf
         for s in range(subsets.shape[0]):
             lengths2 = 1.0
             for i in range(5):
                 for k in range(5):
-                    acc = 0.0
-                    for c in range(6):
-                        acc += V[b, subsets[s, i], c] * V[b, subsets[s, k], c]
-                    gram[i, k] = acc
+                    gram[i, k] = dots[subsets[s, i], subsets[s, k]]
                 lengths2 *= gram[i, i]
             norm2 = _det(gram, 5)
             if not norm2 > 1e-16 * lengths2:
