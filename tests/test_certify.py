@@ -186,12 +186,15 @@ def test_a_broken_lower_bound_is_caught(monkeypatch):
         raw, low = corners[0] @ w, unit[0] @ w
         return low if raw >= 0 else raw / nearest
 
-    # The compiled rounds and cell bounds run as Python (their py_func) so that they call the
-    # broken one.
+    # The compiled rounds, screens and cell bounds run as Python (their py_func) so that they
+    # call the broken one.
     monkeypatch.setattr(kernels, "box_bound", broken)
     monkeypatch.setattr(kernels, "exact_bound", kernels.exact_bound.py_func)
     monkeypatch.setattr(kernels, "bound_cells", kernels.bound_cells.py_func)
     monkeypatch.setattr(kernels, "advance", kernels.advance.py_func)
+    monkeypatch.setattr(kernels, "screen", kernels.screen.py_func)
+    monkeypatch.setattr(kernels, "screen_centres", kernels.screen_centres.py_func)
+    monkeypatch.setattr(kernels, "slot_bound", kernels.slot_bound.py_func)
     caught = tried = 0
     for name, cs in CONTACT_SETS[::25]:
         slots = WrenchSlots.from_contacts(cs)

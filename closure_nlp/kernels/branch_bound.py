@@ -377,10 +377,10 @@ def slot_bound(G, f, W, npc, ends, dirs, corners, unit, nearest, stop, wbar, wor
         for i in range(m):
             at = ends[i]
             for r in range(ends[i] + 1, ends[i + 1]):
-                if D[r, D_VALUE] > D[at, D_VALUE]:
+                if D[D_VALUE, r] > D[D_VALUE, at]:
                     at = r
             copy_into(cols[n * m + i], rows[at])
-            top[i] = max(top[i], D[at, D_VALUE])
+            top[i] = max(top[i], D[D_VALUE, at])
     blocks = 0
     for i in range(m):
         index[i] = -1
