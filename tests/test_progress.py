@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import functools
 import io
 import sys
 
 import pytest
+import tqdm
 
 from closure_nlp import cli
 from closure_nlp.contacts import contact_specs
@@ -67,6 +69,8 @@ def box_file(tmp_path):
 @pytest.mark.parametrize(("terminal", "quiet"), [(True, False), (True, True), (False, False)])
 def test_cli_draws_progress_on_a_terminal_only(capsys, monkeypatch, box_file, terminal, quiet):
     monkeypatch.setattr(sys.stderr, "isatty", lambda: terminal)
+    # the box's selection can end within tqdm's refresh interval (0.1 s): draw every step
+    monkeypatch.setattr(tqdm, "tqdm", functools.partial(tqdm.tqdm, mininterval=0))
     argv = ["select", box_file, "--contacts", "4", "--json"]
     code = cli.main(argv + (["--quiet"] if quiet else []))
     captured = capsys.readouterr()
