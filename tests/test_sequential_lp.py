@@ -142,16 +142,8 @@ def test_placement_by_the_sequential_lp_builds_no_nlp():
     assert Placer(frictionless, options).exchange_solver() == "highs"
 
 
-def test_sequential_lp_then_ipopt_ends_on_ipopt_rounds():
-    """``exchange_solver="slp-ipopt"``: the run's rounds are the sequential LP's until one of
-    them does not pay off, IPOPT's from then on, so the run ends where IPOPT's rounds end it;
-    the placement never ends worse than its start."""
-    model = load_model(MODELS / "lamp.model.json")
-    eligibility = Eligibility(model, contact_specs(4, type="pcwf", mu=0.2))
-    options = PlacementOptions(
-        bound=False, starts=1, extra_starts=0, neighbour_moves=0, exchange_solver="slp-ipopt"
-    )
-    placer = Placer(eligibility, options)
+def _placed_with_problem_kinds(placer, elements):
+    """The placement of ``elements`` and the class of every restricted problem it built."""
     used = []
     build = placer._problem
 
@@ -161,7 +153,19 @@ def test_sequential_lp_then_ipopt_ends_on_ipopt_rounds():
         return problem
 
     placer._problem = recorded
-    result = placer([14, 10, 55, 47])
+    return placer(elements), used
+
+
+def test_sequential_lp_then_ipopt_ends_on_ipopt_rounds():
+    """``exchange_solver="slp-ipopt"``: the run's rounds are the sequential LP's until one of
+    them does not pay off, IPOPT's from then on, so the run ends where IPOPT's rounds end it;
+    the placement never ends worse than its start."""
+    model = load_model(MODELS / "lamp.model.json")
+    eligibility = Eligibility(model, contact_specs(4, type="pcwf", mu=0.2))
+    options = PlacementOptions(
+        bound=False, starts=1, extra_starts=0, neighbour_moves=0, exchange_solver="slp-ipopt"
+    )
+    result, used = _placed_with_problem_kinds(Placer(eligibility, options), [14, 10, 55, 47])
     assert result.exchange_solver == "slp-ipopt" and result.rho <= result.start_rho
     switch = used.index(ExchangeProblem)
     assert switch > 0 and set(used[:switch]) == {ExchangeSLP}
@@ -229,17 +233,7 @@ def test_mixed_solver_gives_exploring_runs_to_the_model_slp():
     options = PlacementOptions(
         bound=False, starts=2, extra_starts=0, neighbour_moves=0, max_rounds=8
     )
-    placer = Placer(eligibility, options)
-    used = []
-    build = placer._problem
-
-    def recorded(rows, count, solver=None):
-        problem = build(rows, count, solver)
-        used.append(type(problem))
-        return problem
-
-    placer._problem = recorded
-    result = placer([14, 10, 55, 47])
+    result, used = _placed_with_problem_kinds(Placer(eligibility, options), [14, 10, 55, 47])
     assert result.exchange_solver == "mixed" and result.rho <= result.start_rho
     switch = used.index(ModelSLP)
     assert switch > 0 and set(used[:switch]) == {ExchangeProblem}
