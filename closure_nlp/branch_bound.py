@@ -62,7 +62,7 @@ import numpy as np
 
 from .kernels import branch_bound as kernels
 from .symmetry import find_symmetry
-from .validation import is_whole
+from .validation import as_shaped, is_whole
 from .wrenches import WrenchSlots
 
 MAX_POLISH = 8  # local solves per branch and bound: each cheap; the first ones do the work
@@ -199,7 +199,9 @@ def sphere_minimum(
     the origin is then outside the set, where :mod:`closure_nlp.nearest_point` is exact.
     """
     start = time.perf_counter()
-    metric = np.ones(6) if metric is None else np.asarray(metric, dtype=float)
+    metric = np.ones(6) if metric is None else as_shaped(metric, "metric", (6,)).astype(float)
+    if not np.all(metric > 0) or not np.all(np.isfinite(metric)):
+        raise ValueError(f"metric: expected six positive finite numbers, got {metric.tolist()}")
     margin = ROUNDOFF * max(slots.row_scales()) * max(1, slots.m)
     symmetry = find_symmetry(slots) if options.symmetry else None
     if symmetry is not None and symmetry.slack <= SLACK_SHARE * gap:
@@ -212,13 +214,13 @@ def sphere_minimum(
     best, best_u = np.array([np.inf, 0.0]), np.zeros(6)
     anchor, anchor_at = np.empty((kernels.ANCHORS, 6)), np.zeros(7)
 
-    def consider(u) -> None:
-        u = np.asarray(u, dtype=float)
+    def consider(u, name: str) -> None:
+        u = np.asarray(as_shaped(u, name, (6,)), dtype=float)
         U = (u / np.linalg.norm(u))[None]
         kernels.consider(*packed, U, np.empty((1, 6)), best, best_u)
 
     if incumbent is not None:
-        consider(incumbent)
+        consider(incumbent, "incumbent")
     tally = np.array([np.inf, 0, 0, -1, best[0], 0], dtype=float)
     settings = np.array(
         [
@@ -245,7 +247,7 @@ def sphere_minimum(
         )
         if status != kernels.POLISH:
             break
-        consider(polish(best_u.copy()))
+        consider(polish(best_u.copy()), "polish(u)")
         tally[kernels.POLISHES] += 1
         tally[kernels.POLISHED_AT] = best[0]
         evaluated = True  # the same cells, already evaluated: on to their bounds

@@ -15,6 +15,7 @@ import numpy as np
 
 from .kernels import kernel_array
 from .kernels import nearest_point as kernels
+from .validation import as_shaped, as_whole
 from .wrenches import WrenchSlots
 
 
@@ -34,6 +35,9 @@ def min_norm_point(points: np.ndarray, tol: float = 1e-15):
     weights : (n,) float
         Its convex weights (non-negative, summing to 1).
     """
+    points = as_shaped(points, "points", ("n", "d"))
+    if len(points) == 0:  # the weights' first entry is written whatever the points
+        raise ValueError(f"points: expected at least one point, got shape {points.shape}")
     return kernels.min_norm_point(kernel_array(points), float(tol))
 
 
@@ -43,8 +47,10 @@ def nearest_point_bounds(slots: WrenchSlots, u0: np.ndarray, gap: float, max_ite
     Returns ``(lo, hi, u, converged, evaluations)``: ``u`` is the unit direction with the lowest
     support value found, ``lo = -p(u)``.
     """
+    u0 = as_shaped(u0, "u0", (6,))
+    max_iter = as_whole(max_iter, "max_iter", 0)  # the kernel keeps a point per iteration
     lo, hi, u, evaluations = kernels.nearest_point_bounds(
-        *slots.packed, _start_directions(u0), float(gap), int(max_iter)
+        *slots.packed, _start_directions(u0), float(gap), max_iter
     )
     return lo, hi, u, hi - lo <= gap, evaluations
 

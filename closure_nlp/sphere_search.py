@@ -13,6 +13,7 @@ import numpy as np
 
 from .kernels import descent as kernels
 from .kernels import kernel_array
+from .validation import as_shaped
 from .wrenches import WrenchSlots
 
 _SAMPLES: dict[tuple[int, int], np.ndarray] = {}
@@ -85,7 +86,7 @@ def descend(
     values : (N,) float
         ``p`` at the end directions (the true support function, also after a smoothed run).
     """
-
+    U = as_shaped(U, "U", ("N", 6))
     if tau is None:  # compiled: the same steps on p itself
         U = kernel_array(U)
         return kernels.descend_many(*slots.packed, U, int(iterations), float(stop))

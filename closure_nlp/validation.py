@@ -165,6 +165,22 @@ def as_points(value, field: str) -> np.ndarray:
     return _read_only(arr)
 
 
+def as_shaped(value, field: str, shape: tuple) -> np.ndarray:
+    """``value`` as an array (not copied) of real numbers in ``shape``: an int fixes an axis'
+    length, a str names a free one. For arrays handed to the compiled kernels, which index
+    without bounds checks (a short array would be read or written past its end) and take
+    float64 (a complex array would lose its imaginary part silently)."""
+    arr = np.asarray(value)
+    fits = arr.ndim == len(shape) and arr.dtype.kind in "biuf"
+    for s, n in zip(shape, arr.shape):  # a loop, not any(): this runs per batch of directions
+        fits &= type(s) is not int or s == n
+    if not fits:
+        wanted = "(" + ", ".join(map(str, shape)) + ("," if len(shape) == 1 else "") + ")"
+        got = f"shape {arr.shape}" if arr.dtype.kind in "biuf" else f"an array of {arr.dtype}"
+        raise ValueError(f"{field}: expected real numbers of shape {wanted}, got {got}")
+    return arr
+
+
 def as_coordinates(value, field: str) -> np.ndarray:
     """A point [x, y, z] with every ``|x| <= MAX_COORDINATE``."""
     return as_vector(value, field, 3, limit=MAX_COORDINATE)

@@ -22,6 +22,7 @@ from .contacts import ContactSet, ContactType, friction_pieces
 from .kernels import kernel_array
 from .kernels import support as kernels
 from .ties import first_largest
+from .validation import as_shaped
 
 MAX_PIECES = 2  # SFCl has two friction pieces, the others fewer
 # The NLPs (support minimum, exchange) take an element's vertex rows padded up to one of these
@@ -162,6 +163,7 @@ class WrenchSlots:
         ``G`` (6, 4, K), ``f_max`` (K,), pieces (2, 4, K), real pieces per row (K,) int, slot
         ends (m + 1,) int."""
         if "_packed" not in self.__dict__:
+            self._check_rows()
             counts = np.diff(np.append(self.starts, len(self.G)))
             packed = (
                 kernel_array(self.G.transpose(1, 2, 0)),
@@ -172,6 +174,25 @@ class WrenchSlots:
             )
             object.__setattr__(self, "_packed", packed)
         return self._packed
+
+    def _check_rows(self) -> None:
+        """The arrays' shapes agree (``ValueError`` naming the first that does not): the kernels
+        index the rows by ``starts`` and ``len(f_max)`` without bounds checks."""
+        K = len(as_shaped(self.G, "G", ("K", 6, 4)))
+        as_shaped(self.f_max, "f_max", (K,))
+        as_shaped(self.pieces, "pieces", (K, MAX_PIECES, 4))
+        starts = as_shaped(self.starts, "starts", ("m",))
+        if starts.dtype.kind not in "iu" or not (
+            len(starts) > 0 and starts[0] == 0 and np.all(np.diff(starts) > 0) and starts[-1] < K
+        ):
+            raise ValueError(
+                f"starts: expected whole numbers rising from 0, each slot's first of the {K} rows "
+                f"of G, got {np.array2string(starts, threshold=8)} ({starts.dtype})"
+            )
+        if len(self.n_pieces) != len(starts):
+            raise ValueError(
+                f"n_pieces: expected one count per slot ({len(starts)}), got {len(self.n_pieces)}"
+            )
 
     def local(self, U: np.ndarray) -> np.ndarray:
         """``d = G^T u`` of every row: (N, 6) -> (N, K, 4)."""
@@ -218,7 +239,7 @@ class WrenchSlots:
 
     def support_point(self, u: np.ndarray) -> np.ndarray:
         """A wrench of the set attaining ``p(u)``: (6,) -> (6,)."""
-        return self.evaluate(np.asarray(u, dtype=float)[None])[1][0]
+        return self.evaluate(as_shaped(u, "u", (6,))[None])[1][0]
 
 
 def pushing_subsets(
@@ -239,8 +260,10 @@ def pushing_subsets(
 
 
 def _directions(U) -> np.ndarray:
-    """Directions as the kernels take them: (N, 6) (:func:`~closure_nlp.kernels.kernel_array`)."""
-    return kernel_array(np.atleast_2d(U))
+    """Directions as the kernels take them: (N, 6) (:func:`~closure_nlp.kernels.kernel_array`),
+    one direction (6,) as a row."""
+    U = np.asarray(U)
+    return kernel_array(as_shaped(U[None] if U.ndim == 1 else U, "U", ("N", 6)))
 
 
 def as_slots(value) -> WrenchSlots:

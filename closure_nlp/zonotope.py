@@ -38,6 +38,7 @@ import numpy as np
 
 from .kernels import kernel_array
 from .kernels.zonotope import capacity_many
+from .validation import as_shaped
 
 # Contacts at most: C(m, 5) five-subsets are enumerated (792 at 12).
 MAX_CONTACTS = 12
@@ -57,9 +58,7 @@ def frictionless_capacity(W: np.ndarray) -> np.ndarray:
     (B,) float
         Each set's load capacity ``-rho`` when it is force closure, else 0.
     """
-    W = np.asarray(W, float)
-    if W.ndim != 3 or W.shape[2] != 6:
-        raise ValueError(f"W: expected shape (B, m, 6), got {W.shape}")
+    W = np.asarray(as_shaped(W, "W", ("B", "m", 6)), dtype=float)
     B, m, _ = W.shape
     if m < 7:
         return np.zeros(B)
