@@ -297,10 +297,10 @@ def small_worker():
     own test below."""
     from closure_nlp.study import tasks
 
-    saved = tasks.MEMORY_LIMIT_MIB
-    tasks.MEMORY_LIMIT_MIB = float("inf")
+    saved = tasks.MEMORY_GROWTH_MIB
+    tasks.MEMORY_GROWTH_MIB = float("inf")
     yield
-    tasks.MEMORY_LIMIT_MIB = saved
+    tasks.MEMORY_GROWTH_MIB = saved
 
 
 @pytest.fixture(scope="module")
@@ -399,20 +399,28 @@ def test_a_new_model_releases_the_solvers_of_the_previous_one(tmp_path):
 
 
 @pytest.mark.slow
-def test_a_worker_over_the_memory_limit_drops_its_solvers(tiny, monkeypatch):
+def test_a_worker_whose_memory_grew_past_the_limit_drops_its_solvers(tiny, monkeypatch):
     from closure_nlp.study import tasks
 
-    monkeypatch.setattr(tasks, "MEMORY_LIMIT_MIB", 450.0)
-    monkeypatch.setattr(tasks, "worker_memory", lambda: {"rss_mib": 100.0, "peak_rss_mib": 100.0})
+    def rss(mib):
+        monkeypatch.setattr(tasks, "worker_memory", lambda: {"rss_mib": mib, "peak_rss_mib": mib})
+
+    monkeypatch.setattr(tasks, "MEMORY_GROWTH_MIB", 256.0)
     task = load_study(tiny).tasks[0]
     clear_cache()
+    rss(600.0)  # the floor: above any fixed limit, the caches are kept
     tasks.run_task(task)
-    assert tasks._local.cache  # kept for the next task while the worker is small
-    monkeypatch.setattr(tasks, "worker_memory", lambda: {"rss_mib": 1e6, "peak_rss_mib": 1e6})
+    assert tasks._local.cache and tasks._local.floor == 600.0
+    rss(850.0)  # grown by less than the limit
+    row = tasks.run_task(task)
+    assert tasks._local.cache and tasks._local.floor == 600.0 and not row["solvers_built"]
+    rss(900.0)  # by more
     row = tasks.run_task(task)
     assert row["status"] == "ok" and not hasattr(tasks._local, "cache")
     assert row["rho_lo"] <= row["rho"] <= row["rho_hi"] and row["converged"]
     assert row["iterative_rho_hat_lo"] <= row["iterative_rho_hat"] <= row["iterative_rho_hat_hi"]
+    tasks.run_task(task)  # the first task after the drop sets the floor again
+    assert tasks._local.cache and tasks._local.floor == 900.0
     clear_cache()
 
 

@@ -109,12 +109,14 @@ class Task:
 
 
 _CACHE_SIZE = 8
-# A worker whose resident set is above this after a task drops its solver caches (their NLPs,
-# 2-5 MB per element-set shape and 15-30 MB per exchange shape, are most of it on the fixture
-# study's pistol). Measured serially on 4 pistol 7-PCwF tasks: after the 4th, 502 MiB instead of
-# 784. Since the exchange cache is bounded (placement.MAX_EXCHANGE_PROBLEMS), 16 pistol tasks
-# stayed under 330 MiB after each, and it rarely triggers.
-MEMORY_LIMIT_MIB = 450.0
+# A worker drops its solver caches when its resident set after a task has grown by more than
+# this since the first task after its last drop (their NLPs, 2-5 MB per element-set shape and
+# 15-30 MB per exchange shape, are most of the growth on the fixture study's pistol). Relative,
+# because most of the floor is not the caches': the numba kernels hold about 150 MiB, and about
+# 250 MiB more in a worker that compiled them. A fixed 450 MiB, which every fixture task passes,
+# would rebuild every solver per task and lose the plan memo (seeds meeting the same elements):
+# pistol 7-PCwF seeds 2-8 serially take 24.6 s of CPU against 31.3 s, at 400-436 MiB after each.
+MEMORY_GROWTH_MIB = 256.0
 # Per thread: CasADi solvers must not be called from two threads at once, and a joined cluster's
 # workers may run several tasks at a time (the local cluster's have one thread each).
 _local = threading.local()
@@ -177,6 +179,18 @@ def release_memory() -> None:
     trim_heap()
 
 
+def _limit_memory() -> None:
+    """Drop this thread's solvers when the resident set has grown by more than
+    :data:`MEMORY_GROWTH_MIB` since the first task after the last drop (the floor: the kernels,
+    the libraries and one task's solvers); rebuild what is needed then."""
+    rss = worker_memory().get("rss_mib", 0.0)
+    floor = getattr(_local, "floor", None)
+    if floor is None:
+        _local.floor = rss
+    elif rss > floor + MEMORY_GROWTH_MIB:
+        release_memory()  # clears the floor too: the next task sets it again
+
+
 def trim_heap() -> None:
     """Hand the heap's free pages back to the system (glibc keeps them otherwise: a fixture
     study's worker held 2.4 GB between tasks whose live data was a fraction of it)."""
@@ -228,8 +242,7 @@ def run_task(task: Task, model_text: str | None = None) -> dict:
         return row
     finally:
         trim_heap()  # the next task starts from the live data, not the last one's peak
-        if worker_memory().get("rss_mib", 0.0) > MEMORY_LIMIT_MIB:
-            release_memory()  # the solver caches grew past the limit: rebuild what is needed
+        _limit_memory()
     for prefix, result in (("heuristic", first), ("iterative", second)):
         row[f"{prefix}_elements"] = [int(e) for e in result.elements]
         row[f"{prefix}_rho_hat"] = float(result.rho_hat)
