@@ -36,6 +36,7 @@ bench: $(STAMP)
 	$(BIN)/python -m closure_nlp.bench rho-hat
 	$(BIN)/python -m closure_nlp.bench certify
 	$(BIN)/python -m closure_nlp.bench engine
+	$(BIN)/python -m closure_nlp.bench batch
 	$(BIN)/python -m closure_nlp.bench select
 	$(BIN)/python -m closure_nlp.bench plan
 

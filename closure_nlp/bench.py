@@ -1,5 +1,6 @@
 """Benchmarks that print JSON: ``python -m closure_nlp.bench WHAT`` (``rho``, ``rho-hat``,
-``certify``, ``engine``, ``select``, ``plan``, ``plans``, ``seeds``, ``gap``, ``characterize``).
+``certify``, ``engine``, ``batch``, ``startup``, ``select``, ``plan``, ``plans``, ``seeds``,
+``gap``, ``characterize``).
 
 Timings are medians over seeded random cases with every solver built and warmed up first, and
 each is compared in the same process with a paper-style baseline: scipy SLSQP started from the
@@ -680,14 +681,16 @@ def bench_plans(seeds=(1, 2, 3), baseline=None, names=None, extra=()) -> dict:
     return report
 
 
-STARTUP_EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "box_7fpc.contacts.json"
+STARTUP_COMMAND = "rho examples/box_7fpc.contacts.json"
 _COMPILED_LINE = "compiled the numeric kernels in "
 
 
-def _cli_run(python_path: str, args: list, env: dict, tty: bool, timeout: float) -> dict:
+def _cli_run(
+    python_path: str, args: list, env: dict, tty: bool, timeout: float, stdout: bool = False
+) -> dict:
     """One ``python -m closure_nlp.cli`` subprocess with ``python_path`` first: its wall and CPU
     seconds (the children's rusage), exit status and stderr (through a pseudo-terminal when
-    ``tty``: the compile notice is shown on terminals only)."""
+    ``tty``: the compile notice is shown on terminals only), and with ``stdout`` its stdout."""
     import resource
     import subprocess
 
@@ -700,7 +703,7 @@ def _cli_run(python_path: str, args: list, env: dict, tty: bool, timeout: float)
     start = time.perf_counter()
     done = subprocess.run(
         [sys.executable, "-m", "closure_nlp.cli", *args],
-        stdout=subprocess.DEVNULL,
+        stdout=subprocess.PIPE if stdout else subprocess.DEVNULL,
         stderr=slave if tty else subprocess.PIPE,
         env={**os.environ, "PYTHONPATH": python_path, **env},
         cwd=python_path,
@@ -724,12 +727,13 @@ def _cli_run(python_path: str, args: list, env: dict, tty: bool, timeout: float)
     else:
         stderr = done.stderr.decode(errors="replace")
     cpu = after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime
-    return {"wall": wall, "cpu": cpu, "status": done.returncode, "stderr": stderr}
+    out = done.stdout.decode(errors="replace") if stdout else None
+    return {"wall": wall, "cpu": cpu, "status": done.returncode, "stderr": stderr, "stdout": out}
 
 
-def _startup_checkout(python_path: str, example: str, cache: str, timeout: float) -> dict:
-    """The cold run of one checkout: a fresh numba cache, the CLI's ``rho`` on a terminal."""
-    run = _cli_run(python_path, ["rho", example], {"NUMBA_CACHE_DIR": cache}, True, timeout)
+def _startup_checkout(python_path: str, argv: list, cache: str, timeout: float) -> dict:
+    """The cold run of one checkout: a fresh numba cache, the command line on a terminal."""
+    run = _cli_run(python_path, argv, {"NUMBA_CACHE_DIR": cache}, True, timeout)
     lines = [line for line in run["stderr"].splitlines() if "numeric kernels" in line]
     said = [line for line in lines if line.startswith(_COMPILED_LINE)]
     reported = float(said[0][len(_COMPILED_LINE) :].split()[0]) if len(said) == 1 else None
@@ -742,29 +746,33 @@ def _startup_checkout(python_path: str, example: str, cache: str, timeout: float
     }
 
 
-def bench_startup(repeats: int = 5, baseline=None, timeout: float = 1800.0) -> dict:
-    """Start-up of ``closure-nlp rho examples/box_7fpc.contacts.json``: cold (a fresh
-    ``NUMBA_CACHE_DIR``, so every kernel compiles; run on a pseudo-terminal, where the CLI says
-    that it compiles and how long) and warm (the same command again, the kernels from that
-    cache; median wall and CPU seconds of ``repeats`` runs). Each run is its own process; given
-    ``baseline`` (another checkout's folder) the same for it, the warm runs alternating."""
+def bench_startup(
+    repeats: int = 5, baseline=None, timeout: float = 1800.0, command: str = STARTUP_COMMAND
+) -> dict:
+    """Start-up of ``closure-nlp COMMAND`` (default :data:`STARTUP_COMMAND`; its paths relative
+    to each checkout): cold (a fresh ``NUMBA_CACHE_DIR``, so every kernel compiles; run on a
+    pseudo-terminal, where the CLI says that it compiles and how long) and warm (the same
+    command again, the kernels from that cache; median wall and CPU seconds of ``repeats``
+    runs). Each run is its own process; given ``baseline`` (another checkout's folder) the same
+    for it, the warm runs alternating."""
+    import shlex
     import tempfile
 
-    example = str(STARTUP_EXAMPLE)
+    argv = shlex.split(command)
     runs = {"ours": str(Path(__file__).resolve().parents[1])}
     if baseline is not None:
         runs["baseline"] = str(Path(baseline).resolve())
-    report = {"load_before": _load(), "example": "examples/box_7fpc.contacts.json"}
+    report = {"load_before": _load(), "command": command}
     with tempfile.TemporaryDirectory() as folder:
         caches = {name: str(Path(folder) / name) for name in runs}
         for name, path in runs.items():
-            report[name] = _startup_checkout(path, example, caches[name], timeout)
+            report[name] = _startup_checkout(path, argv, caches[name], timeout)
             print(json.dumps({name: report[name]}), file=sys.stderr, flush=True)
         warm = {name: [] for name in runs}
         for _ in range(repeats):
             for name, path in runs.items():
                 env = {"NUMBA_CACHE_DIR": caches[name]}
-                run = _cli_run(path, ["rho", example], env, False, timeout)
+                run = _cli_run(path, argv, env, False, timeout)
                 if run["status"] != 0:
                     raise RuntimeError(f"{name}: exit {run['status']}: {run['stderr'][-300:]}")
                 warm[name].append(run)
@@ -777,6 +785,58 @@ def bench_startup(repeats: int = 5, baseline=None, timeout: float = 1800.0) -> d
             "warm_wall_median": report["baseline"]["warm_wall_s"]["median"]
             / report["ours"]["warm_wall_s"]["median"],
         }
+    report["load_after"] = _load()
+    return report
+
+
+BATCH_TYPES = ["pcwf"] * 4
+
+
+def bench_batch(files: int = 200, repeats: int = 3, timeout: float = 600.0) -> dict:
+    """Certified rho of many files through the command line: ``closure-nlp rho --json --quiet``
+    on ``files`` random 4-PCwF contact sets (seeds 0, 1, ...) in one process, and on the first
+    of them alone (a one-file run: the start), alternating, ``repeats`` times each, the kernels
+    from this checkout's cache. Per file: the median wall (and CPU) of all less that of one,
+    over ``files - 1``; the answers' own ``seconds`` (every run's answers, and the force-closure
+    sets' and the others' apart); how many brackets converged."""
+    import tempfile
+
+    here = str(Path(__file__).resolve().parents[1])
+    report = {"benchmark": "batch", "files": files, "repeats": repeats, "load_before": _load()}
+    runs = {"one": [], "all": []}
+    with tempfile.TemporaryDirectory() as folder:
+        paths = []
+        for k in range(files):
+            contact_set = random_contact_set(np.random.default_rng(k), BATCH_TYPES)
+            paths.append(str(Path(folder) / f"s{k:04d}.contacts.json"))
+            Path(paths[-1]).write_text(json.dumps(contact_set.to_dict()))
+        for _ in range(repeats):
+            for name, chosen in (("one", paths[:1]), ("all", paths)):
+                argv = ["rho", "--json", "--quiet", *chosen]
+                run = _cli_run(here, argv, {}, False, timeout, stdout=True)
+                if run["status"] != 0:
+                    raise RuntimeError(f"rho: exit {run['status']}: {run['stderr'][-300:]}")
+                runs[name].append(run)
+    answers = [json.loads(line) for run in runs["all"] for line in run["stdout"].splitlines()]
+    for name, done in runs.items():
+        report[name] = {
+            "wall_s": _stats([r["wall"] for r in done]),
+            "cpu_s": _stats([r["cpu"] for r in done]),
+        }
+    for key in ("wall", "cpu"):  # none from a single file: its run is the start's
+        whole, one = (float(np.median([r[key] for r in runs[n]])) for n in ("all", "one"))
+        report[f"per_file_{key}_ms"] = 1e3 * (whole - one) / (files - 1) if files > 1 else None
+    closure = [a["force_closure"] for a in answers]
+    parts = {
+        "all": answers,
+        "force_closure": [a for a, c in zip(answers, closure) if c],
+        "others": [a for a, c in zip(answers, closure) if not c],
+    }
+    report["answer_ms"] = {
+        name: _stats([1e3 * a["seconds"] for a in part]) for name, part in parts.items() if part
+    }
+    report["force_closure"] = f"{sum(closure) // repeats}/{files}"
+    report["converged"] = f"{sum(a['converged'] for a in answers)}/{len(answers)}"
     report["load_after"] = _load()
     return report
 
@@ -1139,16 +1199,20 @@ def main(argv=None) -> int:
     p.add_argument("--neighbours", action="store_true", help="the ceiling over neighbours too")
     p.add_argument("--compare", action="store_true", help="the exhaustive settings too, after")
     p.add_argument("--budget", type=float, help="seconds per model (default: 30, pistol 60)")
-    p = sub.add_parser("startup", help="cold compile and warm start of the command line's rho")
+    p = sub.add_parser("startup", help="cold compile and warm start of a command line")
     p.add_argument("--repeats", type=int, default=5)
     p.add_argument("--baseline", help="folder of another checkout (e.g. a git worktree)")
+    p.add_argument("--command", default=STARTUP_COMMAND, help=f"default: {STARTUP_COMMAND!r}")
+    p = sub.add_parser("batch", help="certified rho per file: the CLI's rho on many files")
+    p.add_argument("--files", type=int, default=200)
+    p.add_argument("--repeats", type=int, default=3)
     p = sub.add_parser("units", help="pybullet's domino in m and mm, placed under margins")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--cells", type=int, default=200, help="cells of each ceiling (default 200)")
     p.add_argument("--lp-centre", action="store_true", help="PlacementOptions(lp_centre=True)")
     args = parser.parse_args(argv)
     if args.what == "startup":  # its own processes and caches: nothing to warm up here
-        report = bench_startup(args.repeats, args.baseline)
+        report = bench_startup(args.repeats, args.baseline, command=args.command)
         json.dump(report, sys.stdout, indent=2)
         sys.stdout.write("\n")
         return 0
@@ -1175,6 +1239,8 @@ def main(argv=None) -> int:
     elif args.what == "plans":
         seeds = [int(x) for x in args.seeds.split(",")]
         report = bench_plans(seeds, args.baseline, args.models.split(","), args.flags.split())
+    elif args.what == "batch":
+        report = bench_batch(args.files, args.repeats)
     elif args.what == "units":
         report = bench_units(seed=args.seed, cells=args.cells, lp_centre=args.lp_centre)
     elif args.what == "gap":
