@@ -54,6 +54,67 @@ def test_a_read_only_install_caches_in_the_user_cache(tmp_path, monkeypatch):
     assert "NUMBA_CACHE_DIR" not in os.environ
 
 
+def test_without_a_writable_user_cache_the_kernels_cache_in_the_temporary_folder(
+    tmp_path, monkeypatch
+):
+    from closure_nlp import kernels
+
+    package = Path(kernels.__file__).resolve().parent
+    user = tmp_path / "cache" / "closure_nlp" / "numba"
+    real_access = os.access
+
+    def access(path, mode):  # the package's folder and the user's cache folder read-only
+        if mode == os.W_OK and Path(path).resolve() in (package, package / "__pycache__", user):
+            return False
+        return real_access(path, mode)
+
+    monkeypatch.setattr(kernels.os, "access", access)
+    monkeypatch.setattr(kernels.tempfile, "gettempdir", lambda: str(tmp_path / "tmp"))
+    monkeypatch.setenv("NUMBA_CACHE_DIR", "")  # restored after the test (see above)
+    monkeypatch.delenv("NUMBA_CACHE_DIR")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    kernels._cache_dir_fallback()
+    assert os.environ["NUMBA_CACHE_DIR"] == str(tmp_path / "tmp" / "closure_nlp")
+    # no XDG_CACHE_HOME: the home folder's .cache
+    monkeypatch.delenv("NUMBA_CACHE_DIR")
+    monkeypatch.delenv("XDG_CACHE_HOME")
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    kernels._cache_dir_fallback()
+    assert os.environ["NUMBA_CACHE_DIR"] == str(
+        tmp_path / "home" / ".cache" / "closure_nlp" / "numba"
+    )
+
+
+def test_a_read_only_package_compiles_into_the_user_cache_and_loads_from_it(tmp_path):
+    # end to end, in fresh processes: the folder is chosen before numba reads its settings, a
+    # kernel compiled there is written there, and the next process loads it (no compile)
+    from closure_nlp import kernels
+
+    package = Path(kernels.__file__).resolve().parent
+    code = (
+        "import os\n"
+        "from pathlib import Path\n"
+        f"package = Path({str(package)!r})\n"
+        "real = os.access\n"
+        "def access(path, mode):\n"
+        "    if mode == os.W_OK and Path(path).resolve() in (package, package / '__pycache__'):\n"
+        "        return False\n"
+        "    return real(path, mode)\n"
+        "os.access = access\n"
+        "import numpy as np\n"
+        "from closure_nlp.kernels import arrays\n"
+        "print(arrays.dot(np.arange(3.0), np.arange(3.0)))\n"
+        "stats = arrays.dot.stats\n"
+        "print(sum(stats.cache_hits.values()), sum(stats.cache_misses.values()))\n"
+        "print(Path(stats.cache_path).is_relative_to(os.environ['NUMBA_CACHE_DIR']))\n"
+    )
+    env = _env(PYTHONPATH=str(ROOT), XDG_CACHE_HOME=str(tmp_path / "cache"))
+    folder = tmp_path / "cache" / "closure_nlp" / "numba"
+    assert _run(code, env, tmp_path) == ["5.0", "0 1", "True"]  # compiled, cached
+    assert list(folder.rglob("arrays.dot-*.nbi"))
+    assert _run(code, env, tmp_path) == ["5.0", "1 0", "True"]  # loaded from that cache
+
+
 @pytest.mark.slow  # a cold compile of every kernel
 def test_a_cold_cache_compiles_once_and_says_so(tmp_path):
     code = (

@@ -67,12 +67,14 @@ def drop_stale_cache(cache: Path, digest: str, modules) -> None:
     except OSError:
         pass
     try:
+        # made first: a folder numba has yet to create (a fresh NUMBA_CACHE_DIR) gets its stamp
+        # now, else the next process would drop every kernel this one compiles
+        cache.mkdir(parents=True, exist_ok=True)
         for entry in cache.iterdir():
             if entry.suffix in (".nbi", ".nbc") and entry.name.split(".")[0] in modules:
                 entry.unlink(missing_ok=True)
-        cache.mkdir(parents=True, exist_ok=True)
         stamp.write_text(digest)
-    except OSError:  # no cache folder yet (nothing stale) or none writable (numba caches none)
+    except OSError:  # none writable: numba caches nothing there either
         pass
 
 
