@@ -85,6 +85,27 @@ def test_game_weights_stop_once_their_value_reaches_the_target():
     assert saved > 0
 
 
+def test_game_weights_give_up_only_below_the_lp_value():
+    """A game asked to give up below a level stops early only when the LP's value is below it
+    (the mix of rows it reads is an upper bound), and one whose value is above the level runs
+    to it: giving up costs a cell only the pivots that could not drop it."""
+    rng = np.random.default_rng(5)
+    gave_up = 0
+    for _ in range(20):
+        M = 7.0 + rng.normal(size=(32, 55))
+        low, spread = M.min(), M.max() - M.min()
+        best = low + spread * _game_upper_bound((M - low) / spread)
+        for level in (best + 0.02 * spread, best - 0.02 * spread):
+            lam = np.empty(55)
+            pivots = kernels.game_weights(M, lam, np.inf, kernels.MAX_PIVOTS, level)
+            if pivots < 0:
+                gave_up += 1
+                assert best < level
+            else:
+                assert (M @ lam).min() >= best - 1e-6 * spread
+    assert gave_up > 0
+
+
 @pytest.mark.parametrize("kind", ["fpc", "pcwf", "sfcl", "sfce", "mixed"])
 def test_cell_bounds_hold_under_the_reference(kind):
     """Every stage of a cell's bound (single support points, Frank-Wolfe combinations with the

@@ -54,6 +54,30 @@ def test_block_game_weights_reach_the_lp_value(shape):
         assert best - 1e-7 * spread <= value <= best + 1e-9 * spread
 
 
+@pytest.mark.parametrize("shape", [(8, 20, 2), (32, 88, 4), (12, 60, 6)])
+def test_block_game_weights_give_up_only_below_the_lp_value(shape):
+    """A game asked to give up below a level stops early only when HiGHS's value is below it
+    (its dual bound is an upper bound), and one whose value is above the level runs to it."""
+    C, K, blocks = shape
+    rng = np.random.default_rng(C + K)
+    gave_up = 0
+    for _ in range(10):
+        M = 1.0 + rng.normal(size=(C, K))
+        block = rng.integers(0, blocks, K)
+        block[:blocks] = np.arange(blocks)
+        best = _block_game_value(M, block, blocks)
+        spread = np.abs(M).max()
+        for level in (best + 0.05 * spread, best - 0.05 * spread):
+            lam = np.empty(K)
+            pivots = block_game_weights(M, block, blocks, lam, np.inf, level)
+            if pivots < 0:
+                gave_up += 1
+                assert best < level
+            else:
+                assert (M @ lam).min() >= best - 1e-7 * spread
+    assert gave_up > 0
+
+
 @pytest.mark.parametrize("kind", ["pcwf", "sfce", "sfcl", "mixed", "elements"])
 def test_slot_bounds_hold_under_the_reference(kind):
     """Every positive slot bound of a cell lies below the reference support function at random
@@ -78,7 +102,7 @@ def test_slot_bounds_hold_under_the_reference(kind):
         dirs = _cell_directions(rng, axis[n], sign[n], lo[n], hi[n], 22)
         wbar = slots.support_points(centre[None])[0]
         bound = kernels.slot_bound(G, f, W, npc, ends, dirs, corners, unit, nearest, np.inf,
-                                   wbar, work)  # fmt: skip
+                                   -np.inf, wbar, work)  # fmt: skip
         if not np.isfinite(bound):
             continue
         positive += 1

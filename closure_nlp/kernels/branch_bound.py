@@ -55,6 +55,9 @@ GAME_EPS = 1e-6
 # A cell's game stops once its bound clears the drop threshold by this share of the gap: more
 # would only widen the cell's bound past what drops it; less would leave the bracket at the gap.
 GAME_HEADROOM = 0.5
+# Pivots between the checks of a game's dual bound (:func:`row_mix_bound`): a check costs
+# about a pivot.
+GIVE_UP_EVERY = 2
 
 
 @njit(**OPTIONS)
@@ -247,13 +250,38 @@ def frank_wolfe(points, n, c, delta, steps, lam, wbar):
 
 
 @njit(**OPTIONS)
-def game_weights(M, lam, stop=np.inf, max_pivots=MAX_PIVOTS):
+def row_mix_bound(M, T, row, first):
+    """An upper bound on the value ``max_lam min_c (M lam)_c`` of the game ``M`` (C, K), from a
+    simplex tableau ``T`` whose row ``row`` holds the game rows' dual estimates in columns
+    ``first + c``: every mix ``mu`` of the rows bounds it by ``max_k (mu M)_k``; here the
+    estimates clipped at 0 and normalised (the game's optimal mix at its optimum), +inf when
+    none is positive."""
+    C, K = M.shape
+    total = 0.0
+    for c in range(C):
+        total += max(T[row, first + c], 0.0)
+    if not total > 0.0:
+        return np.inf
+    top = -np.inf
+    for k in range(K):
+        v = 0.0
+        for c in range(C):
+            if T[row, first + c] > 0.0:
+                v += T[row, first + c] * M[c, k]
+        top = max(top, v)
+    return top / total
+
+
+@njit(**OPTIONS)
+def game_weights(M, lam, stop=np.inf, max_pivots=MAX_PIVOTS, give_up=-np.inf):
     """Convex weights ``lam`` (K,) maximising ``min_c (M lam)_c`` for ``M`` (C, K): the value
     of a small matrix game by a dense primal simplex (Dantzig's rule) on the game scaled to
     [0, 1]; every iterate is feasible, so capped weights still give a valid bound (callers
     recompute the bound from the weights). Pivoting ends early once the iterate's value
-    reaches ``stop`` (a cell's bound needs no more than its target), or after ``max_pivots``.
-    Returns the pivots taken."""
+    reaches ``stop`` (a cell's bound needs no more than its target), once a mix of the rows
+    (:func:`row_mix_bound`) shows the value below ``give_up`` (the game cannot drop the cell:
+    more pivots would be wasted), or after ``max_pivots``.
+    Returns the pivots taken, as ``-1 - pivots`` when it gave up."""
     C, K = M.shape
     low, high = np.inf, -np.inf
     for i in range(C):
@@ -286,8 +314,13 @@ def game_weights(M, lam, stop=np.inf, max_pivots=MAX_PIVOTS):
     basis[C] = j0
     eps = GAME_EPS
     pivots = 0
+    gave_up = False
     for _ in range(max_pivots):
         if low + span * T[C + 1, V] >= stop:  # t <= (M' lam)_c with M' = (M - low) / span
+            break
+        check = pivots % GIVE_UP_EVERY == GIVE_UP_EVERY - 1
+        if check and row_mix_bound(M, T, C + 1, K + 1) < give_up:
+            gave_up = True
             break
         j, low_obj = 0, np.inf
         for k in range(V):
@@ -325,30 +358,56 @@ def game_weights(M, lam, stop=np.inf, max_pivots=MAX_PIVOTS):
             lam[k] /= total
     else:
         lam[0] = 1.0
-    return pivots
+    return -1 - pivots if gave_up else pivots
 
 
 @njit(**OPTIONS)
-def exact_bound(points, n, corners, unit, nearest, stop, wbar):
+def exact_bound(points, n, corners, unit, nearest, stop, give_up, wbar):
     """The corner bound of the best convex combination of ``points[:n]`` against the cell's
     unit corners (a matrix game), or of one whose game value reaches ``stop`` or that
-    :data:`CELL_PIVOTS` pivots reach; the
-    combination into ``wbar`` (6,). Valid for any weights the game returns: the bound is
+    :data:`CELL_PIVOTS` pivots reach; the combination into ``wbar`` (6,), which on entry holds
+    the cell's best combination so far. Valid for any weights the game returns: the bound is
     :func:`box_bound` of their combination, and ``p(u) >= wbar . u`` for every convex
-    combination of support points, so stopping early can only weaken it."""
-    M = np.empty((CORNERS, n))
+    combination of support points, so stopping early can only weaken it. The game stops as
+    soon as its value is shown below ``give_up`` (the bound cannot drop the cell).
+
+    The game's rows are the :data:`FIRST_ROWS` corners lowest under ``wbar``, then those its
+    combination leaves lowest, until none is below the game's value: a game's optimum holds
+    about as many active corners as dimensions, and its pivots cost in proportion to its rows."""
+    value = np.empty(CORNERS)
     for q in range(CORNERS):
+        value[q] = dot6(unit[q], wbar)
+    order = np.argsort(value)
+    rows_in = np.zeros(CORNERS, np.bool_)
+    M = np.empty((CORNERS, n))
+    C = 0
+    for q in order[:FIRST_ROWS]:
+        rows_in[q] = True
         for i in range(n):
-            s = 0.0
-            for k in range(6):
-                s += unit[q, k] * points[i, k]
-            M[q, i] = s
+            M[C, i] = dot6(unit[q], points[i])
+        C += 1
     lam = np.empty(n)
-    game_weights(M, lam, stop, CELL_PIVOTS)
-    fill(wbar, len(wbar), 0.0)
-    for i in range(n):
-        for k in range(6):
-            wbar[k] += lam[i] * points[i, k]
+    for _ in range(CORNERS):
+        pivots = game_weights(M[:C], lam, stop, CELL_PIVOTS, give_up)
+        fill(wbar, len(wbar), 0.0)
+        for i in range(n):
+            for k in range(6):
+                wbar[k] += lam[i] * points[i, k]
+        if pivots < 0:  # more rows only lower the value
+            break
+        low_in, low_out, at = np.inf, np.inf, -1
+        for q in range(CORNERS):
+            v = dot6(unit[q], wbar)
+            if rows_in[q]:
+                low_in = min(low_in, v)
+            elif v < low_out:
+                low_out, at = v, q
+        if at < 0 or low_out >= min(low_in, stop):
+            break
+        rows_in[at] = True
+        for i in range(n):
+            M[C, i] = dot6(unit[at], points[i])
+        C += 1
     return box_bound(wbar, corners, unit, nearest)
 
 
@@ -359,14 +418,16 @@ def dot6(a, b):
 
 
 @njit(**OPTIONS)
-def slot_bound(G, f, W, npc, ends, dirs, corners, unit, nearest, stop, wbar, work):
+def slot_bound(G, f, W, npc, ends, dirs, corners, unit, nearest, stop, give_up, wbar, work):
     """The corner bound of the best combination of every slot's own support points at the
     directions ``dirs`` (N, 6), each slot with its own weights summing to at most 1
     (:mod:`.slot_game`), or of one whose game value reaches ``stop``; the combination into
     ``wbar`` (6,). ``-inf`` unless the bound is positive: ``p(u) >= wbar . u`` holds where
     some slot value is positive, which ``wbar . u > 0`` over the cell ensures (``wbar . u``
     is at most the sum of the positive slot values). Slots not positive at any of ``dirs``
-    are left out (weight 0 is always allowed). ``work`` holds :func:`slot_work`'s buffers."""
+    are left out (weight 0 is always allowed). The game stops as soon as its value is shown
+    below ``give_up`` (the bound cannot drop the cell). ``work`` holds :func:`slot_work`'s
+    buffers."""
     cols, block, M, lam, rows, D, top, index = work
     m = len(ends) - 1
     N = len(dirs)
@@ -415,7 +476,7 @@ def slot_bound(G, f, W, npc, ends, dirs, corners, unit, nearest, stop, wbar, wor
             q = picked[c]
             for k in range(K):
                 game[c, k] = dot6(unit[q], cols[k])
-        block_game_weights(game, block[:K], blocks, lam, stop)
+        pivots = block_game_weights(game, block[:K], blocks, lam, stop, give_up)
         fill(wbar, 6, 0.0)
         for k in range(K):
             for j in range(6):
@@ -427,7 +488,7 @@ def slot_bound(G, f, W, npc, ends, dirs, corners, unit, nearest, stop, wbar, wor
                 low_in = min(low_in, v)
             elif v < low_out:
                 low_out, at = v, q
-        if at < 0 or low_out >= low_in:
+        if pivots < 0 or at < 0 or low_out >= low_in:  # gave up: more rows only lower it
             break
         rows_in[at] = True
         picked[C] = at
@@ -562,6 +623,7 @@ def bound_cells(
     slot_game = len(ends) <= SLOT_GAME_SLOTS + 1 and len(f) == len(ends) - 1
     work = slot_work(f, ends, 1 + REFINE_POINTS if slot_game else 0)
     anchored = False
+    need = target + margin  # the least game value that drops a cell
     for n in range(N):
         delta, nearest = cell_geometry(
             axis[n], sign[n], lo[n], hi[n], metric, floor, centre, corners, unit
@@ -603,7 +665,8 @@ def bound_cells(
                 added = pool[have : have + REFINE_POINTS]
                 consider_in(G, f, W, npc, ends, more[:REFINE_POINTS], added, best, best_u, D)
                 have += REFINE_POINTS
-                exact = exact_bound(pool, have, corners, unit, nearest, stop + 2 * margin, wbar)
+                exact = exact_bound(pool, have, corners, unit, nearest, stop + 2 * margin, need,
+                                    wbar)  # fmt: skip
                 if exact - margin > bound:
                     bound = exact - margin
                     copy_into(lin[n], wbar)
@@ -611,14 +674,14 @@ def bound_cells(
                     copy_into(slot_dirs[0], U[n, low])
                     copy_rows(slot_dirs, one, more[:REFINE_POINTS])
                     split = slot_bound(G, f, W, npc, ends, slot_dirs, corners, unit, nearest,
-                                       stop + 2 * margin, wbar, work)  # fmt: skip
+                                       stop + 2 * margin, need, wbar, work)  # fmt: skip
                     # its point belongs to the set only where it is positive: not inherited
                     bound = max(bound, split - margin)
                 elif bound < target:
                     consider_in(G, f, W, npc, ends, unit, pool[have : have + CORNERS], best, best_u,
                                 D)  # fmt: skip
                     exact = exact_bound(pool, have + CORNERS, corners, unit, nearest,
-                                        stop + 2 * margin, wbar)  # fmt: skip
+                                        stop + 2 * margin, need, wbar)  # fmt: skip
                     if exact - margin > bound:
                         bound = exact - margin
                         copy_into(lin[n], wbar)

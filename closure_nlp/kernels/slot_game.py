@@ -20,6 +20,7 @@ from .support import OPTIONS
 
 MAX_PIVOTS = 400
 EPS = 1e-9  # pivot and optimality tolerance, on entries scaled to [-1, 1]
+GIVE_UP_EVERY = 2  # pivots between the checks of the game's dual bound (each about a pivot)
 
 
 @njit(**OPTIONS)
@@ -36,12 +37,39 @@ def pivot(T, i, j):
 
 
 @njit(**OPTIONS)
-def block_game_weights(M, block, blocks, lam, stop=np.inf):
+def block_bound(M, block, blocks, T, row, first):
+    """An upper bound on the value of :func:`block_game_weights`' game: for any mix ``mu`` of
+    the rows (here the tableau's dual estimates in ``T[row, first + c]``, clipped at 0 and
+    normalised: the optimal mix at the optimum), ``sum_b max(0, max_{k in b} (mu M)_k)`` (LP
+    duality: each block's weights sum to at most 1); +inf when no estimate is positive."""
+    C, K = M.shape
+    total = 0.0
+    for c in range(C):
+        total += max(T[row, first + c], 0.0)
+    if not total > 0.0:
+        return np.inf
+    top = np.zeros(blocks)
+    for k in range(K):
+        v = 0.0
+        for c in range(C):
+            if T[row, first + c] > 0.0:
+                v += T[row, first + c] * M[c, k]
+        top[block[k]] = max(top[block[k]], v / total)
+    bound = 0.0
+    for b in range(blocks):
+        bound += top[b]
+    return bound
+
+
+@njit(**OPTIONS)
+def block_game_weights(M, block, blocks, lam, stop=np.inf, give_up=-np.inf):
     """Weights ``lam`` (K,) >= 0 with ``sum lam[block == b] <= 1`` for every block ``b <
     blocks`` that maximise ``min(min_c (M lam)_c, ...)`` for ``M`` (C, K), by a dense primal
     simplex (Dantzig's rule) from ``lam = 0``: every iterate is feasible, so the weights of a
     capped or early-stopped run still give a valid bound (callers recompute it from them).
-    Pivoting ends once the iterate's value reaches ``stop``. Returns the pivots taken."""
+    Pivoting ends once the iterate's value reaches ``stop``, or once a mix of the rows shows
+    the value below ``give_up`` (:func:`block_bound`). Returns the pivots taken, as ``-1 -
+    pivots`` when it gave up."""
     C, K = M.shape
     span = 0.0
     for i in range(C):
@@ -83,8 +111,13 @@ def block_game_weights(M, block, blocks, lam, stop=np.inf):
             pivot(T, C + b, j)
             basis[C + b] = j
     pivots = 0
+    gave_up = False
     for _ in range(MAX_PIVOTS):
         if span * T[R, V] >= stop:
+            break
+        check = pivots % GIVE_UP_EVERY == GIVE_UP_EVERY - 1
+        if check and block_bound(M, block, blocks, T, R, K + 1) < give_up:
+            gave_up = True
             break
         j, low = 0, np.inf
         for k in range(V):
@@ -113,4 +146,4 @@ def block_game_weights(M, block, blocks, lam, stop=np.inf):
     for k in range(K):  # roundoff of the pivots: each block's weights at most 1
         if total[block[k]] > 1.0:
             lam[k] /= total[block[k]]
-    return pivots
+    return -1 - pivots if gave_up else pivots
