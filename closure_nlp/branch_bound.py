@@ -114,6 +114,9 @@ class BranchBoundOptions:
         points (a cloud around its lowest sample, then its corners) and a longer search of
         their weights: near the minimum, where the kinks of ``p`` meet. None: every cell of a
         contact set of few contacts (:data:`FEW_CONTACTS`), :data:`REFINE_BELOW` otherwise.
+        Not a cell whose lowest sample lies within ``|target| delta^2`` of the drop threshold
+        (:data:`closure_nlp.kernels.branch_bound.HOPELESS`): linear bounds lose about that
+        much there, and its children are cheaper.
     stop_below_zero : bool
         Stop, unconverged, at the first direction with ``p < 0``: the origin is then outside the
         set, where :mod:`closure_nlp.nearest_point` is exact and much faster.
