@@ -449,7 +449,7 @@ def slot_bound(G, f, W, npc, ends, dirs, corners, unit, nearest, stop, give_up, 
                     at = r
             copy_into(cols[n * m + i], rows[at])
             top[i] = max(top[i], D[D_VALUE, at])
-    blocks = 0
+    blocks = np.int64(0)  # not a literal: one compile of the game
     for i in range(m):
         index[i] = -1
         if top[i] > 0.0:

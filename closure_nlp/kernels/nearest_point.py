@@ -102,7 +102,7 @@ def min_norm_point(points, tol=TOL):
     fallbacks = 0
     for _ in range(50 * (n + 1)):
         x = _current(P, S, lam, k)
-        j, low = 0, np.inf
+        j, low = np.int64(0), np.inf  # not a literal: one compile of _line_step
         for i in range(n):
             v = dot(P[i], x)
             if v < low:

@@ -99,7 +99,7 @@ def block_game_weights(M, block, blocks, lam, stop=np.inf, give_up=-np.inf):
     # a start off the degenerate origin: each block's best column (the largest least entry)
     # pivoted into its block's row, then t into the game rows
     for b in range(blocks):
-        j, best = -1, -np.inf
+        j, best = np.int64(-1), -np.inf  # not literals: one compile of the callees
         for k in range(K):
             if block[k] == b:
                 col = np.inf
@@ -119,13 +119,13 @@ def block_game_weights(M, block, blocks, lam, stop=np.inf, give_up=-np.inf):
         if check and block_bound(M, block, blocks, T, R, K + 1) < give_up:
             gave_up = True
             break
-        j, low = 0, np.inf
+        j, low = np.int64(0), np.inf
         for k in range(V):
             if T[R, k] < low:
                 low, j = T[R, k], k
         if not low < -EPS:
             break
-        i, ratio = -1, np.inf
+        i, ratio = np.int64(-1), np.inf
         for r in range(R):
             if T[r, j] > EPS:
                 q = T[r, V] / T[r, j]

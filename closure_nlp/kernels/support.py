@@ -104,7 +104,8 @@ def set_value(G, f, W, npc, ends, u, D, out, slots, rows):
     """
     K = len(f)
     u0, u1, u2, u3, u4, u5 = u[0], u[1], u[2], u[3], u[4], u[5]
-    two = spin = False  # a second friction piece (SFCl), spin friction (soft fingers)
+    # a second friction piece (SFCl), spin friction (soft fingers); not literals: one compile
+    two = spin = np.bool_(False)
     for r in range(K):
         two |= npc[r] > 1
         spin |= (W[0, 3, r] != 0.0) | (W[1, 3, r] != 0.0)
