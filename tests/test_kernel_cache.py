@@ -160,13 +160,43 @@ def test_the_declared_signatures_are_those_the_library_calls():
 
     kernels.warm_up()  # rho, slot values, row terms, Wolfe's nearest point: every entry point
     declared = kernels.signatures()
-    assert set(declared) == {(m, n) for m, names in kernels.ENTRY_POINTS.items() for n in names}
-    assert sorted(n for names in kernels.COMPILE_GROUPS for n in names) == sorted(
-        kernels.ENTRY_POINTS
-    )
-    for (module, name), types in declared.items():
+    entries = {(m, n) for m, names in kernels.ENTRY_POINTS.items() for n in names}
+    grouped = [kernel for group in kernels.COMPILE_GROUPS for kernel in group]
+    assert sorted(grouped) == sorted(declared)  # each declared kernel compiled once
+    assert entries <= set(declared)
+    for module, name in entries:
         dispatcher = getattr(importlib.import_module(f"closure_nlp.kernels.{module}"), name)
-        assert dispatcher.signatures == [types], (module, name)
+        assert dispatcher.signatures == [declared[module, name]], (module, name)
+
+
+@pytest.mark.slow  # a cold compile of the branch and bound
+def test_the_declared_inner_kernels_are_those_their_callers_pass(tmp_path):
+    # a kernel compiled ahead for its caller (the other process's) must be declared with the
+    # types the caller passes: else the caller compiles it again, and the other process's
+    # compile was wasted
+    from closure_nlp import kernels
+
+    inner = [
+        key for key in kernels.signatures()
+        if key[1] not in kernels.ENTRY_POINTS.get(key[0], ())
+    ]  # fmt: skip
+    assert inner
+    code = (
+        "import importlib\n"
+        "from closure_nlp import kernels\n"
+        "def kernel(module, name):\n"
+        "    return getattr(importlib.import_module(f'closure_nlp.kernels.{module}'), name)\n"
+        "declared = kernels.signatures()\n"
+        f"inner = {inner!r}\n"
+        "for module, names in kernels.ENTRY_POINTS.items():  # their callers, without them\n"
+        "    if any(module == m for m, _ in inner):\n"
+        "        for name in names:\n"
+        "            kernel(module, name).compile(declared[module, name])\n"
+        "for key in inner:\n"
+        "    print(kernel(*key).signatures == [declared[key]])\n"
+    )
+    env = _env(PYTHONPATH=str(ROOT), NUMBA_CACHE_DIR=str(tmp_path / "numba"))
+    assert _run(code, env, tmp_path) == ["True"] * len(inner)
 
 
 def test_a_stale_declaration_compiles_at_the_first_call(tmp_path):
@@ -179,8 +209,7 @@ def test_a_stale_declaration_compiles_at_the_first_call(tmp_path):
         "key = ('nearest_point', 'min_norm_point')\n"
         "declared[key] = (types.Array(types.float64, 3, 'C'), types.float64)\n"
         "kernels.signatures = lambda: declared\n"
-        "kernels.compile_group(kernels.COMPILE_GROUPS.index(next(g for g in kernels.COMPILE_GROUPS"
-        " if 'nearest_point' in g)))\n"
+        "kernels.compile_group(next(i for i, g in enumerate(kernels.COMPILE_GROUPS) if key in g))\n"
         "import numpy as np\n"
         "from closure_nlp.kernels.nearest_point import min_norm_point\n"
         "x = min_norm_point(np.array([[1.0, 1.0], [1.0, -1.0]]), 1e-12)\n"

@@ -119,14 +119,31 @@ ENTRY_POINTS = {
     "descent": ("descend_many", "local_minimum"),
     "zonotope": ("capacity_many",),
 }
-# A cold compile splits the kernels in two halves of about equal compile time, one per process
+# A cold compile splits the kernels in two lists of about equal compile time, one per process
 # (numba compiles under a lock: one process compiles on one core); both write the disk cache.
-COMPILE_GROUPS = (("branch_bound",), ("support", "nearest_point", "descent", "zonotope"))
+# The second list starts with the slot game's bound, which ``advance`` calls deep inside (for
+# the signature it passes, :func:`signatures`): the first process reaches it seconds later and
+# loads it from the disk cache (should it come first, it compiles it too: the same kernel).
+COMPILE_GROUPS = (
+    (
+        ("branch_bound", "consider"),
+        ("descent", "descend_many"),
+        ("zonotope", "capacity_many"),
+        ("branch_bound", "advance"),
+    ),
+    (
+        ("branch_bound", "slot_bound"),
+        *(("support", name) for name in ENTRY_POINTS["support"]),
+        *(("nearest_point", name) for name in ENTRY_POINTS["nearest_point"]),
+        ("descent", "local_minimum"),
+    ),
+)
 
 
 def signatures() -> dict:
-    """Each entry point's one signature (the argument types the Python wrappers pass: see
-    :func:`kernel_array`), so that a compile needs no inputs: ``{(module, name): types}``."""
+    """The one signature of each kernel of :data:`COMPILE_GROUPS`: an entry point's, the
+    argument types the Python wrappers pass (see :func:`kernel_array`); another's, the types
+    its caller passes. A compile needs no inputs: ``{(module, name): types}``."""
     from numba import types
 
     f1, f2, f3 = (types.Array(types.float64, d, "C") for d in (1, 2, 3))
@@ -146,21 +163,25 @@ def signatures() -> dict:
     out["descent", "local_minimum"] = (*slots, f1, i8, f8)
     i2 = types.Array(types.int64, 2, "C")
     out["zonotope", "capacity_many"] = (f3, i2, i2, f1)
+    work = types.Tuple((f2, i1, f2, f1, f2, f2, f1, i1))  # :func:`.branch_bound.slot_work`
+    out["branch_bound", "slot_bound"] = (*slots, f2, f2, f2, f8, f8, f8, f1, work)
     return out
 
 
 def compile_group(group: int) -> None:
-    """Compile (or load from the disk cache) the entry points of ``COMPILE_GROUPS[group]``."""
+    """Compile (or load from the disk cache) the kernels of ``COMPILE_GROUPS[group]``, in
+    order."""
     import importlib
 
     from numba.core.errors import TypingError
 
-    for (module, name), types in signatures().items():
-        if module in COMPILE_GROUPS[group]:
-            try:
-                getattr(importlib.import_module(f"{__name__}.{module}"), name).compile(types)
-            except TypingError:  # a stale declaration: the kernel compiles at its first call
-                pass  # (tests/test_kernel_cache checks the declarations against the calls)
+    declared = signatures()
+    for module, name in COMPILE_GROUPS[group]:
+        try:
+            kernel = getattr(importlib.import_module(f"{__name__}.{module}"), name)
+            kernel.compile(declared[module, name])
+        except TypingError:  # a stale declaration: the kernel compiles at its first call
+            pass  # (tests/test_kernel_cache checks the declarations against the calls)
 
 
 def _compile_in_parallel() -> None:

@@ -65,6 +65,10 @@ GIVE_UP_EVERY = 2
 # 1.41-1.47 / 1.09-1.15x (shallow valleys), 4 SFCe 1.09x, 4 PCwF, 7 FPC, 4 mixed, two opposite
 # soft fingers and lamp rho_hat 0.97-1.07x (within the noise).
 HOPELESS = 1.0
+# The steps of a round that :func:`advance` calls once each: compiled inside it (numba inlines
+# them) rather than as kernels of their own, which LLVM would optimise and compile to machine
+# code once alone and once more inside ``advance``, on a cold compile's longest path.
+ROUND_STEP = {**OPTIONS, "inline": "always"}
 
 
 @njit(**OPTIONS)
@@ -571,7 +575,7 @@ def consider_in(G, f, W, npc, ends, U, points, best, best_u, D):
     return at
 
 
-@njit(**OPTIONS)
+@njit(**ROUND_STEP)
 def evaluate_cells(G, f, W, npc, ends, axis, sign, lo, hi, metric, U, points, values, best, best_u):
     """Every cell's 11 samples: unit directions ``U`` (N, 11, 6), support points ``points``
     (N, 11, 6) and values ``values`` (N, 11), filled in place; the lowest updates the
@@ -588,7 +592,7 @@ def evaluate_cells(G, f, W, npc, ends, axis, sign, lo, hi, metric, U, points, va
     best[1] += SAMPLES * len(axis)
 
 
-@njit(**OPTIONS)
+@njit(**ROUND_STEP)
 def bound_cells(
     G, f, W, npc, ends, axis, sign, lo, hi, metric, floor, U, points, values, target, stop,
     margin, fw_steps, refine_below, best, best_u, anchor, anchor_at, lin,
@@ -721,7 +725,7 @@ def screen(axis, sign, lo, hi, metric, floor, lin, target, margin, tally):
     return keep[:alive]
 
 
-@njit(**OPTIONS)
+@njit(**ROUND_STEP)
 def screen_centres(G, f, W, npc, ends, axis, sign, lo, hi, metric, floor, gap, margin, tally,
                    best, best_u):  # fmt: skip
     """Which cells (indices) the linear bound of their centre's support point leaves below the
