@@ -372,8 +372,10 @@ class CellLP:
         pool = self.directions if hint is None else np.vstack([hint, self.directions])
         A = np.maximum(slots.row_values(pool), 0.0)
         work = self._first_rows(A, owner, len(hint) if hint is not None else 0, rows)
+        lp = _GrowingLP(owner)
         for k in range(rounds + 1):
-            result = self._solve_rows(A, owner, pool, work)
+            result = self._solve_rows(A, owner, pool, work, lp)
+            work = lp.rows
             if k == rounds or time.perf_counter() > deadline:
                 break
             new = self._cuts(slots, result, owner, samples)
@@ -422,13 +424,15 @@ class CellLP:
         return np.union1d(np.arange(hinted), lowest)
 
     @staticmethod
-    def _solve_rows(A, owner, pool, work) -> CellBound:
+    def _solve_rows(A, owner, pool, work, lp: _GrowingLP | None = None) -> CellBound:
         """The LP on the rows ``work`` of ``A``, rows of the rest added while the LP's weights
         fall below its value on them (row generation). The dual bound of any subset of rows is
         valid; the loop only makes it as tight as the LP over all of them, within
-        :data:`ROW_TOLERANCE`."""
+        :data:`ROW_TOLERANCE`. ``lp`` (optional): the :class:`_GrowingLP` of earlier solves on
+        a prefix of ``work``, which keeps the rows added here (its ``rows``)."""
+        lp = _GrowingLP(owner) if lp is None else lp
         while True:
-            result = _solve_lp(A[work], owner, pool[work])
+            result = lp.solve(A, pool, work)
             values = A @ result.lam
             below = values < result.lp_value * (1.0 - ROW_TOLERANCE)
             below[work] = False
@@ -487,6 +491,14 @@ def _solve_lp(A: np.ndarray, owner: np.ndarray, U: np.ndarray) -> CellBound:
     except RuntimeError:
         # every solver failed on it: uniform weights and duals, still a certified bound
         x, duals, value = np.r_[np.ones(R), 0.0], -np.full(N, 1.0 / N), np.nan
+    return _cell_bound(A, owner, U, x, duals, value)
+
+
+def _cell_bound(A, owner, U, x, duals, value) -> CellBound:
+    """The LP's weights (from its primal ``x``) and the certified bound of its duals (their
+    weak dual, :func:`dual_bound`, whatever the solver's accuracy)."""
+    N, R = A.shape
+    m = int(owner.max()) + 1
     lam = np.maximum(x[:R], 0.0)
     totals = np.bincount(owner, lam, minlength=m)
     lam /= totals[owner]
@@ -494,6 +506,59 @@ def _solve_lp(A: np.ndarray, owner: np.ndarray, U: np.ndarray) -> CellBound:
     y = y / y.sum() if y.sum() > 0 else np.full(N, 1.0 / N)
     bound = dual_bound(A, owner, y)
     return CellBound(bound, lam, y, U, value if np.isfinite(value) else bound)
+
+
+class _GrowingLP:
+    """The LP of :func:`_solve_lp` on rows of ``A`` that only grow (cutting planes, row
+    generation): HiGHS keeps its basis between the solves, so each one after the first is a few
+    dual simplex iterations from the last optimum, not a solve from scratch. The bound is the
+    weak dual of its duals (:func:`_cell_bound`), as for a fresh solve; a solve that does not
+    end optimal is done afresh by :func:`_solve_lp` (and its fallbacks)."""
+
+    def __init__(self, owner: np.ndarray):
+        self.owner, self.m = owner, int(owner.max()) + 1
+        self.rows = np.zeros(0, dtype=int)  # rows of A of the last solve
+        self._held = self.rows  # the rows the solver holds, in its order
+        self.unit, self.first = 0.0, 0  # A's scale, and the rows passed with the model
+
+    def solve(self, A: np.ndarray, pool: np.ndarray, rows: np.ndarray) -> CellBound:
+        """The LP on rows ``rows`` of ``A`` (directions ``pool``), from the last basis when
+        ``rows`` starts with the last call's."""
+        self.rows = rows = np.asarray(rows, dtype=int)
+        if _Highs is None:
+            return _solve_lp(A[rows], self.owner, pool[rows])
+        solver = getattr(_SOLVERS, "growing", None)
+        if solver is None:
+            solver = _Highs()
+            solver.setOptionValue("output_flag", False)
+            solver.setOptionValue("presolve", "off")
+            _SOLVERS.growing = solver
+        old = len(self._held)
+        if not np.array_equal(rows[:old], self._held):
+            old = 0
+        added = A[rows[old:]]
+        if not old:
+            unit = float(added.max(initial=0.0))  # as in _solve_lp: tolerances at unit scale
+            self.unit, self.first = (unit if unit > 0.0 else 1.0), len(added)
+            solver.passModel(max_min_model(added / self.unit, self.owner, self.m))
+        elif len(added):
+            n, width = added.shape[0], added.shape[1] + 1
+            values = np.hstack([-added / self.unit, np.ones((n, 1))]).ravel()
+            index = np.tile(np.arange(width, dtype=np.int32), n)
+            starts = np.arange(n, dtype=np.int32) * width
+            solver.addRows(n, np.full(n, -_INF), np.zeros(n), n * width, starts, index, values)
+        self._held = rows
+        solver.run()
+        if solver.getModelStatus() != _OPTIMAL:
+            self._held = np.zeros(0, dtype=int)  # the next solve starts afresh
+            return _solve_lp(A[rows], self.owner, pool[rows])
+        solution = solver.getSolution()
+        first = self.first  # the simplex rows follow them, the added ones come after
+        at = np.r_[np.arange(first), first + self.m + np.arange(len(rows) - first)]
+        duals = np.asarray(solution.row_dual, float)[at]
+        value = -solver.getInfo().objective_function_value * self.unit
+        x = np.asarray(solution.col_value, float)
+        return _cell_bound(A[rows], self.owner, pool[rows], x, duals, value)
 
 
 def max_min_lp(A: np.ndarray, owner: np.ndarray, lower=None, upper=None):

@@ -83,14 +83,14 @@ def test_cell_bound_is_above_every_sampled_placement(kind, mu, elements, rows):
 
 def test_the_check_fails_when_a_term_is_dropped(monkeypatch):
     """With the last contact's term left out of the LP, sampled placements beat the 'bound'."""
-    solve = placement_bound._solve_lp
+    solve = placement_bound._GrowingLP.solve
 
-    def dropped(A, owner, U):
+    def dropped(lp, A, pool, rows):
         A = A.copy()
-        A[:, owner == owner.max()] = 0.0
-        return solve(A, owner, U)
+        A[:, lp.owner == lp.owner.max()] = 0.0
+        return solve(lp, A, pool, rows)
 
-    monkeypatch.setattr(placement_bound, "_solve_lp", dropped)
+    monkeypatch.setattr(placement_bound._GrowingLP, "solve", dropped)
     model = box_model(2.0)
     specs = contact_specs(4, type="pcwf", mu=0.5)
     bad, _ = _violations(Eligibility(model, specs, 0.5), (0, 1, 2, 3), 3, 3, depth=(10, 11))
@@ -129,6 +129,30 @@ def test_row_generation_reaches_the_full_lp():
         assert len(generated.directions) < 400  # the point of it: a smaller LP
         assert generated.value == pytest.approx(full.value, rel=1e-5)
         assert (A @ generated.lam).min() >= generated.lp_value * (1 - 1e-5)
+
+
+def test_an_lp_grown_row_by_row_ends_at_the_fresh_lp():
+    """The cutting planes' LP keeps its solver (and basis) while rows join: after each batch
+    its value, and the certified bound of its duals, are those of the LP over the same rows
+    solved from scratch, and its duals' bound holds for every weight vector."""
+    rng = np.random.default_rng(7)
+    owner = np.array([0, 0, 0, 1, 1, 2, 2, 2])
+    for _ in range(4):
+        A = rng.random((300, 8)) ** 2
+        pool = rng.standard_normal((300, 6))
+        lp = placement_bound._GrowingLP(owner)
+        rows = np.arange(10)
+        for _ in range(5):
+            grown = lp.solve(A, pool, rows)
+            fresh = placement_bound._solve_lp(A[rows], owner, pool[rows])
+            assert grown.lp_value == pytest.approx(fresh.lp_value, rel=1e-7)
+            assert grown.value == pytest.approx(fresh.value, rel=1e-7)
+            assert len(grown.directions) == len(rows)
+            for _ in range(20):
+                lam = np.concatenate([rng.dirichlet(np.ones(k)) for k in (3, 2, 3)])
+                assert (A[rows] @ lam).min() <= grown.value
+            rest = np.setdiff1d(np.arange(300), rows)
+            rows = np.concatenate([rows, rng.choice(rest, 15, replace=False)])
 
 
 def test_capacity_bound_on_the_box():
