@@ -527,12 +527,7 @@ class _GrowingLP:
         self.rows = rows = np.asarray(rows, dtype=int)
         if _Highs is None:
             return _solve_lp(A[rows], self.owner, pool[rows])
-        solver = getattr(_SOLVERS, "growing", None)
-        if solver is None:
-            solver = _Highs()
-            solver.setOptionValue("output_flag", False)
-            solver.setOptionValue("presolve", "off")
-            _SOLVERS.growing = solver
+        solver = _thread_solver("growing")
         old = len(self._held)
         if not np.array_equal(rows[:old], self._held):
             old = 0
@@ -602,14 +597,9 @@ def max_min_model(A: np.ndarray, owner: np.ndarray, m: int, lower=None, upper=No
     return lp
 
 
-def _highs(A: np.ndarray, owner: np.ndarray, m: int, lower=None, upper=None, interior=False):
-    """The LP ``min -t`` s.t. ``t - A lam <= 0``, ``sum_{r of i} lam_r = 1``, ``lam >= 0`` by
-    HiGHS itself, one solver per thread (scipy's ``linprog`` around the same solver spends
-    about 4 ms per call checking its options, 2-3 times the solve of a cell's LP):
-    (primal x (R + 1,), duals of the N inequality rows, optimal t). ``lower`` and ``upper``
-    (R,), optional, bound ``lam`` further (the exchange method's trust region); ``interior``:
-    by the interior point method, without crossover (:func:`max_min_lp`)."""
-    name = "interior" if interior else "highs"
+def _thread_solver(name: str, interior: bool = False):
+    """This thread's HiGHS solver ``name``, made at its first use: quiet, no presolve; by the
+    interior point method without crossover when ``interior``."""
     solver = getattr(_SOLVERS, name, None)
     if solver is None:
         solver = _Highs()
@@ -620,6 +610,17 @@ def _highs(A: np.ndarray, owner: np.ndarray, m: int, lower=None, upper=None, int
             solver.setOptionValue("run_crossover", "off")
             solver.setOptionValue("ipm_optimality_tolerance", 1e-10)
         setattr(_SOLVERS, name, solver)
+    return solver
+
+
+def _highs(A: np.ndarray, owner: np.ndarray, m: int, lower=None, upper=None, interior=False):
+    """The LP ``min -t`` s.t. ``t - A lam <= 0``, ``sum_{r of i} lam_r = 1``, ``lam >= 0`` by
+    HiGHS itself, one solver per thread (scipy's ``linprog`` around the same solver spends
+    about 4 ms per call checking its options, 2-3 times the solve of a cell's LP):
+    (primal x (R + 1,), duals of the N inequality rows, optimal t). ``lower`` and ``upper``
+    (R,), optional, bound ``lam`` further (the exchange method's trust region); ``interior``:
+    by the interior point method, without crossover (:func:`max_min_lp`)."""
+    solver = _thread_solver("interior" if interior else "highs", interior)
     N = len(A)
     solver.passModel(max_min_model(A, owner, m, lower, upper))
     solver.run()
