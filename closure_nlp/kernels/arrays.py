@@ -8,6 +8,7 @@ kernels use these instead."""
 
 from __future__ import annotations
 
+import numpy as np
 from numba import njit
 
 from .support import OPTIONS
@@ -42,3 +43,76 @@ def dot(a, b):
     for k in range(len(a)):
         s += a[k] * b[k]
     return s
+
+
+# Partitions below this size are finished by insertion sort (numba's quicksort's constant).
+SMALL_SORT = 15
+
+
+@njit(**OPTIONS)
+def _before(a, b):
+    """numpy's order of floats: NaN last."""
+    return a < b or (np.isnan(b) and not np.isnan(a))
+
+
+@njit(**OPTIONS)
+def argsort(values):
+    """``np.argsort(values)`` of a float vector, the same order as numba's (its quicksort step
+    for step: ties and NaN end where it puts them), written out here: numba compiles its
+    generic sort (a list of partitions, assertions) for seconds in every process that compiles
+    a caller."""
+    n = len(values)
+    order = np.empty(n, np.int64)
+    for k in range(n):
+        order[k] = k
+    if n < 2:
+        return order
+    # the larger side of each partition waits here, the smaller is sorted first: depth < 64
+    stack = np.empty((64, 2), np.int64)
+    stack[0, 0], stack[0, 1] = 0, n - 1
+    depth = 1
+    while depth > 0:
+        depth -= 1
+        low, high = stack[depth, 0], stack[depth, 1]
+        while high - low >= SMALL_SORT:
+            # median of three {low, middle, high}, stashed at the end
+            mid = (low + high) >> 1
+            if _before(values[order[mid]], values[order[low]]):
+                order[low], order[mid] = order[mid], order[low]
+            if _before(values[order[high]], values[order[mid]]):
+                order[high], order[mid] = order[mid], order[high]
+            if _before(values[order[mid]], values[order[low]]):
+                order[low], order[mid] = order[mid], order[low]
+            pivot = values[order[mid]]
+            order[high], order[mid] = order[mid], order[high]
+            i, j = low, high - 1
+            while True:
+                while i < high and _before(values[order[i]], pivot):
+                    i += 1
+                while j >= low and _before(pivot, values[order[j]]):
+                    j -= 1
+                if i >= j:
+                    break
+                order[i], order[j] = order[j], order[i]
+                i += 1
+                j -= 1
+            order[i], order[high] = order[high], order[i]
+            if high - i > i - low:
+                if high > i:
+                    stack[depth, 0], stack[depth, 1] = i + 1, high
+                    depth += 1
+                high = i - 1
+            else:
+                if i > low:
+                    stack[depth, 0], stack[depth, 1] = low, i - 1
+                    depth += 1
+                low = i + 1
+        for i in range(low + 1, high + 1):  # insertion sort of order[low:high + 1]
+            k = order[i]
+            v = values[k]
+            j = i
+            while j > low and _before(v, values[order[j - 1]]):
+                order[j] = order[j - 1]
+                j -= 1
+            order[j] = k
+    return order

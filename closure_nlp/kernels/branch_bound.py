@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .arrays import copy_into, copy_rows, fill
+from .arrays import argsort, copy_into, copy_rows, fill
 from .slot_game import block_game_weights
 from .support import D_VALUE, OPTIONS, WRAPPER, scratch, set_value, support_point
 
@@ -388,7 +388,7 @@ def exact_bound(points, n, corners, unit, nearest, stop, give_up, wbar):
     value = np.empty(CORNERS)
     for q in range(CORNERS):
         value[q] = dot6(unit[q], wbar)
-    order = np.argsort(value)
+    order = argsort(value)
     rows_in = np.zeros(CORNERS, np.bool_)
     M = np.empty((CORNERS, n))
     C = 0
@@ -473,7 +473,7 @@ def slot_bound(G, f, W, npc, ends, dirs, corners, unit, nearest, stop, give_up, 
     value = np.empty(CORNERS)
     for q in range(CORNERS):
         value[q] = dot6(unit[q], wbar)
-    order = np.argsort(value)
+    order = argsort(value)
     rows_in = np.zeros(CORNERS, np.bool_)
     picked = np.empty(CORNERS, np.int64)
     C = 0
