@@ -20,7 +20,7 @@ from numba import njit
 
 from .arrays import argsort, copy_into, copy_rows, fill
 from .slot_game import block_game_weights
-from .support import D_VALUE, OPTIONS, WRAPPER, scratch, set_value, support_point
+from .support import D_VALUE, OPTIONS, WRAPPER, no_vector, scratch, set_value, support_point
 
 SAMPLES = 11  # a cell's centre and the ends of its five axes
 CORNERS = 32
@@ -445,7 +445,7 @@ def slot_bound(G, f, W, npc, ends, dirs, corners, unit, nearest, stop, give_up, 
     for i in range(m):
         top[i] = -np.inf
     for n in range(N):
-        set_value(G, f, W, npc, ends, dirs[n], D, None, None, rows)
+        set_value(G, f, W, npc, ends, dirs[n], D, None, no_vector(D), rows)
         for i in range(m):
             at = ends[i]
             for r in range(ends[i] + 1, ends[i + 1]):

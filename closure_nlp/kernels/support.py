@@ -93,8 +93,10 @@ def set_value(G, f, W, npc, ends, u, D, out, slots, rows):
 
     ``out`` (6,) gets a wrench of the set attaining ``p(u)`` (the sum of the chosen slots'
     support wrenches: the gradient where unique), ``slots`` (m,) the slot values ``P_i`` (eq
-    36) and ``rows`` (K, 6) every row's support wrench, each unless None (numba compiles a
-    version per combination, the unused branches pruned).
+    36) and ``rows`` (K, 6) every row's support wrench, each unless None or empty. numba
+    compiles a version per combination of None and array (the None branches pruned): callers
+    pass two, ``out`` alone (the search's, empty for the value alone) or ``slots`` and
+    ``rows`` (either empty), each version seconds of every cold compile.
 
     One flat function, no call per row: in numba a call that passes arrays costs more than a
     row's arithmetic (reference counts), and this runs for every direction of every search.
@@ -142,7 +144,7 @@ def set_value(G, f, W, npc, ends, u, D, out, slots, rows):
     if ends[-1] == len(ends) - 1:  # a row per slot (contacts)
         total = positive_sum(value, chosen_)
         any_positive = total > 0.0
-        if slots is not None:
+        if slots is not None and len(slots) > 0:
             for r in range(K):
                 slots[r] = value[r]
         if any_positive:
@@ -157,7 +159,7 @@ def set_value(G, f, W, npc, ends, u, D, out, slots, rows):
             for r in range(ends[i], ends[i + 1]):
                 if value[r] > best:  # the first of equal rows
                     best, at = value[r], r
-            if slots is not None:
+            if slots is not None and len(slots) > 0:
                 slots[i] = best
             if best > 0.0:
                 total += best
@@ -167,7 +169,7 @@ def set_value(G, f, W, npc, ends, u, D, out, slots, rows):
                 top, top_row = best, at
     if not any_positive:
         chosen_[top_row] = 1.0
-    if rows is not None:
+    if rows is not None and len(rows) > 0:
         force = np.empty(4)
         for r in range(K):  # each row's support force f (e_n + W[piece] d / sqrt(q)), wrench
             q, piece = D[D_Q, r], int(D[D_PIECE, r])
@@ -180,15 +182,28 @@ def set_value(G, f, W, npc, ends, u, D, out, slots, rows):
                 for c in range(4):
                     s += G[k, c, r] * force[c]
                 rows[r, k] = s
-    if out is not None:
+    if out is not None and len(out) > 0:
         support_wrench(G, f, W, D, spin, out)
     return total + min(top, 0.0)
 
 
 @njit(**WRAPPER)
+def no_vector(D):
+    """An empty ``out`` or ``slots`` of :func:`set_value` (a view of the scratch ``D``:
+    nothing allocated)."""
+    return D[0, :0]
+
+
+@njit(**WRAPPER)
+def no_rows(D):
+    """An empty ``rows`` of :func:`set_value` (of the type of a (K, 6) array)."""
+    return D[:0]
+
+
+@njit(**WRAPPER)
 def support_value(G, f, W, npc, ends, u, D):
     """``p(u)`` of one direction (6,), without the support point; ``D`` scratch."""
-    return set_value(G, f, W, npc, ends, u, D, None, None, None)
+    return set_value(G, f, W, npc, ends, u, D, no_vector(D), None, None)
 
 
 @njit(**WRAPPER)
@@ -241,7 +256,7 @@ def row_wrenches_many(G, f, W, npc, ends, U):
     wrenches = np.empty((len(U), K, 6))
     D = scratch(f)
     for n in range(len(U)):
-        set_value(G, f, W, npc, ends, U[n], D, None, None, wrenches[n])
+        set_value(G, f, W, npc, ends, U[n], D, None, no_vector(D), wrenches[n])
         for r in range(K):
             values[n, r] = D[D_VALUE, r]
     return values, wrenches
@@ -253,5 +268,5 @@ def slots_many(G, f, W, npc, ends, U):
     out = np.empty((len(U), len(ends) - 1))
     D = scratch(f)
     for n in range(len(U)):
-        set_value(G, f, W, npc, ends, U[n], D, None, out[n], None)
+        set_value(G, f, W, npc, ends, U[n], D, None, out[n], no_rows(D))
     return out
