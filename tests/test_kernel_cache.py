@@ -145,10 +145,39 @@ def test_the_rho_command_loads_only_the_kernels_of_rho(tmp_path):
     env = _env(PYTHONPATH=str(ROOT))
     if "NUMBA_CACHE_DIR" in os.environ:
         env["NUMBA_CACHE_DIR"] = os.environ["NUMBA_CACHE_DIR"]
-    if not kernels._cached():  # a cold cache: this first process compiles every kernel
-        assert _run(code, env, tmp_path) == ["False True True True True"]
+    if not kernels._cached(rho_only=True):  # a cold cache: this first process compiles them
+        assert _run(code, env, tmp_path) == ["False False False False True"]
     # warm: the kernels of rho loaded, not those of rows, slots and Wolfe's nearest point
     assert _run(code, env, tmp_path) == ["True False False False True"]
+
+
+@pytest.mark.slow  # a cold compile of the kernels of rho, then of the others
+def test_a_cold_rho_compiles_the_kernels_of_rho_and_a_later_command_the_others(tmp_path):
+    # the rho command compiles only what a certified rho runs; a command that runs the others
+    # (slot values, rows, Wolfe's nearest point, the zonotope) compiles those at its warm-up,
+    # and says so, and then nothing is left to compile
+    code = (
+        "import sys\n"
+        "from closure_nlp import kernels\n"
+        "lines = []\n"
+        "rho_only = sys.argv[1] == 'rho'\n"
+        "print(kernels.warm_up(lines.append, rho_only=rho_only) is not None, len(lines))\n"
+        "print(kernels._cached(rho_only=True), kernels._cached())\n"
+    )
+    env = _env(PYTHONPATH=str(ROOT), NUMBA_CACHE_DIR=str(tmp_path / "numba"))
+
+    def run(which):
+        out = subprocess.run(
+            [sys.executable, "-c", code, which], capture_output=True, text=True, env=env,
+            cwd=tmp_path, timeout=600,
+        )  # fmt: skip
+        assert out.returncode == 0, out.stderr
+        return out.stdout.strip().splitlines()
+
+    assert run("rho") == ["True 2", "True False"]
+    assert run("rho") == ["False 0", "True False"]
+    assert run("all") == ["True 2", "True True"]
+    assert run("all") == ["False 0", "True True"]
 
 
 def test_the_declared_signatures_are_those_the_library_calls():

@@ -119,6 +119,20 @@ ENTRY_POINTS = {
     "descent": ("descend_many", "local_minimum"),
     "zonotope": ("capacity_many",),
 }
+# The kernels a certified rho runs (the ``rho`` command's, :func:`warm_up`'s ``rho_only``),
+# ``advance``'s slot game included: a cold ``rho`` compiles these alone; the others (slot
+# values, row terms, Wolfe's nearest point of given points, the zonotope's capacity) compile
+# when a command that runs them first warms up, or at their first call.
+RHO_KERNELS = (
+    ("branch_bound", "consider"),
+    ("branch_bound", "advance"),
+    ("branch_bound", "slot_bound"),
+    ("descent", "descend_many"),
+    ("descent", "local_minimum"),
+    ("nearest_point", "nearest_point_bounds"),
+    ("support", "support_many"),
+    ("support", "evaluate_many"),
+)
 # A cold compile splits the kernels in two lists of about equal compile time, one per process
 # (numba compiles under a lock: one process compiles on one core); both write the disk cache.
 # The second list starts with the slot game's bound, which ``advance`` calls deep inside (for
@@ -127,7 +141,6 @@ ENTRY_POINTS = {
 COMPILE_GROUPS = (
     (
         ("branch_bound", "consider"),
-        ("descent", "descend_many"),
         ("zonotope", "capacity_many"),
         ("branch_bound", "advance"),
     ),
@@ -136,6 +149,7 @@ COMPILE_GROUPS = (
         *(("support", name) for name in ENTRY_POINTS["support"]),
         *(("nearest_point", name) for name in ENTRY_POINTS["nearest_point"]),
         ("descent", "local_minimum"),
+        ("descent", "descend_many"),
     ),
 )
 
@@ -168,15 +182,17 @@ def signatures() -> dict:
     return out
 
 
-def compile_group(group: int) -> None:
+def compile_group(group: int, rho_only: bool = False) -> None:
     """Compile (or load from the disk cache) the kernels of ``COMPILE_GROUPS[group]``, in
-    order."""
+    order; with ``rho_only``, those of :data:`RHO_KERNELS` alone."""
     import importlib
 
     from numba.core.errors import TypingError
 
     declared = signatures()
     for module, name in COMPILE_GROUPS[group]:
+        if rho_only and (module, name) not in RHO_KERNELS:
+            continue
         try:
             kernel = getattr(importlib.import_module(f"{__name__}.{module}"), name)
             kernel.compile(declared[module, name])
@@ -184,7 +200,7 @@ def compile_group(group: int) -> None:
             pass  # (tests/test_kernel_cache checks the declarations against the calls)
 
 
-def _compile_in_parallel() -> None:
+def _compile_in_parallel(rho_only: bool = False) -> None:
     """The first half of the kernels compiled here while another process compiles the second
     (on a machine of one core, or should the other process fail, this one compiles it after:
     the same kernels, the same cache)."""
@@ -196,7 +212,7 @@ def _compile_in_parallel() -> None:
         env = {**os.environ, "PYTHONPATH": os.pathsep.join(
             p for p in (root, os.environ.get("PYTHONPATH")) if p
         )}  # fmt: skip
-        code = f"from {__name__} import compile_group; compile_group(1)"
+        code = f"from {__name__} import compile_group; compile_group(1, {rho_only})"
         try:
             helper = subprocess.Popen(
                 [sys.executable, "-c", code],
@@ -208,7 +224,7 @@ def _compile_in_parallel() -> None:
         except (OSError, ValueError):  # no interpreter to start: compile it all here
             helper = None
     try:
-        compile_group(0)
+        compile_group(0, rho_only)
         if helper is not None:
             helper.wait()  # its kernels then load from the disk cache (or compile here, failed)
     except BaseException:  # an interrupt: no process left compiling behind
@@ -218,24 +234,28 @@ def _compile_in_parallel() -> None:
         raise
 
 
-def _cached() -> bool:
-    """Whether every kernel called from Python has a current copy in numba's disk cache (the
-    index numba reads: empty when missing or when the source changed since)."""
+def _cached(rho_only: bool = False) -> bool:
+    """Whether every kernel called from Python (with ``rho_only``, every one a certified rho
+    runs) has a current copy in numba's disk cache (the index numba reads: empty when missing
+    or when the source changed since)."""
     import importlib
 
     try:
         for module, names in ENTRY_POINTS.items():
             loaded = importlib.import_module(f"{__name__}.{module}")
-            if not all(getattr(loaded, n)._cache._cache_file._load_index() for n in names):
-                return False
+            for name in names:
+                if rho_only and (module, name) not in RHO_KERNELS:
+                    continue
+                if not getattr(loaded, name)._cache._cache_file._load_index():
+                    return False
         return True
     except Exception:  # numba's cache layout is private: assume a compile is due
         return False
 
 
 def warm_up(notify=None, *, rho_only: bool = False) -> float | None:
-    """Compile (or load from the disk cache) the kernels a certified rho runs, on tiny sets,
-    so that the first answer's ``seconds`` holds none of it.
+    """Compile (or load from the disk cache) the kernels called from Python, on tiny sets, so
+    that the first answer's ``seconds`` holds none of it.
 
     Parameters
     ----------
@@ -244,10 +264,10 @@ def warm_up(notify=None, *, rho_only: bool = False) -> float | None:
         after it, with the seconds it took; the library itself never prints (the CLI shows
         it on stderr; the ``closure_nlp`` logger records it too).
     rho_only : bool
-        With every kernel in the disk cache, load only those a certified rho runs (the
-        ``rho`` command's), not those of slot values, row terms and Wolfe's nearest point
-        (elements and placements): each load costs milliseconds of every start. A compile
-        always compiles them all, once.
+        Only the kernels a certified rho runs (:data:`RHO_KERNELS`, the ``rho`` command's),
+        not those of slot values, row terms, Wolfe's nearest point of given points and the
+        zonotope's capacity (elements and placements): a cold compile of fewer kernels, and
+        from the disk cache fewer loads (milliseconds each, at every start).
 
     Returns
     -------
@@ -259,7 +279,7 @@ def warm_up(notify=None, *, rho_only: bool = False) -> float | None:
 
     import numpy as np
 
-    compiles = not _cached()
+    compiles = not _cached(rho_only)
     log = logging.getLogger("closure_nlp")
     where = os.environ.get("NUMBA_CACHE_DIR") or str(Path(__file__).resolve().parent)
     text = f"compiling the numeric kernels (once; cached in {where})"
@@ -269,7 +289,7 @@ def warm_up(notify=None, *, rho_only: bool = False) -> float | None:
             notify(text)
     start = time.perf_counter()  # loading from the cache costs too: done here, not in an answer
     if compiles:
-        _compile_in_parallel()
+        _compile_in_parallel(rho_only)
     from ..contacts import Contact, ContactSet
     from ..quality import rho
 
@@ -278,8 +298,20 @@ def warm_up(notify=None, *, rho_only: bool = False) -> float | None:
     apart = ContactSet(tuple(Contact(-n, n) for n in normals[[0, 1]]))
     for contact_set in (closure, apart):
         rho(contact_set)
-    if rho_only and not compiles:
+    if not rho_only:
+        _warm_the_others(closure, normals)
+    seconds = time.perf_counter() - start
+    if not compiles:
         return None
+    text = f"compiled the numeric kernels in {seconds:.1f} s"
+    log.info(text)
+    if notify is not None:
+        notify(text)
+    return seconds
+
+
+def _warm_the_others(closure, normals) -> None:
+    """The kernels called from Python that a certified rho does not run."""
     from ..nearest_point import min_norm_point
     from ..wrenches import WrenchSlots
 
@@ -292,11 +324,3 @@ def warm_up(notify=None, *, rho_only: bool = False) -> float | None:
     from ..zonotope import frictionless_capacity
 
     frictionless_capacity(np.ones((1, 7, 6)))
-    seconds = time.perf_counter() - start
-    if not compiles:
-        return None
-    text = f"compiled the numeric kernels in {seconds:.1f} s"
-    log.info(text)
-    if notify is not None:
-        notify(text)
-    return seconds
