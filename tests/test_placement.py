@@ -191,7 +191,7 @@ def test_frictionless_exchange_is_a_linear_programme(monkeypatch):
     general = Placer(box, dataclasses.replace(options, exchange_solver="ipopt"))
     slow = general([0, 1, 2, 3, 4, 5, 0])
     assert slow.exchange_solver == "ipopt"
-    assert all(key[-1] == (True,) * 7 for key in general._problems)
+    assert all(key[-1] == ((),) * 7 for key in general._problems)  # no friction components
     for result in (fast, slow):
         assert result.rho <= result.start_rho
     with pytest.raises(ValueError, match="exchange_solver.*'highs'"):
@@ -254,6 +254,45 @@ def test_affine_position_form_matches_the_weights_form(monkeypatch):
             found[limit] = problem.solve(frames, slots, f_max, U, start, 0.3)[1]
             assert any(problem.affine) == (limit < 10**6)
         assert found[default] == pytest.approx(found[10**6], rel=1e-8), trial
+
+
+@pytest.mark.parametrize("kind", ["pcwf", "sfce", "sfcl"])
+def test_friction_components_leave_the_exchange_nlp_unchanged(kind):
+    """The exchange NLP leaves out of ``q`` the components of ``d`` no friction piece weighs
+    (:meth:`Placer._components`): the same optimum as the NLP over all four, on sets with
+    affine (24-, 18-vertex facets) and weights-form contacts; leaving out one more (the first
+    tangent) is seen."""
+    eligibility = Eligibility(
+        load_model(MODELS / "pistol.model.json"),
+        contact_specs(7, type=kind, mu=0.3, mu_s=0.2),
+        torque_scale=1.0,
+    )
+    placer = Placer(eligibility, PlacementOptions(bound=False))
+    elements = [6, 5, 1, 3, 0, 5, 2]
+    model, rng = eligibility.model, np.random.default_rng(5)
+    frames = [ElementFrame.padded(model.elements[e], eligibility.torque_scale) for e in elements]
+    rows = tuple(len(frame.G) for frame in frames)
+    components = placer._components()
+    expected = {"pcwf": (1, 2), "sfce": (1, 2, 3), "sfcl": (1, 2, 3)}[kind]
+    assert components == (expected,) * 7
+    fewer = (expected[1:],) * 7
+    problems = [
+        ExchangeProblem(rows, 48, 1e-10, 0.01, components=chosen)
+        for chosen in (components, (), fewer)
+    ]
+    f_max = np.ones(len(elements))
+    for trial in range(2):
+        weights = [rng.dirichlet(np.ones(len(model.elements[e].vertices))) for e in elements]
+        slots = WrenchSlots.from_contacts(placer.contact_set(elements, weights))
+        U = rng.standard_normal((40, 6))
+        U /= np.linalg.norm(U, axis=1, keepdims=True)
+        start = [np.pad(w, (0, k - len(w))) for w, k in zip(weights, rows)]
+        (c, r), (c_all, r_all), (_, r_fewer) = (
+            problem.solve(frames, slots, f_max, U, start, 0.3) for problem in problems
+        )
+        assert r == pytest.approx(r_all, rel=1e-10, abs=1e-12), trial
+        np.testing.assert_allclose(np.concatenate(c), np.concatenate(c_all), atol=1e-8)
+        assert abs(r_fewer - r) > 1e-6 * max(1.0, abs(r)), trial
 
 
 def test_screened_rounds_are_not_certified(monkeypatch):
