@@ -57,13 +57,22 @@ def _contact_linearisation(D, c, f, W):
         ``coefficients @ c == value``: the term is positively homogeneous of degree one and
         convex in the weights, so ``coefficients @ x`` is at most its value at any ``x``.
     """
-    d = np.einsum("j,jck->ck", c, D)  # (4, n)
-    root = np.sqrt(np.maximum(np.sum(W * d**2, axis=0), 0.0))
+    value, coefficients = _linearisations(D[None], c[None], np.array([f]), W[None])
+    return value[0], coefficients[0]
+
+
+def _linearisations(D, c, f, W):
+    """:func:`_contact_linearisation` of ``g`` contacts with the same rows at once (the same
+    operations element by element, so the same values to the bit): ``D`` (g, rows, 4, n), ``c``
+    (g, rows), ``f`` (g,), ``W`` (g, 4, n); returns values (g, n) and coefficients (g, n, rows).
+    """
+    d = np.einsum("ij,ijck->ick", c, D)  # (g, 4, n)
+    root = np.sqrt(np.maximum(np.sum(W * d**2, axis=1), 0.0))
     # the rim's point f (e_n + W d / sqrt(q)); none where q = 0 (any force of the disc)
-    inv = np.divide(f, root, out=np.zeros_like(root), where=root > 0.0)
-    force = W * d * inv
-    force[0] += f
-    return f * (d[0] + root), np.einsum("jck,ck->kj", D, force)
+    inv = np.divide(f[:, None], root, out=np.zeros_like(root), where=root > 0.0)
+    force = W * d * inv[:, None, :]
+    force[:, 0] += f[:, None]
+    return f[:, None] * (d[:, 0] + root), np.einsum("ijck,ick->ikj", D, force)
 
 
 def linearised_support(local, c, slots: WrenchSlots):
@@ -143,12 +152,35 @@ def model_linearisation(local, c, mask, pieces, f_max):
     A : (n, sum rows_i) float
         ``A @ concat(c) == values`` and ``A @ x`` at most the model's value at any ``x``.
     """
-    values, columns = 0.0, []
-    for i, (D, ci) in enumerate(zip(local, c)):
-        value, coefficient = _contact_linearisation(D, ci, f_max[i], pieces[:, i, :].T)
-        values = values + mask[i] * value
-        columns.append(mask[i][:, None] * coefficient)
-    return values, np.hstack(columns)
+    return ModelTerms(local, mask, pieces, f_max)(c)
+
+
+class ModelTerms:
+    """:func:`model_linearisation` for one restricted model, its data stacked once: the contacts
+    with the same rows are linearised together (:func:`_linearisations`), a few numpy calls for
+    all of them instead of a dozen per contact (the sequential LP's steps call it hundreds of
+    times a placement)."""
+
+    def __init__(self, local, mask, pieces, f_max):
+        self.mask, self.rows = mask, [len(D) for D in local]
+        self.groups = []
+        for rows in dict.fromkeys(self.rows):
+            ids = [i for i, k in enumerate(self.rows) if k == rows]
+            W = np.transpose(pieces[:, ids, :], (1, 2, 0))  # (g, 4, n)
+            self.groups.append((ids, np.stack([local[i] for i in ids]), f_max[ids], W))
+
+    def __call__(self, c):
+        """Values (n,) and linearisation (n, sum rows_i) at weights ``c`` (list)."""
+        terms = [None] * len(self.rows)
+        for ids, D, f, W in self.groups:
+            values, coefficients = _linearisations(D, np.array([c[i] for i in ids]), f, W)
+            for at, i in enumerate(ids):
+                terms[i] = values[at], coefficients[at]
+        values, columns = 0.0, []
+        for i, (value, coefficient) in enumerate(terms):
+            values = values + self.mask[i] * value
+            columns.append(self.mask[i][:, None] * coefficient)
+        return values, np.hstack(columns)
 
 
 class ExchangeSLP:
@@ -260,9 +292,7 @@ class ModelSLP(ExchangeSLP):
         ``min_k`` there."""
         local = [frame.local(U) for frame in frames]
         _, mask, pieces = restricted_model(slots_at_c, f_max, U, self.margin)
-        return self._ascend(
-            lambda c: model_linearisation(local, c, mask, pieces, f_max), c0, radius, centre=True
-        )
+        return self._ascend(ModelTerms(local, mask, pieces, f_max), c0, radius, centre=True)
 
 
 __all__ = [

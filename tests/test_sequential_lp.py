@@ -224,6 +224,27 @@ def test_model_slp_solves_ipopts_restricted_problem(kind):
     assert same >= 4  # a different local optimum now and then (4 of 125 on a lamp plan)
 
 
+@pytest.mark.parametrize("seed", range(3))
+def test_model_linearisation_is_the_restricted_model_at_its_point(seed):
+    """At the weights the restricted model was chosen at, its value is the sum of the chosen
+    contacts' support values (:func:`restricted_model`, the compiled support function), and
+    ``A @ c`` is that value: contacts of several vertex counts (the pistol's 24-, 18- and
+    4-vertex facets, padded: linearised in groups) of mixed types."""
+    elements = [6, 5, 1, 3]
+    kinds = [TYPES[i] for i in np.random.default_rng(seed).permutation(4)]
+    placer, frames, U, rng = _setup("pistol", elements, kinds, seed)
+    local = [frame.local(U) for frame in frames]
+    f_max = np.array([spec.f_max for spec in placer.eligibility.specs])
+    for _ in range(3):
+        slots, start = _model_problem(placer, elements, frames, rng, U)
+        P, mask, pieces = restricted_model(slots, f_max, U, 0.01)
+        values, A = model_linearisation(local, start, mask, pieces, f_max)
+        expected = (mask * P.T).sum(axis=0)
+        scale = max(1.0, np.abs(P).max())
+        np.testing.assert_allclose(values, expected, rtol=0, atol=1e-12 * scale)
+        np.testing.assert_allclose(A @ np.concatenate(start), values, rtol=0, atol=1e-12 * scale)
+
+
 def test_mixed_solver_gives_exploring_runs_to_the_model_slp():
     """The default with friction (``"mixed"``): the first start's run solves its restricted
     problems by IPOPT, the further starts' runs by the model's sequential LP; without friction
