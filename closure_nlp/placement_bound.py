@@ -71,6 +71,7 @@ the pistol's 7 FPC set its incumbent reaches -0.0837 where the exchange method a
 
 from __future__ import annotations
 
+import functools
 import heapq
 import threading
 import time
@@ -586,19 +587,33 @@ def max_min_model(A: np.ndarray, owner: np.ndarray, m: int, lower=None, upper=No
     """HiGHS's model of the LP of :func:`max_min_lp`: columns ``lam`` (R,) then ``t``; rows the
     N directions (``t - A lam <= 0``) then one simplex per contact."""
     N, R = A.shape
+    structure = _structure(N, R, m, np.asarray(owner, dtype=np.int64).tobytes())
     lp = _HighsLp()
     lp.num_col_, lp.num_row_ = R + 1, N + m
-    lp.col_cost_ = np.r_[np.zeros(R), -1.0]
-    lp.col_lower_ = np.r_[np.zeros(R) if lower is None else lower, -_INF]
-    lp.col_upper_ = np.r_[np.full(R, _INF) if upper is None else upper, _INF]
-    lp.row_lower_ = np.r_[np.full(N, -_INF), np.ones(m)]
-    lp.row_upper_ = np.r_[np.zeros(N), np.ones(m)]
+    lp.col_cost_, lp.row_lower_, lp.row_upper_ = structure[:3]
+    lp.col_lower_ = np.r_[np.zeros(R) if lower is None else lower, -_INF].tolist()
+    lp.col_upper_ = np.r_[np.full(R, _INF) if upper is None else upper, _INF].tolist()
     lp.a_matrix_.format_ = _ROWWISE
-    counts = np.bincount(owner, minlength=m)
-    lp.a_matrix_.start_ = np.r_[np.arange(N + 1) * (R + 1), N * (R + 1) + np.cumsum(counts)]
-    lp.a_matrix_.index_ = np.r_[np.tile(np.arange(R + 1), N), np.argsort(owner, kind="stable")]
-    lp.a_matrix_.value_ = np.r_[np.hstack([-A, np.ones((N, 1))]).ravel(), np.ones(R)]
+    lp.a_matrix_.start_, lp.a_matrix_.index_ = structure[3:]
+    values = np.ones(N * (R + 1) + R)
+    values[: N * (R + 1)].reshape(N, R + 1)[:, :R] = -A
+    lp.a_matrix_.value_ = values.tolist()  # a list: its conversion costs a third of an array's
     return lp
+
+
+@functools.lru_cache(maxsize=64)
+def _structure(N: int, R: int, m: int, owner: bytes) -> tuple:
+    """The parts of :func:`max_min_model`'s LP that depend on its shape alone, as lists (the
+    sequential LP passes thousands of models of a few shapes)."""
+    owner = np.frombuffer(owner, dtype=np.int64)
+    counts = np.bincount(owner, minlength=m)
+    return (
+        np.r_[np.zeros(R), -1.0].tolist(),
+        np.r_[np.full(N, -_INF), np.ones(m)].tolist(),
+        np.r_[np.zeros(N), np.ones(m)].tolist(),
+        np.r_[np.arange(N + 1) * (R + 1), N * (R + 1) + np.cumsum(counts)].tolist(),
+        np.r_[np.tile(np.arange(R + 1), N), np.argsort(owner, kind="stable")].tolist(),
+    )
 
 
 def _thread_solver(name: str, interior: bool = False):
