@@ -41,8 +41,11 @@ def smoothed_support(slots: WrenchSlots, U: np.ndarray, tau: float):
     ``p_tau`` it runs into the basin, and lowering ``tau`` sharpens the basins again.
     """
     rows, wrench = slots.row_support(U)
-    P, weights = _soft_max(rows, tau, slots.starts)  # each slot's max over its vertex rows
-    grad_P = np.add.reduceat(weights[..., None] * wrench, slots.starts, axis=1)
+    if rows.shape[1] == slots.m:  # one row per slot (contacts): its log-sum-exp is the row
+        P, grad_P = rows + 0.0, wrench  # + 0.0: the same -0.0 the log-sum-exp turns into 0.0
+    else:
+        P, weights = _soft_max(rows, tau, slots.starts)  # each slot's max over its vertex rows
+        grad_P = np.add.reduceat(weights[..., None] * wrench, slots.starts, axis=1)
     # sum_i max(P_i, 0) + min(max_i P_i, 0), both smoothed: softplus and -softplus(-softmax).
     top, weights = _soft_max(P, tau, [0])
     top = top[:, 0]

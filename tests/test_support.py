@@ -128,15 +128,16 @@ def test_torque_scale_scales_torque_rows_and_spin_column():
     np.testing.assert_allclose(G1[3:, 3], [0, 0, 1])
 
 
+@pytest.mark.parametrize("rows", [(1, 3, 4), (1, 1, 1, 1)])  # elements; contacts alone
 @pytest.mark.parametrize("kind", ["pcwf", "sfcl", "sfce"])
-def test_smoothed_support_is_an_upper_bound_with_its_exact_gradient(kind):
+def test_smoothed_support_is_an_upper_bound_with_its_exact_gradient(kind, rows):
     """The smoothed descent's function: p <= p_tau <= p + O(tau), and its gradient."""
     rng = np.random.default_rng(4)
     kind = ContactType.parse(kind)
     slots = WrenchSlots.build(
         [
             (grasp_matrices(rng.normal(size=(k, 3)), rng.normal(size=3)), kind, 0.4, 0.2, 1.0)
-            for k in (1, 3, 4)
+            for k in rows
         ]
     )
     U = rng.normal(size=(20, 6))
