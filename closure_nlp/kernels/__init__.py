@@ -177,7 +177,7 @@ def signatures() -> dict:
     out["descent", "local_minimum"] = (*slots, f1, i8, f8)
     i2 = types.Array(types.int64, 2, "C")
     out["zonotope", "capacity_many"] = (f3, i2, i2, f1)
-    work = types.Tuple((f2, i1, f2, f1, f2, f2, f1, i1))  # :func:`.branch_bound.slot_work`
+    work = types.Tuple((f2, i1, f2, f1, f2, f2, f1, i1, f1))  # :func:`.branch_bound.slot_work`
     out["branch_bound", "slot_bound"] = (*slots, f2, f2, f2, f8, f8, f8, f1, work)
     return out
 

@@ -62,14 +62,16 @@ def block_bound(M, block, blocks, T, row, first):
 
 
 @njit(**OPTIONS)
-def block_game_weights(M, block, blocks, lam, stop=np.inf, give_up=-np.inf):
+def block_game_weights(M, block, blocks, lam, stop=np.inf, give_up=-np.inf, mix=None):
     """Weights ``lam`` (K,) >= 0 with ``sum lam[block == b] <= 1`` for every block ``b <
     blocks`` that maximise ``min(min_c (M lam)_c, ...)`` for ``M`` (C, K), by a dense primal
     simplex (Dantzig's rule) from ``lam = 0``: every iterate is feasible, so the weights of a
     capped or early-stopped run still give a valid bound (callers recompute it from them).
     Pivoting ends once the iterate's value reaches ``stop``, or once a mix of the rows shows
-    the value below ``give_up`` (:func:`block_bound`). Returns the pivots taken, as ``-1 -
-    pivots`` when it gave up."""
+    the value below ``give_up`` (:func:`block_bound`). ``mix`` (C,), unless None, gets the
+    rows' dual estimates where it stopped, clipped at 0 and normalised (all 0 when none is
+    positive): the optimal mix of the rows at the optimum. Returns the pivots taken, as ``-1
+    - pivots`` when it gave up."""
     C, K = M.shape
     span = 0.0
     for i in range(C):
@@ -146,4 +148,11 @@ def block_game_weights(M, block, blocks, lam, stop=np.inf, give_up=-np.inf):
     for k in range(K):  # roundoff of the pivots: each block's weights at most 1
         if total[block[k]] > 1.0:
             lam[k] /= total[block[k]]
+    if mix is not None:
+        spread = 0.0
+        for c in range(C):
+            mix[c] = max(T[R, K + 1 + c], 0.0)
+            spread += mix[c]
+        for c in range(C):
+            mix[c] = mix[c] / spread if spread > 0.0 else 0.0
     return -1 - pivots if gave_up else pivots
