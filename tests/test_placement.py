@@ -145,6 +145,16 @@ def test_rounds_count_every_exchange_round(monkeypatch, solver):
         assert result.force_closure and result.rho <= result.start_rho
 
 
+def _random_round(rng, placer, elements, rows):
+    """Random weights on ``elements``: their slots, 40 unit directions and the padded weights."""
+    model = placer.eligibility.model
+    weights = [rng.dirichlet(np.ones(len(model.elements[e].vertices))) for e in elements]
+    slots = WrenchSlots.from_contacts(placer.contact_set(elements, weights))
+    U = rng.standard_normal((40, 6))
+    U /= np.linalg.norm(U, axis=1, keepdims=True)
+    return slots, U, [np.pad(w, (0, k - len(w))) for w, k in zip(weights, rows)]
+
+
 def test_frictionless_exchange_is_a_linear_programme(monkeypatch):
     """Frictionless contacts: the restricted problem is linear, and HiGHS (``ExchangeLP``)
     reaches IPOPT's optimum of the same NLP, with weights in their simplices and the trust
@@ -163,11 +173,7 @@ def test_frictionless_exchange_is_a_linear_programme(monkeypatch):
     nlp = ExchangeProblem(rows, 64, 1e-10, margin, (True,) * len(rows))
     placer = Placer(eligibility, PlacementOptions(bound=False))
     for trial in range(3):
-        weights = [rng.dirichlet(np.ones(len(model.elements[e].vertices))) for e in elements]
-        slots = WrenchSlots.from_contacts(placer.contact_set(elements, weights))
-        U = rng.standard_normal((40, 6))
-        U /= np.linalg.norm(U, axis=1, keepdims=True)
-        start = [np.pad(w, (0, k - len(w))) for w, k in zip(weights, rows)]
+        slots, U, start = _random_round(rng, placer, elements, rows)
         c, r = ExchangeLP(margin).solve(frames, slots, f_max, U, start, radius)
         assert r == pytest.approx(nlp.solve(frames, slots, f_max, U, start, radius)[1], rel=1e-8)
         for ci, si in zip(c, start):
@@ -282,11 +288,7 @@ def test_friction_components_leave_the_exchange_nlp_unchanged(kind):
     ]
     f_max = np.ones(len(elements))
     for trial in range(2):
-        weights = [rng.dirichlet(np.ones(len(model.elements[e].vertices))) for e in elements]
-        slots = WrenchSlots.from_contacts(placer.contact_set(elements, weights))
-        U = rng.standard_normal((40, 6))
-        U /= np.linalg.norm(U, axis=1, keepdims=True)
-        start = [np.pad(w, (0, k - len(w))) for w, k in zip(weights, rows)]
+        slots, U, start = _random_round(rng, placer, elements, rows)
         (c, r), (c_all, r_all), (_, r_fewer) = (
             problem.solve(frames, slots, f_max, U, start, 0.3) for problem in problems
         )
