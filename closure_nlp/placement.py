@@ -39,7 +39,7 @@ from .progress import Progress
 from .quality import SearchOptions, certificate_keys, rho, search_rho
 from .selection import SCREEN_SEARCH
 from .sequential_lp import ExchangeSLP, ModelSLP, restricted_model
-from .solver_cache import PerThread, cached
+from .solver_cache import NLPSOL_OPTIONS, PerThread, cached
 from .sphere_search import sphere_samples
 from .ties import lowest_first
 from .validation import as_flag, is_whole
@@ -517,8 +517,7 @@ class ExchangeProblem:
             "ipopt",
             {"x": x, "p": p, "f": -r, "g": g},
             {
-                "print_time": False,
-                "error_on_fail": False,
+                **NLPSOL_OPTIONS,
                 "ipopt": {
                     "print_level": 0,
                     "sb": "yes",

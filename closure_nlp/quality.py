@@ -28,7 +28,7 @@ from .contacts import ContactSet
 from .interrupts import interruptible
 from .kernels import descent as descent_kernels
 from .kernels import kernel_array
-from .solver_cache import PerThread, cached
+from .solver_cache import NLPSOL_OPTIONS, PerThread, cached
 from .sphere_search import descend, smoothed_descent, sphere_samples
 from .tolerances import DEFAULT_TOLERANCES, Tolerances
 from .validation import as_flag, as_unit_vector, is_whole
@@ -329,8 +329,7 @@ class SupportMinProblem:
         self._n_s, self._n_P = len(s_vars), len(P_vars)
         nlp = {"x": x, "p": ca.vertcat(*params), "f": t, "g": ca.vertcat(*g)}
         opts = {
-            "print_time": False,
-            "error_on_fail": False,
+            **NLPSOL_OPTIONS,
             "ipopt": {
                 "print_level": 0,
                 "sb": "yes",

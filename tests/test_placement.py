@@ -297,6 +297,40 @@ def test_friction_components_leave_the_exchange_nlp_unchanged(kind):
         assert abs(r_fewer - r) > 1e-6 * max(1.0, abs(r)), trial
 
 
+def test_exchange_nlp_built_without_the_parameters_gradient_takes_the_same_iterates(monkeypatch):
+    """Built without CasADi's gradient for the parameters' multipliers (``NLPSOL_OPTIONS``),
+    the exchange NLP takes the same iterations to the same weights and ``r``, to the bit."""
+    from closure_nlp import placement
+
+    eligibility = Eligibility(
+        load_model(MODELS / "pistol.model.json"),
+        contact_specs(7, type="pcwf", mu=0.2),
+        torque_scale=1.0,
+    )
+    placer = Placer(eligibility, PlacementOptions(bound=False))
+    elements = [6, 5, 1, 3, 0, 5, 2]  # affine and weights-form contacts
+    model, rng = eligibility.model, np.random.default_rng(6)
+    frames = [ElementFrame.padded(model.elements[e], eligibility.torque_scale) for e in elements]
+    rows = tuple(len(frame.G) for frame in frames)
+    components = placer._components()
+    lean = ExchangeProblem(rows, 48, 1e-10, 0.01, components=components)
+    lean_only = ("calc_lam_p", "no_nlp_grad")
+    full_options = {k: v for k, v in placement.NLPSOL_OPTIONS.items() if k not in lean_only}
+    monkeypatch.setattr(placement, "NLPSOL_OPTIONS", full_options)
+    full = ExchangeProblem(rows, 48, 1e-10, 0.01, components=components)
+    assert full._solver.has_function("nlp_grad") and not lean._solver.has_function("nlp_grad")
+    f_max = np.ones(len(elements))
+    for trial in range(2):
+        slots, U, start = _random_round(rng, placer, elements, rows)
+        (c, r), (c_full, r_full) = (
+            problem.solve(frames, slots, f_max, U, start, 0.3) for problem in (lean, full)
+        )
+        assert r == r_full, trial
+        np.testing.assert_array_equal(np.concatenate(c), np.concatenate(c_full))
+        iterations = lean._solver.stats()["iter_count"]
+        assert iterations == full._solver.stats()["iter_count"] > 0, trial
+
+
 def test_screened_rounds_are_not_certified(monkeypatch):
     """Only the start (when needed) and the final rho are certified, screening or not."""
     from closure_nlp import quality

@@ -302,6 +302,32 @@ def test_a_run_into_a_minimum_already_found_does_not_use_up_the_budget():
     assert missed.rho < lo - 0.05  # that rule's answer: 8% over-stated
 
 
+def test_support_min_nlp_built_without_the_parameters_gradient_takes_the_same_iterates(
+    monkeypatch,
+):
+    """Built without CasADi's gradient for the parameters' multipliers (``NLPSOL_OPTIONS``),
+    the support-minimum NLP takes the same iterations to the same direction, to the bit."""
+    from closure_nlp import quality
+    from closure_nlp.wrenches import WrenchSlots
+
+    cs = random_contact_set(np.random.default_rng(3), ["pcwf", "sfce", "sfcl", "fpc"], mu=0.4)
+    slots = WrenchSlots.from_contacts(cs)
+    key = quality.SupportMinProblem.key(slots)
+    lean = quality.SupportMinProblem(*key)
+    lean_only = ("calc_lam_p", "no_nlp_grad")
+    full_options = {k: v for k, v in quality.NLPSOL_OPTIONS.items() if k not in lean_only}
+    monkeypatch.setattr(quality, "NLPSOL_OPTIONS", full_options)
+    full = quality.SupportMinProblem(*key)
+    assert full._solver.has_function("nlp_grad") and not lean._solver.has_function("nlp_grad")
+    for u0 in np.random.default_rng(4).standard_normal((3, 6)):
+        u0 /= np.linalg.norm(u0)
+        (u, iterations, status, _), (u_full, iterations_full, status_full, _) = (
+            problem.solve(slots, u0) for problem in (lean, full)
+        )
+        np.testing.assert_array_equal(u, u_full)
+        assert (iterations, status) == (iterations_full, status_full) and iterations > 0
+
+
 @pytest.mark.parametrize("solver", ["ipopt", "compiled"])
 @pytest.mark.parametrize("kinds", [["pcwf"] * 3, ["fpc"] * 5, ["sfce", "sfcl"], ["sfcl", "pcwf"]])
 def test_outside_the_set_one_ipopt_run_finds_the_distance(kinds, solver):
