@@ -302,6 +302,53 @@ def test_a_run_into_a_minimum_already_found_does_not_use_up_the_budget():
     assert missed.rho < lo - 0.05  # that rule's answer: 8% over-stated
 
 
+@pytest.mark.parametrize("kinds", [["pcwf", "fpc", "sfcl"], ["sfce", "pcwf"]])
+def test_support_min_nlp_constraints_are_the_slots_epigraph(kinds):
+    """The support-minimum NLP's constraints at a random point against numpy from the slots:
+    per vertex row ``s_r**2 - q(d_r)`` for each piece, then ``P_i - f_r (d_r0 + s_r)``, the
+    ``z`` and ``t`` rows, the sum and ``|u|**2``. Every row has its own force bound and
+    friction weights, so a row reading another row's parameters is seen; padded slots repeat
+    their last row."""
+    from closure_nlp.quality import SupportMinProblem
+    from closure_nlp.wrenches import WrenchSlots
+
+    rng = np.random.default_rng(7)
+    counts = [3, 1, 5][: len(kinds)]  # vertex rows per slot: 3 and 5 are padded
+    slots = WrenchSlots.build(
+        (rng.standard_normal((k, 6, 4)), kind, 0.3, 0.2, 1.0) for k, kind in zip(counts, kinds)
+    )
+    slots.f_max[:] = rng.uniform(0.5, 2.0, len(slots.f_max))
+    slots.pieces[:] *= rng.uniform(0.5, 2.0, (len(slots.pieces), 1, 1))
+    problem = SupportMinProblem(*SupportMinProblem.key(slots))
+    m, n_s, n_P = len(counts), problem._n_s, problem._n_P
+    x = rng.standard_normal(6 + n_s + n_P + m + 2)
+    g = problem._solver.get_function("nlp_g")(x, problem.parameters(slots))
+    u, s, P = x[:6], iter(x[6 : 6 + n_s]), iter(x[6 + n_s : 6 + n_s + n_P])
+    z, (t, total) = x[6 + n_s + n_P : -2], x[-2:]
+    expected, rows, at = [], problem._rows(slots), 0
+    for i, (pieces, size) in enumerate(zip(problem.n_pieces, problem.rows_per_slot)):
+        values = []
+        for r in rows[at : at + size]:
+            d = slots.G[r].T @ u
+            if pieces:
+                s_r = next(s)
+                expected += [s_r**2 - np.sum(w * d**2) for w in slots.pieces[r, :pieces]]
+                values.append(slots.f_max[r] * (d[0] + s_r))
+            else:
+                values.append(slots.f_max[r] * d[0])
+        at += size
+        P_i = values[0] if size == 1 else next(P)
+        if size > 1:
+            expected += [P_i - v for v in values]
+        expected += [z[i] - P_i, t - P_i - (total - z[i])]
+    expected += [total - z.sum(), u @ u]
+    assert (n_s, n_P) == (
+        sum(problem.rows_per_slot[i] for i in range(m) if problem.n_pieces[i]),
+        sum(k > 1 for k in problem.rows_per_slot),
+    )
+    np.testing.assert_allclose(np.asarray(g).ravel(), expected, rtol=1e-12, atol=1e-12)
+
+
 def test_support_min_nlp_built_without_the_parameters_gradient_takes_the_same_iterates(
     monkeypatch,
 ):
