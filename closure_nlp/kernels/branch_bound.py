@@ -507,7 +507,7 @@ def slot_bound(G, f, W, npc, ends, dirs, corners, unit, nearest, stop, give_up, 
             for k in range(K):
                 game[c, k] = dot6(unit[q], cols[k])
         pivots = block_game_weights(game, block[:K], blocks, lam, stop, give_up, mix[:C])
-        fill(wbar, 6, 0.0)
+        fill(wbar, len(wbar), 0.0)
         for k in range(K):
             for j in range(6):
                 wbar[j] += lam[k] * cols[k, j]
@@ -525,7 +525,7 @@ def slot_bound(G, f, W, npc, ends, dirs, corners, unit, nearest, stop, give_up, 
             continue
         if low_in >= stop or added == COLUMN_ROUNDS:
             break
-        fill(ubar, 6, 0.0)
+        fill(ubar, len(ubar), 0.0)
         for c in range(C):
             for j in range(6):
                 ubar[j] += mix[c] * unit[picked[c], j]
@@ -534,7 +534,8 @@ def slot_bound(G, f, W, npc, ends, dirs, corners, unit, nearest, stop, give_up, 
             break
         for j in range(6):
             ubar[j] /= length
-        set_value(G, f, W, npc, ends, ubar, D, None, None, rows)
+        # an empty ``slots`` as above: the version slot values compile, not a third one
+        set_value(G, f, W, npc, ends, ubar, D, None, no_vector(D), rows)
         reach = 0.0
         for i in range(m):
             if index[i] >= 0:
