@@ -23,7 +23,7 @@ import time
 
 from . import _cli_startup, _quiet_interrupt  # noqa: F401 - first: Ctrl-C while importing
 from .contact_count import require_closure_count
-from .contacts import SOFT_FINGERS, contact_specs
+from .contacts import SOFT_FINGERS, ContactType, contact_specs
 from .elements import load_model
 from .eligibility import Eligibility
 from .errors import MethodError
@@ -1278,7 +1278,24 @@ def _compile_kernels(args) -> None:
 
     shown = not args.quiet and sys.stderr.isatty()
     notify = (lambda text: sys.stderr.write(f"{text}\n")) if shown else None
-    warm_up(notify, rho_only=args.run is _cmd_rho)
+    warm_up(notify, rho_only=args.run is _cmd_rho, capacity=_frictionless_placements(args))
+
+
+def _frictionless_placements(args) -> bool:
+    """Whether the command may place contacts that are all frictionless (the zonotope's
+    capacity then runs): a study's tasks may; plan and place unless their options give a
+    contact friction (FPC, or a zero or unreadable ``--mu``, counts as maybe); the others
+    place nothing."""
+    if args.run is _cmd_study:
+        return True
+    if args.run not in (_cmd_plan, _cmd_place):
+        return False
+    try:
+        types = [ContactType.parse(p.strip(" \t")) for p in str(args.type).split(",")]
+        mus = [_float(p.strip(" \t")) for p in str(args.mu).split(",")]
+    except ValueError:
+        return True  # the command refuses the option later: nothing to save here
+    return ContactType.FPC in types or not all(mu > 0 for mu in mus)
 
 
 @contextlib.contextmanager

@@ -155,14 +155,17 @@ def test_the_rho_command_loads_only_the_kernels_of_rho(tmp_path):
 def test_a_cold_rho_compiles_the_kernels_of_rho_and_a_later_command_the_others(tmp_path):
     # the rho command compiles only what a certified rho runs; a command that runs the others
     # (slot values, rows, Wolfe's nearest point, the zonotope) compiles those at its warm-up,
-    # and says so, and then nothing is left to compile
+    # and says so, and then nothing is left to compile; the zonotope's capacity only for a
+    # command that may place frictionless contacts
     code = (
         "import sys\n"
         "from closure_nlp import kernels\n"
         "lines = []\n"
-        "rho_only = sys.argv[1] == 'rho'\n"
-        "print(kernels.warm_up(lines.append, rho_only=rho_only) is not None, len(lines))\n"
-        "print(kernels._cached(rho_only=True), kernels._cached())\n"
+        "rho_only, capacity = sys.argv[1] == 'rho', sys.argv[1] == 'all'\n"
+        "first = kernels.warm_up(lines.append, rho_only=rho_only, capacity=capacity)\n"
+        "print(first is not None, len(lines))\n"
+        "cached = kernels._cached\n"
+        "print(cached(rho_only=True), cached(capacity=False), cached())\n"
     )
     env = _env(PYTHONPATH=str(ROOT), NUMBA_CACHE_DIR=str(tmp_path / "numba"))
 
@@ -174,10 +177,39 @@ def test_a_cold_rho_compiles_the_kernels_of_rho_and_a_later_command_the_others(t
         assert out.returncode == 0, out.stderr
         return out.stdout.strip().splitlines()
 
-    assert run("rho") == ["True 2", "True False"]
-    assert run("rho") == ["False 0", "True False"]
-    assert run("all") == ["True 2", "True True"]
-    assert run("all") == ["False 0", "True True"]
+    assert run("rho") == ["True 2", "True False False"]
+    assert run("rho") == ["False 0", "True False False"]
+    # placements of contacts with friction: all but the zonotope's capacity
+    assert run("friction") == ["True 2", "True True False"]
+    assert run("friction") == ["False 0", "True True False"]
+    assert run("all") == ["True 2", "True True True"]
+    assert run("all") == ["False 0", "True True True"]
+
+
+@pytest.mark.parametrize(
+    "command, kind, mu, compiled",
+    [
+        ("plan", "pcwf", "0.2", False),
+        ("place", "sfce,pcwf", "0.2,0.5", False),
+        ("plan", "fpc", "0.2", True),
+        ("plan", "pcwf,FPC", "0.2", True),
+        ("place", "pcwf", "0.2,0", True),  # a frictionless PCwF
+        ("plan", "pcwf", "x", True),  # refused later: nothing spared
+        ("study", "pcwf", "0.2", True),  # the tasks' own contacts
+        ("select", "fpc", "0.2", False),  # places nothing
+        ("rho", "fpc", "0.2", False),
+    ],
+)
+def test_the_capacity_compiles_for_commands_that_may_place_frictionless_contacts(
+    command, kind, mu, compiled
+):
+    # the zonotope's capacity runs only in placements whose contacts are all frictionless
+    from argparse import Namespace
+
+    from closure_nlp import cli
+
+    args = Namespace(run=getattr(cli, f"_cmd_{command}"), type=kind, mu=mu)
+    assert cli._frictionless_placements(args) is compiled
 
 
 def test_the_declared_signatures_are_those_the_library_calls():

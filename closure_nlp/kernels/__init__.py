@@ -133,6 +133,9 @@ RHO_KERNELS = (
     ("support", "support_many"),
     ("support", "evaluate_many"),
 )
+# The zonotope's capacity: only a placement whose every contact is frictionless runs it (its
+# search, :func:`~closure_nlp.zonotope.climb`); a warm-up told that none will compiles it not.
+CAPACITY_KERNELS = (("zonotope", "capacity_many"),)
 # A cold compile splits the kernels in two lists of about equal compile time, one per process
 # (numba compiles under a lock: one process compiles on one core); both write the disk cache.
 # The second list starts with the slot game's bound, which ``advance`` calls deep inside (for
@@ -152,6 +155,14 @@ COMPILE_GROUPS = (
         ("descent", "descend_many"),
     ),
 )
+
+
+def _wanted(kernel: tuple, rho_only: bool, capacity: bool) -> bool:
+    """Whether a warm-up compiles ``kernel`` ``(module, name)``: with ``rho_only``, those of
+    :data:`RHO_KERNELS` alone; without ``capacity``, not those of :data:`CAPACITY_KERNELS`."""
+    if rho_only:
+        return kernel in RHO_KERNELS
+    return capacity or kernel not in CAPACITY_KERNELS
 
 
 def signatures() -> dict:
@@ -182,16 +193,16 @@ def signatures() -> dict:
     return out
 
 
-def compile_group(group: int, rho_only: bool = False) -> None:
+def compile_group(group: int, rho_only: bool = False, capacity: bool = True) -> None:
     """Compile (or load from the disk cache) the kernels of ``COMPILE_GROUPS[group]``, in
-    order; with ``rho_only``, those of :data:`RHO_KERNELS` alone."""
+    order, those a warm-up of ``rho_only`` and ``capacity`` wants (:func:`_wanted`)."""
     import importlib
 
     from numba.core.errors import TypingError
 
     declared = signatures()
     for module, name in COMPILE_GROUPS[group]:
-        if rho_only and (module, name) not in RHO_KERNELS:
+        if not _wanted((module, name), rho_only, capacity):
             continue
         try:
             kernel = getattr(importlib.import_module(f"{__name__}.{module}"), name)
@@ -200,7 +211,7 @@ def compile_group(group: int, rho_only: bool = False) -> None:
             pass  # (tests/test_kernel_cache checks the declarations against the calls)
 
 
-def _compile_in_parallel(rho_only: bool = False) -> None:
+def _compile_in_parallel(rho_only: bool = False, capacity: bool = True) -> None:
     """The first half of the kernels compiled here while another process compiles the second
     (on a machine of one core, or should the other process fail, this one compiles it after:
     the same kernels, the same cache)."""
@@ -212,7 +223,7 @@ def _compile_in_parallel(rho_only: bool = False) -> None:
         env = {**os.environ, "PYTHONPATH": os.pathsep.join(
             p for p in (root, os.environ.get("PYTHONPATH")) if p
         )}  # fmt: skip
-        code = f"from {__name__} import compile_group; compile_group(1, {rho_only})"
+        code = f"from {__name__} import compile_group; compile_group(1, {rho_only}, {capacity})"
         try:
             helper = subprocess.Popen(
                 [sys.executable, "-c", code],
@@ -224,7 +235,7 @@ def _compile_in_parallel(rho_only: bool = False) -> None:
         except (OSError, ValueError):  # no interpreter to start: compile it all here
             helper = None
     try:
-        compile_group(0, rho_only)
+        compile_group(0, rho_only, capacity)
         if helper is not None:
             helper.wait()  # its kernels then load from the disk cache (or compile here, failed)
     except BaseException:  # an interrupt: no process left compiling behind
@@ -234,17 +245,17 @@ def _compile_in_parallel(rho_only: bool = False) -> None:
         raise
 
 
-def _cached(rho_only: bool = False) -> bool:
-    """Whether every kernel called from Python (with ``rho_only``, every one a certified rho
-    runs) has a current copy in numba's disk cache (the index numba reads: empty when missing
-    or when the source changed since)."""
+def _cached(rho_only: bool = False, capacity: bool = True) -> bool:
+    """Whether every kernel called from Python that a warm-up of ``rho_only`` and ``capacity``
+    wants (:func:`_wanted`) has a current copy in numba's disk cache (the index numba reads:
+    empty when missing or when the source changed since)."""
     import importlib
 
     try:
         for module, names in ENTRY_POINTS.items():
             loaded = importlib.import_module(f"{__name__}.{module}")
             for name in names:
-                if rho_only and (module, name) not in RHO_KERNELS:
+                if not _wanted((module, name), rho_only, capacity):
                     continue
                 if not getattr(loaded, name)._cache._cache_file._load_index():
                     return False
@@ -253,7 +264,7 @@ def _cached(rho_only: bool = False) -> bool:
         return False
 
 
-def warm_up(notify=None, *, rho_only: bool = False) -> float | None:
+def warm_up(notify=None, *, rho_only: bool = False, capacity: bool = True) -> float | None:
     """Compile (or load from the disk cache) the kernels called from Python, on tiny sets, so
     that the first answer's ``seconds`` holds none of it.
 
@@ -268,6 +279,9 @@ def warm_up(notify=None, *, rho_only: bool = False) -> float | None:
         not those of slot values, row terms, Wolfe's nearest point of given points and the
         zonotope's capacity (elements and placements): a cold compile of fewer kernels, and
         from the disk cache fewer loads (milliseconds each, at every start).
+    capacity : bool
+        Also the zonotope's capacity (:data:`CAPACITY_KERNELS`), which only placements of
+        contacts that are all frictionless run: False for a command that places none.
 
     Returns
     -------
@@ -279,7 +293,7 @@ def warm_up(notify=None, *, rho_only: bool = False) -> float | None:
 
     import numpy as np
 
-    compiles = not _cached(rho_only)
+    compiles = not _cached(rho_only, capacity)
     log = logging.getLogger("closure_nlp")
     where = os.environ.get("NUMBA_CACHE_DIR") or str(Path(__file__).resolve().parent)
     text = f"compiling the numeric kernels (once; cached in {where})"
@@ -289,7 +303,7 @@ def warm_up(notify=None, *, rho_only: bool = False) -> float | None:
             notify(text)
     start = time.perf_counter()  # loading from the cache costs too: done here, not in an answer
     if compiles:
-        _compile_in_parallel(rho_only)
+        _compile_in_parallel(rho_only, capacity)
     from ..contacts import Contact, ContactSet
     from ..quality import rho
 
@@ -299,7 +313,7 @@ def warm_up(notify=None, *, rho_only: bool = False) -> float | None:
     for contact_set in (closure, apart):
         rho(contact_set)
     if not rho_only:
-        _warm_the_others(closure, normals)
+        _warm_the_others(closure, normals, capacity)
     seconds = time.perf_counter() - start
     if not compiles:
         return None
@@ -310,8 +324,9 @@ def warm_up(notify=None, *, rho_only: bool = False) -> float | None:
     return seconds
 
 
-def _warm_the_others(closure, normals) -> None:
-    """The kernels called from Python that a certified rho does not run."""
+def _warm_the_others(closure, normals, capacity: bool) -> None:
+    """The kernels called from Python that a certified rho does not run (the zonotope's
+    capacity only with ``capacity``)."""
     from ..nearest_point import min_norm_point
     from ..wrenches import WrenchSlots
 
@@ -321,6 +336,7 @@ def _warm_the_others(closure, normals) -> None:
     slots.row_support(U)
     slots.row_terms(U)
     min_norm_point(slots.support_points(np.vstack([U, -U])))
-    from ..zonotope import frictionless_capacity
+    if capacity:
+        from ..zonotope import frictionless_capacity
 
-    frictionless_capacity(np.ones((1, 7, 6)))
+        frictionless_capacity(np.ones((1, 7, 6)))
