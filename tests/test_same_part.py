@@ -113,8 +113,11 @@ EXCHANGE_ONLY = PlacementOptions(
 
 @pytest.mark.parametrize("kind, ids", [("fpc", [5, 4, 3, 2, 1, 0, 0])])
 def test_a_box_in_metres_and_millimetres_gets_the_same_placement(kind, ids):
-    """Same part, same answer, exactly: the same contact positions (over the part's size) to
-    1e-6 and the same rho to 1e-6, relative, not merely within a certified gap."""
+    """Same part, same answer: the same rho to 1e-6, relative, not merely within a certified
+    gap, and the same contact positions to 1e-5 of the part's size (ten times finer than the
+    digits printed). The exchange stops once a round gains under 1e-6 of rho, and rho is flat to
+    first order along the optimum, so the two units' round-off may stop it a few 1e-6 of the
+    size apart."""
     placed = []
     for factor in (1.0, 1000.0):
         model = _box_in(factor)
@@ -126,6 +129,6 @@ def test_a_box_in_metres_and_millimetres_gets_the_same_placement(kind, ids):
     assert radius_b == pytest.approx(1000.0 * radius_a, rel=1e-12)
     xa = np.array([c.position for c in a.contacts]) / radius_a
     xb = np.array([c.position for c in b.contacts]) / radius_b
-    np.testing.assert_allclose(xa, xb, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(xa, xb, rtol=0, atol=1e-5)
     assert abs(a.rho - b.rho) <= 1e-6 * max(abs(a.rho), abs(b.rho))
     assert a.force_closure and b.force_closure
