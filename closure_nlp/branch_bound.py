@@ -220,8 +220,10 @@ def sphere_minimum(
         # min over the domain - slack <= min over the sphere <= min over the domain
         frame, *cells = symmetry.domain(metric, incumbent, options.initial_splits)
         slack = symmetry.slack
+        floor = np.linalg.svd(frame, compute_uv=False).min()
     else:
         frame, cells, slack = np.diag(metric), face_cells(options.initial_splits), 0.0
+        floor = metric.min()  # the least singular value of a positive diagonal, exactly
     packed = slots.packed
     best, best_u = np.array([np.inf, 0.0]), np.zeros(6)
     anchor, anchor_at = np.empty((kernels.ANCHORS, 6)), np.zeros(7)
@@ -247,7 +249,7 @@ def sphere_minimum(
             options.stop_below_zero,
             CELLS_PER_ROUND,
             0 if polish is None else MAX_POLISH,
-            np.linalg.svd(frame, compute_uv=False).min(),
+            floor,
         ],
         dtype=float,
     )

@@ -115,10 +115,16 @@ class WrenchSlots:
 
     def scaled(self, factor: float) -> WrenchSlots:
         """The same slots with every ``f_max`` times ``factor``: the support function, support
-        points and rho scale by ``factor``, directions do not."""
-        return WrenchSlots(
-            self.G, self.starts, self.f_max * factor, self.pieces, self.types, self.n_pieces
-        )
+        points and rho scale by ``factor``, directions do not. The copy shares what does not
+        depend on ``f_max`` (the packed rows, the rows' norms): a certificate scales every set
+        it is given, and packing the rows afresh cost more than its search of a 4-contact set
+        that is not in force closure."""
+        f_max = self.f_max * factor
+        copy = WrenchSlots(self.G, self.starts, f_max, self.pieces, self.types, self.n_pieces)
+        G, _, pieces, npc, ends = self.packed
+        object.__setattr__(copy, "_packed", (G, kernel_array(f_max), pieces, npc, ends))
+        object.__setattr__(copy, "_row_norms_", self._row_norms())
+        return copy
 
     @property
     def m(self) -> int:
@@ -146,14 +152,23 @@ class WrenchSlots:
         return cached[friction]
 
     def _row_scales(self, friction: bool) -> tuple[float, float]:
-        spin = np.sqrt(self.pieces[:, :, 3].max(axis=1))  # mu_s, or 0 without spin friction
-        G = self.G.copy()
-        G[:, :, 3] *= spin[:, None]  # the spin column per unit of normal force
-        tangential = self.pieces[:, :, 1:3].sum(axis=(1, 2)) + (spin > 0)
+        top, bottom, tangential = self._row_norms()
         force = self.f_max * (np.sqrt(1.0 + tangential) if friction else 1.0)
-        top = np.linalg.norm(G[:, :3, :], ord=2, axis=(1, 2))
-        bottom = np.linalg.norm(G[:, 3:, :], ord=2, axis=(1, 2))
         return float(np.max(top * force)), float(np.max(bottom * force))
+
+    def _row_norms(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """What :meth:`row_scales` takes from ``G`` and the pieces, not ``f_max`` (K,) each:
+        the spectral norms of each row's force and torque parts (the spin column per unit of
+        normal force) and the sum of its friction weights (1 more with spin friction)."""
+        if "_row_norms_" not in self.__dict__:
+            spin = np.sqrt(self.pieces[:, :, 3].max(axis=1))  # mu_s, or 0 without spin friction
+            G = self.G.copy()
+            G[:, :, 3] *= spin[:, None]  # the spin column per unit of normal force
+            tangential = self.pieces[:, :, 1:3].sum(axis=(1, 2)) + (spin > 0)
+            top = np.linalg.norm(G[:, :3, :], ord=2, axis=(1, 2))
+            bottom = np.linalg.norm(G[:, 3:, :], ord=2, axis=(1, 2))
+            object.__setattr__(self, "_row_norms_", (top, bottom, tangential))
+        return self._row_norms_
 
     # --- evaluation: the compiled kernels of :mod:`closure_nlp.kernels.support` ------------
 

@@ -181,3 +181,21 @@ def test_element_slots_values_and_support_points(kind, seed):
     np.testing.assert_allclose(np.einsum("nr,nr->n", points, U), values, rtol=1e-10, atol=1e-12)
     V = unit(rng, 200)
     assert np.all(points @ V.T <= slots.support(V)[None, :] + 1e-10)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.sampled_from(TYPES), seeds, st.floats(1e-3, 1e3))
+def test_scaled_slots_pack_and_scale_as_a_fresh_set(kind, seed, factor):
+    """A scaled copy reuses its set's packed rows and rows' norms: the same arrays, row scales
+    and values as a set built afresh with the scaled bounds."""
+    _, slots, rng = slots_for(seed, kind, m=1 + seed % 5)
+    scaled = slots.scaled(factor)
+    fresh = WrenchSlots(
+        slots.G, slots.starts, slots.f_max * factor, slots.pieces, slots.types, slots.n_pieces
+    )
+    for mine, theirs in zip(scaled.packed, fresh.packed):
+        np.testing.assert_array_equal(mine, theirs)
+    for friction in (True, False):
+        assert scaled.row_scales(friction) == fresh.row_scales(friction)
+    U = unit(rng, 8)
+    np.testing.assert_array_equal(scaled.support(U), fresh.support(U))
