@@ -452,10 +452,10 @@ class ExchangeProblem:
     extra variables cost more than they save (segments and triangles: 10-35% slower).
 
     Built once per shape; ``capacity`` directions, unused ones masked out by parameters.
-    A contact marked in ``frictionless`` (no friction piece: FPC, or mu = mu_s = 0) has the
-    linear term ``f_i d_n`` alone: the same value, and no curvature at all. ``components`` (per
-    contact, default all four, none when frictionless) are the components of ``d`` its friction
-    pieces weigh (PCwF: the two tangential ones): the rest are left out of ``q``, the same
+    ``components`` (per contact; default all four) are the components of ``d`` its friction
+    pieces weigh (PCwF: the two tangential ones). A contact with none (no friction piece: FPC,
+    or mu = mu_s = 0) has the linear term ``f_i d_n`` alone: the same value, and no curvature
+    at all. The other components are left out of ``q``, the same
     values to the bit with a smaller graph (its Hessian is most of a solve's time: on a pistol
     7-PCwF placement's 30 restricted problems, the same weights to the bit in 1.5x less time).
     """
@@ -469,14 +469,12 @@ class ExchangeProblem:
         capacity: int,
         tol: float = 1e-10,
         margin: float = 0.0,
-        frictionless=(),
         components=(),
     ):
         self.margin = margin
         self.rows, self.capacity = tuple(rows), capacity
         self.affine = tuple(k > AFFINE_ROWS for k in self.rows)
-        frictionless = tuple(frictionless) or (False,) * len(self.rows)
-        components = tuple(components) or tuple(() if f else (0, 1, 2, 3) for f in frictionless)
+        components = tuple(components) or ((0, 1, 2, 3),) * len(self.rows)
         import casadi as ca  # here: only a placement builds this NLP (casadi costs every start)
 
         m, K = len(self.rows), capacity
@@ -762,7 +760,7 @@ class Placer:
         return cached(
             self._problems,
             key,
-            lambda: ExchangeProblem(rows, capacity, tol, margin, components=components),
+            lambda: ExchangeProblem(rows, capacity, tol, margin, components),
             MAX_EXCHANGE_PROBLEMS,
         )
 

@@ -170,7 +170,7 @@ def test_frictionless_exchange_is_a_linear_programme(monkeypatch):
     frames = [ElementFrame.padded(model.elements[e], eligibility.torque_scale) for e in elements]
     rows = tuple(len(frame.G) for frame in frames)
     f_max, margin, radius = np.ones(len(elements)), 0.01, 0.3
-    nlp = ExchangeProblem(rows, 64, 1e-10, margin, (True,) * len(rows))
+    nlp = ExchangeProblem(rows, 64, 1e-10, margin, ((),) * len(rows))  # all frictionless
     placer = Placer(eligibility, PlacementOptions(bound=False))
     for trial in range(3):
         slots, U, start = _random_round(rng, placer, elements, rows)
@@ -256,7 +256,7 @@ def test_affine_position_form_matches_the_weights_form(monkeypatch):
         found = {}
         for limit in (default, 10**6):
             monkeypatch.setattr(placement, "AFFINE_ROWS", limit)
-            problem = ExchangeProblem(rows, 64, 1e-10, 0.01, (False,) * len(rows))
+            problem = ExchangeProblem(rows, 64, 1e-10, 0.01)
             found[limit] = problem.solve(frames, slots, f_max, U, start, 0.3)[1]
             assert any(problem.affine) == (limit < 10**6)
         assert found[default] == pytest.approx(found[10**6], rel=1e-8), trial
