@@ -74,10 +74,11 @@ CELLS_PER_ROUND = 128  # children per round while few cells live: fewer rounds
 # A symmetry is used when its slack (its detection's residuals) is at most this share of the gap.
 SLACK_SHARE = 0.1
 # Cells refined (:attr:`BranchBoundOptions.refine_below`) when smaller than this angular radius
-# (0.05 -> 0.4: eligible lamp sets 2.3x faster, CPU; others 0.9-1.15x); in contact sets of at
-# most FEW_CONTACTS contacts, every cell: their games drop most coarse cells (13 force-closure
-# 4-PCwF sets: 302 sampled cells against 701 at the median, 1.2x less CPU). Not for many
-# contacts, where a cloud costs m support values: 200 and 2,000 PCwF 0.88x and 0.81x.
+# (0.05 -> 0.4: eligible lamp sets 2.3x faster, CPU; others 0.9-1.15x); in sets of at most
+# FEW_CONTACTS slots, every cell: their games drop most coarse cells (13 force-closure 4-PCwF
+# sets: 302 sampled cells against 701 at the median, 1.2x less CPU; the 9 eligible sets of 4
+# lamp facets: 2.0x fewer cells, 1.2x less CPU). Not for many contacts, where a cloud costs m
+# support values: 200 and 2,000 PCwF 0.88x and 0.81x.
 REFINE_BELOW = 0.4
 FEW_CONTACTS = kernels.SLOT_GAME_SLOTS
 
@@ -113,7 +114,7 @@ class BranchBoundOptions:
         Angular radius under which a cell that survives its first bound gets more support
         points (a cloud around its lowest sample, then its corners) and a longer search of
         their weights: near the minimum, where the kinks of ``p`` meet. None: every cell of a
-        contact set of few contacts (:data:`FEW_CONTACTS`), :data:`REFINE_BELOW` otherwise.
+        set of few slots (:data:`FEW_CONTACTS`), :data:`REFINE_BELOW` otherwise.
         Not a cell whose lowest sample lies within ``|target| delta^2`` of the drop threshold
         (:data:`closure_nlp.kernels.branch_bound.HOPELESS`): linear bounds lose about that
         much there, and its children are cheaper.
@@ -283,8 +284,7 @@ def _refine_below(slots: WrenchSlots, refine_below: float | None) -> float:
     (:attr:`BranchBoundOptions.refine_below`)."""
     if refine_below is not None:
         return float(refine_below)
-    few = slots.m <= FEW_CONTACTS and slots.m == len(slots.G)  # contacts: a row per slot
-    return np.pi if few else REFINE_BELOW
+    return np.pi if slots.m <= FEW_CONTACTS else REFINE_BELOW
 
 
 def face_cells(splits: int, ranges=None):
