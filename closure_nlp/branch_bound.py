@@ -22,7 +22,7 @@ Support points. Besides the cell's own eleven, every cell may combine the point 
 bound its parent kept (a halved cell is first bounded by that point alone, and dropped before
 its samples are taken when that suffices), the support points of a tiny cloud around the
 incumbent (they hold every piece of ``p`` that meets at the minimum), and a cell that survives
-near the minimum (any cell, in a set of few contacts) gets those of a cloud around its lowest
+near the minimum (any cell, in a set of few slots) gets those of a cloud around its lowest
 sample, with a longer search of the weights. When these do not suffice, a set of few slots
 gives each slot its own weights (:func:`closure_nlp.kernels.branch_bound.slot_bound`):
 ``p = sum_i max(P_i, 0)`` wherever some slot value is positive, so any slot-wise combination
