@@ -9,6 +9,7 @@ from scipy.optimize import linprog
 
 from closure_nlp.branch_bound import _initial_cells
 from closure_nlp.kernels import branch_bound as kernels
+from closure_nlp.kernels import slot_game
 from closure_nlp.kernels.slot_game import block_game_weights
 from closure_nlp.random_sets import random_contact_set
 from closure_nlp.wrenches import WrenchSlots
@@ -122,3 +123,73 @@ def _cell_directions(rng, axis, sign, lo, hi, count):
     x[:, axis] = sign
     x[:, [j for j in range(6) if j != axis]] = y
     return x / np.linalg.norm(x, axis=1, keepdims=True)
+
+
+def _fresh_game(M, block, blocks, exact):
+    """The weights and pivots of ``M``'s game solved afresh."""
+    lam = np.empty(M.shape[1])
+    if exact:
+        pivots = kernels.game_weights(M.copy(), lam, np.inf, 400)
+    else:
+        pivots = block_game_weights(M.copy(), block, blocks, lam)
+    return lam, pivots
+
+
+@pytest.mark.parametrize("stop", [False, True])
+@pytest.mark.parametrize("exact", [False, True])
+def test_games_grown_warm_reach_the_value_of_fresh_ones(exact, stop):
+    """A game grown a row or a column at a time, each step re-solved from the last tableau
+    (dual simplex after a row added to an optimal game, primal pivots on the negative basic
+    variables after one added to a game stopped early, primal after a column), ends each
+    full solve at the value of the same game solved afresh (and HiGHS's), to round-off, with
+    fewer pivots in sum; with ``stop``, every other step stops once its value reaches a level
+    below the game's (and does reach it)."""
+    rng = np.random.default_rng(11 + exact + 2 * stop)
+    warm_pivots = fresh_pivots = warm_steps = stopped = 0
+    for trial in range(30):
+        C, K = int(rng.integers(10, 33)), int(rng.integers(12, 61))
+        blocks = 1 if exact else int(rng.integers(1, 5))
+        M = 7.0 + (1e-3 if trial % 3 == 0 else 1.0) * rng.normal(size=(C, K))
+        block = np.zeros(K, np.int64) if exact else rng.integers(0, blocks, K)
+        block[:blocks] = np.arange(blocks)
+        T, basis = slot_game.game_tableau(C, K, blocks)
+        c, k = 4, K // 2
+        low, span = slot_game.game_open(M[:c, :k], block[:k], blocks, exact, T, basis)
+        order = rng.permutation(["row"] * (C - c) + ["col"] * (K - k))[: C // 2]
+        for n, step in enumerate(order):
+            fresh, cold = _fresh_game(M[:c, :k], block[:k], blocks, exact)
+            value_cold = (M[:c, :k] @ fresh).min()
+            spread = np.ptp(M[:c, :k]) if exact else np.abs(M[:c, :k]).max()
+            level = value_cold - 0.05 * spread if stop and n % 2 == 0 else np.inf
+            lam, mix = np.zeros(K), np.empty(c)
+            pivots, warm = slot_game.game_solve(M[:c, :k].copy(), block[:k], blocks, exact, T,
+                                                basis, low, span, lam[:k], level, -np.inf, 400,
+                                                1e-9, mix)  # fmt: skip
+            value = (M[:c] @ lam).min()
+            assert np.all(lam >= 0)
+            if exact:
+                assert abs(lam.sum() - 1.0) < 1e-12
+            else:
+                assert np.all(np.bincount(block, lam, blocks) <= 1 + 1e-12)
+            if level < np.inf:
+                assert value >= level - 1e-12 * spread
+                stopped += n > 0
+            else:
+                warm_pivots += pivots
+                fresh_pivots += cold
+                assert abs(value - value_cold) <= 1e-7 * spread, (trial, c, k, value, value_cold)
+                if not exact:
+                    best = _block_game_value(M[:c, :k], block[:k], blocks)
+                    assert best - 1e-7 * spread <= value <= best + 1e-9 * spread
+            c, k = (c + 1, k) if step == "row" else (c, k + 1)
+            if not warm:
+                low, span = slot_game.game_open(M[:c, :k].copy(), block[:k], blocks, exact, T,
+                                                basis)  # fmt: skip
+            elif step == "row":
+                slot_game.game_add_row(M[:c, :k].copy(), block[:k], blocks, T, basis, low, span)
+            else:
+                slot_game.game_add_column(M[:c, :k].copy(), block[:k], blocks, T, basis, low,
+                                          span)  # fmt: skip
+            warm_steps += warm
+    assert warm_steps > 200 and (stopped > 100 or not stop)
+    assert warm_pivots < 0.7 * fresh_pivots, (warm_pivots, fresh_pivots)

@@ -19,7 +19,9 @@ import numpy as np
 from numba import njit
 
 from .arrays import argsort, copy_into, copy_rows, fill
-from .slot_game import block_game_weights
+from .slot_game import EPS as SLOT_EPS
+from .slot_game import MAX_PIVOTS as SLOT_PIVOTS
+from .slot_game import game_add_column, game_add_row, game_open, game_solve, game_tableau
 from .support import D_VALUE, OPTIONS, WRAPPER, no_vector, scratch, set_value, support_point
 
 SAMPLES = 11  # a cell's centre and the ends of its five axes
@@ -64,9 +66,6 @@ GAME_EPS = 1e-6
 # A cell's game stops once its bound clears the drop threshold by this share of the gap: more
 # would only widen the cell's bound past what drops it; less would leave the bracket at the gap.
 GAME_HEADROOM = 0.5
-# Pivots between the checks of a game's dual bound (:func:`row_mix_bound`): a check costs
-# about a pivot.
-GIVE_UP_EVERY = 2
 # A cell whose lowest sample lies within this many ``|target| delta^2`` of the target skips the
 # refinement's games (cloud, slot game, corners) and is halved: every linear bound over a cap
 # of radius ``delta`` loses about ``p delta^2 / 2`` to the sphere's curvature, so those games
@@ -275,115 +274,23 @@ def frank_wolfe(points, n, c, delta, steps, lam, wbar):
 
 
 @njit(**OPTIONS)
-def row_mix_bound(M, T, row, first):
-    """An upper bound on the value ``max_lam min_c (M lam)_c`` of the game ``M`` (C, K), from a
-    simplex tableau ``T`` whose row ``row`` holds the game rows' dual estimates in columns
-    ``first + c``: every mix ``mu`` of the rows bounds it by ``max_k (mu M)_k``; here the
-    estimates clipped at 0 and normalised (the game's optimal mix at its optimum), +inf when
-    none is positive."""
-    C, K = M.shape
-    total = 0.0
-    for c in range(C):
-        total += max(T[row, first + c], 0.0)
-    if not total > 0.0:
-        return np.inf
-    top = -np.inf
-    for k in range(K):
-        v = 0.0
-        for c in range(C):
-            if T[row, first + c] > 0.0:
-                v += T[row, first + c] * M[c, k]
-        top = max(top, v)
-    return top / total
-
-
-@njit(**OPTIONS)
 def game_weights(M, lam, stop=np.inf, max_pivots=MAX_PIVOTS, give_up=-np.inf):
     """Convex weights ``lam`` (K,) maximising ``min_c (M lam)_c`` for ``M`` (C, K): the value
-    of a small matrix game by a dense primal simplex (Dantzig's rule) on the game scaled to
-    [0, 1]; every iterate is feasible, so capped weights still give a valid bound (callers
+    of a small matrix game by a fresh convex game (:func:`.slot_game.game_solve`, scaled to
+    [0, 1]); every iterate is feasible, so capped weights still give a valid bound (callers
     recompute the bound from the weights). Pivoting ends early once the iterate's value
     reaches ``stop`` (a cell's bound needs no more than its target), once a mix of the rows
-    (:func:`row_mix_bound`) shows the value below ``give_up`` (the game cannot drop the cell:
-    more pivots would be wasted), or after ``max_pivots``.
-    Returns the pivots taken, as ``-1 - pivots`` when it gave up."""
+    shows the value below ``give_up`` (the game cannot drop the cell: more pivots would be
+    wasted), or after ``max_pivots``. Returns the pivots taken, as ``-1 - pivots`` when it
+    gave up."""
     C, K = M.shape
-    low, high = np.inf, -np.inf
-    for i in range(C):
-        for k in range(K):
-            low, high = min(low, M[i, k]), max(high, M[i, k])
-    span = high - low if high > low else 1.0
-    j0, best = 0, -np.inf
-    for k in range(K):
-        col = np.inf
-        for i in range(C):
-            col = min(col, M[i, k])
-        if col > best:
-            best, j0 = col, k
-    V = K + 1 + C
-    T = np.zeros((C + 2, V + 1))
-    for i in range(C):
-        pivot = (M[i, j0] - low) / span
-        for k in range(K):
-            T[i, k] = -(M[i, k] - low) / span + pivot
-        T[i, K] = 1.0
-        T[i, K + 1 + i] = 1.0
-        T[i, V] = pivot
-    for k in range(K):
-        T[C, k] = 1.0
-    T[C, V] = 1.0
-    T[C + 1, K] = -1.0
-    basis = np.empty(C + 1, np.int64)
-    for i in range(C):
-        basis[i] = K + 1 + i
-    basis[C] = j0
-    eps = GAME_EPS
-    pivots = 0
-    gave_up = False
-    for _ in range(max_pivots):
-        if low + span * T[C + 1, V] >= stop:  # t <= (M' lam)_c with M' = (M - low) / span
-            break
-        check = pivots % GIVE_UP_EVERY == GIVE_UP_EVERY - 1
-        if check and row_mix_bound(M, T, C + 1, K + 1) < give_up:
-            gave_up = True
-            break
-        j, low_obj = 0, np.inf
-        for k in range(V):
-            if T[C + 1, k] < low_obj:
-                low_obj, j = T[C + 1, k], k
-        if not low_obj < -eps:
-            break
-        i, ratio = -1, np.inf
-        for r in range(C + 1):
-            if T[r, j] > eps:
-                q = T[r, V] / T[r, j]
-                if q < ratio:
-                    ratio, i = q, r
-        if i < 0:
-            break
-        p = T[i, j]
-        for k in range(V + 1):
-            T[i, k] /= p
-        for r in range(C + 2):
-            if r != i and T[r, j] != 0.0:
-                factor = T[r, j]
-                for k in range(V + 1):
-                    T[r, k] -= factor * T[i, k]
-        basis[i] = j
-        pivots += 1
-    fill(lam, K, 0.0)
-    for r in range(C + 1):
-        if basis[r] < K:
-            lam[basis[r]] = max(T[r, V], 0.0)
-    total = 0.0
-    for k in range(K):
-        total += lam[k]
-    if total > 0.0:
-        for k in range(K):
-            lam[k] /= total
-    else:
-        lam[0] = 1.0
-    return -1 - pivots if gave_up else pivots
+    one = np.int64(1)  # not a literal: one compile of the game
+    block = np.zeros(K, np.int64)
+    T, basis = game_tableau(C, K, one)
+    low, span = game_open(M, block, one, True, T, basis)
+    pivots, _ = game_solve(M, block, one, True, T, basis, low, span, lam, stop, give_up,
+                           max_pivots, GAME_EPS, np.empty(C))  # fmt: skip
+    return pivots
 
 
 @njit(**OPTIONS)
@@ -412,8 +319,15 @@ def exact_bound(points, n, corners, unit, nearest, stop, give_up, wbar):
             M[C, i] = dot6(unit[q], points[i])
         C += 1
     lam = np.empty(n)
+    # one tableau for the game and its added rows: a row joins an optimal game warm
+    one, exact = np.int64(1), True
+    block = np.zeros(n, np.int64)
+    T, basis = game_tableau(CORNERS, n, one)
+    mix = np.empty(CORNERS)
+    low, span = game_open(M[:C], block, one, exact, T, basis)
     for _ in range(CORNERS):
-        pivots = game_weights(M[:C], lam, stop, CELL_PIVOTS, give_up)
+        pivots, warm = game_solve(M[:C], block, one, exact, T, basis, low, span, lam, stop,
+                                  give_up, CELL_PIVOTS, GAME_EPS, mix[:C])  # fmt: skip
         fill(wbar, len(wbar), 0.0)
         for i in range(n):
             for k in range(6):
@@ -433,6 +347,10 @@ def exact_bound(points, n, corners, unit, nearest, stop, give_up, wbar):
         for i in range(n):
             M[C, i] = dot6(unit[at], points[i])
         C += 1
+        if warm:
+            game_add_row(M[:C], block, one, T, basis, low, span)
+        else:
+            low, span = game_open(M[:C], block, one, exact, T, basis)
     return box_bound(wbar, corners, unit, nearest)
 
 
@@ -498,15 +416,18 @@ def slot_bound(G, f, W, npc, ends, dirs, corners, unit, nearest, stop, give_up, 
         rows_in[q] = True
         picked[C] = q
         C += 1
+    for c in range(C):
+        for k in range(K):
+            M[c, k] = dot6(unit[picked[c]], cols[k])
+    # one tableau for the game and its added rows and columns (:mod:`.slot_game`)
+    exact = False
+    T, basis = game_tableau(CORNERS, len(cols), blocks)
+    low, span = game_open(M[:C, :K], block[:K], blocks, exact, T, basis)
     ubar = np.empty(6)
     added = 0
     for _ in range(CORNERS + COLUMN_ROUNDS):
-        game = M[:C, :K]
-        for c in range(C):
-            q = picked[c]
-            for k in range(K):
-                game[c, k] = dot6(unit[q], cols[k])
-        pivots = block_game_weights(game, block[:K], blocks, lam, stop, give_up, mix[:C])
+        pivots, warm = game_solve(M[:C, :K], block[:K], blocks, exact, T, basis, low, span,
+                                  lam, stop, give_up, SLOT_PIVOTS, SLOT_EPS, mix[:C])  # fmt: skip
         fill(wbar, len(wbar), 0.0)
         for k in range(K):
             for j in range(6):
@@ -521,7 +442,13 @@ def slot_bound(G, f, W, npc, ends, dirs, corners, unit, nearest, stop, give_up, 
         if pivots >= 0 and at >= 0 and low_out < low_in:  # given up, more rows only lower it
             rows_in[at] = True
             picked[C] = at
+            for k in range(K):
+                M[C, k] = dot6(unit[at], cols[k])
             C += 1
+            if warm:
+                game_add_row(M[:C, :K], block[:K], blocks, T, basis, low, span)
+            else:
+                low, span = game_open(M[:C, :K], block[:K], blocks, exact, T, basis)
             continue
         if low_in >= stop or added == COLUMN_ROUNDS:
             break
@@ -536,7 +463,7 @@ def slot_bound(G, f, W, npc, ends, dirs, corners, unit, nearest, stop, give_up, 
             ubar[j] /= length
         # an empty ``slots`` as above: the version slot values compile, not a third one
         set_value(G, f, W, npc, ends, ubar, D, None, no_vector(D), rows)
-        reach = 0.0
+        reach, before = 0.0, K
         for i in range(m):
             if index[i] >= 0:
                 at = ends[i]
@@ -549,6 +476,13 @@ def slot_bound(G, f, W, npc, ends, dirs, corners, unit, nearest, stop, give_up, 
                 K += 1
         if length * reach < give_up:  # no column can lift the game to the drop
             break
+        for k in range(before, K):
+            for c in range(C):
+                M[c, k] = dot6(unit[picked[c]], cols[k])
+            if warm:
+                game_add_column(M[:C, : k + 1], block[: k + 1], blocks, T, basis, low, span)
+        if not warm:
+            low, span = game_open(M[:C, :K], block[:K], blocks, exact, T, basis)
         added += 1
     bound = box_bound(wbar, corners, unit, nearest)
     return bound if bound > 0.0 else -np.inf
