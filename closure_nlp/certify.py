@@ -199,6 +199,19 @@ def certified_bounds(
         found = sphere_minimum(
             slots, u0, gap=gap(value0), metric=_metric(slots), options=budget, polish=polish
         )
+        if found.converged and found.upper - found.lower > gap(found.lower):
+            # The gap was the start's value's, above the minimum (a start far from it): again
+            # from the incumbent with the bracket's own, rho's gap at most.
+            first = found
+            again = sphere_minimum(
+                slots, first.direction, gap=gap(first.lower), metric=_metric(slots),
+                options=budget, polish=polish,
+            )  # fmt: skip
+            found = replace(
+                again if again.converged else first,
+                evaluations=first.evaluations + again.evaluations,
+                rounds=first.rounds + again.rounds,
+            )
         if found.upper >= 0:  # the origin is not outside: rho = -min p
             lo, hi = -found.upper, -found.lower
             return _result(
