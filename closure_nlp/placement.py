@@ -451,7 +451,8 @@ class ExchangeProblem:
     with 24- and 18-vertex facets, 7 PCwF: 482 -> 51 ms per solve). On smaller elements the
     extra variables cost more than they save (segments and triangles: 10-35% slower).
 
-    Built once per shape; ``capacity`` directions, unused ones masked out by parameters.
+    Built once per shape; ``capacity`` directions, unused ones masked out by parameters and
+    their rows left free.
     ``components`` (per contact; default all four) are the components of ``d`` its friction
     pieces weigh (PCwF: the two tangential ones). A contact with none (no friction piece: FPC,
     or mu = mu_s = 0) has the linear term ``f_i d_n`` alone: the same value, and no curvature
@@ -562,8 +563,13 @@ class ExchangeProblem:
         free = np.full(3 * len(xi0), np.inf)
         lbx = np.concatenate([np.maximum(flat - radius, 0.0), -free, [-np.inf]])
         ubx = np.concatenate([np.minimum(flat + radius, 1.0), free, [np.inf]])
+        # The unused directions' rows (0 >= 0) are left free: bounded, their slacks sit at the
+        # relaxed bound inside IPOPT's barrier and complementarity measure, which took more
+        # iterations to other weights than the NLP of exactly these directions; free, the same.
+        lbg = self._lbg.copy()
+        lbg[len(lbg) - K + n :] = -np.inf
         with interruptible():
-            sol = self._solver(x0=x0, p=params, lbx=lbx, ubx=ubx, lbg=self._lbg, ubg=self._ubg)
+            sol = self._solver(x0=x0, p=params, lbx=lbx, ubx=ubx, lbg=lbg, ubg=self._ubg)
         x = np.asarray(sol["x"]).ravel()
         weights, at = [], 0
         for k in self.rows:
