@@ -155,6 +155,22 @@ def _random_round(rng, placer, elements, rows):
     return slots, U, [np.pad(w, (0, k - len(w))) for w, k in zip(weights, rows)]
 
 
+PISTOL_SET = [6, 5, 1, 3, 0, 5, 2]  # facets of 24, 18 and 4 vertices: affine and weights form
+
+
+def _pistol_exchange(seed, **contact):
+    """7 contacts (``contact_specs(7, **contact)``) on the pistol's :data:`PISTOL_SET`: their
+    placer, the elements' padded frames, their row counts, and a generator seeded ``seed``."""
+    eligibility = Eligibility(
+        load_model(MODELS / "pistol.model.json"), contact_specs(7, **contact), torque_scale=1.0
+    )
+    model = eligibility.model
+    frames = [ElementFrame.padded(model.elements[e], eligibility.torque_scale) for e in PISTOL_SET]
+    rows = tuple(len(frame.G) for frame in frames)
+    placer = Placer(eligibility, PlacementOptions(bound=False))
+    return placer, frames, rows, np.random.default_rng(seed)
+
+
 def test_frictionless_exchange_is_a_linear_programme(monkeypatch):
     """Frictionless contacts: the restricted problem is linear, and HiGHS (``ExchangeLP``)
     reaches IPOPT's optimum of the same NLP, with weights in their simplices and the trust
@@ -162,16 +178,10 @@ def test_frictionless_exchange_is_a_linear_programme(monkeypatch):
     the NLP."""
     from closure_nlp import placement
 
-    eligibility = Eligibility(
-        load_model(MODELS / "pistol.model.json"), contact_specs(7, type="fpc"), torque_scale=1.0
-    )
-    elements = [6, 5, 1, 3, 0, 5, 2]  # facets of 24, 18 and 4 vertices (the NLP's affine form)
-    model, rng = eligibility.model, np.random.default_rng(4)
-    frames = [ElementFrame.padded(model.elements[e], eligibility.torque_scale) for e in elements]
-    rows = tuple(len(frame.G) for frame in frames)
+    placer, frames, rows, rng = _pistol_exchange(4, type="fpc")
+    elements, model = PISTOL_SET, placer.eligibility.model
     f_max, margin, radius = np.ones(len(elements)), 0.01, 0.3
     nlp = ExchangeProblem(rows, 64, 1e-10, margin, ((),) * len(rows))  # all frictionless
-    placer = Placer(eligibility, PlacementOptions(bound=False))
     for trial in range(3):
         slots, U, start = _random_round(rng, placer, elements, rows)
         c, r = ExchangeLP(margin).solve(frames, slots, f_max, U, start, radius)
@@ -235,21 +245,12 @@ def test_affine_position_form_matches_the_weights_form(monkeypatch):
     part ways after a few rounds, as any change of IPOPT's path makes them.)"""
     from closure_nlp import placement
 
-    eligibility = Eligibility(
-        load_model(MODELS / "pistol.model.json"),
-        contact_specs(7, type="pcwf", mu=0.3),
-        torque_scale=1.0,
-    )
-    elements = [6, 5, 1, 3, 0, 5, 2]  # facets of 24, 18 and 4 vertices
-    model, rng = eligibility.model, np.random.default_rng(2)
-    frames = [ElementFrame.padded(model.elements[e], eligibility.torque_scale) for e in elements]
-    rows = tuple(len(frame.G) for frame in frames)
+    placer, frames, rows, rng = _pistol_exchange(2, type="pcwf", mu=0.3)
+    elements, model = PISTOL_SET, placer.eligibility.model
     f_max, default = np.ones(len(elements)), placement.AFFINE_ROWS
     for trial in range(3):
         weights = [rng.dirichlet(np.ones(len(model.elements[e].vertices))) for e in elements]
-        slots = WrenchSlots.from_contacts(
-            Placer(eligibility, PlacementOptions(bound=False)).contact_set(elements, weights)
-        )
+        slots = WrenchSlots.from_contacts(placer.contact_set(elements, weights))
         U = rng.standard_normal((40, 6))
         U /= np.linalg.norm(U, axis=1, keepdims=True)
         start = [np.pad(w, (0, k - len(w))) for w, k in zip(weights, rows)]
@@ -268,16 +269,8 @@ def test_friction_components_leave_the_exchange_nlp_unchanged(kind):
     (:meth:`Placer._components`): the same optimum as the NLP over all four, on sets with
     affine (24-, 18-vertex facets) and weights-form contacts; leaving out one more (the first
     tangent) is seen."""
-    eligibility = Eligibility(
-        load_model(MODELS / "pistol.model.json"),
-        contact_specs(7, type=kind, mu=0.3, mu_s=0.2),
-        torque_scale=1.0,
-    )
-    placer = Placer(eligibility, PlacementOptions(bound=False))
-    elements = [6, 5, 1, 3, 0, 5, 2]
-    model, rng = eligibility.model, np.random.default_rng(5)
-    frames = [ElementFrame.padded(model.elements[e], eligibility.torque_scale) for e in elements]
-    rows = tuple(len(frame.G) for frame in frames)
+    placer, frames, rows, rng = _pistol_exchange(5, type=kind, mu=0.3, mu_s=0.2)
+    elements = PISTOL_SET
     components = placer._components()
     expected = {"pcwf": (1, 2), "sfce": (1, 2, 3), "sfcl": (1, 2, 3)}[kind]
     assert components == (expected,) * 7
@@ -302,16 +295,8 @@ def test_exchange_nlp_built_without_the_parameters_gradient_takes_the_same_itera
     the exchange NLP takes the same iterations to the same weights and ``r``, to the bit."""
     from closure_nlp import placement
 
-    eligibility = Eligibility(
-        load_model(MODELS / "pistol.model.json"),
-        contact_specs(7, type="pcwf", mu=0.2),
-        torque_scale=1.0,
-    )
-    placer = Placer(eligibility, PlacementOptions(bound=False))
-    elements = [6, 5, 1, 3, 0, 5, 2]  # affine and weights-form contacts
-    model, rng = eligibility.model, np.random.default_rng(6)
-    frames = [ElementFrame.padded(model.elements[e], eligibility.torque_scale) for e in elements]
-    rows = tuple(len(frame.G) for frame in frames)
+    placer, frames, rows, rng = _pistol_exchange(6, type="pcwf", mu=0.2)
+    elements = PISTOL_SET
     components = placer._components()
     lean = ExchangeProblem(rows, 48, 1e-10, 0.01, components=components)
     lean_only = ("calc_lam_p", "no_nlp_grad")
@@ -337,16 +322,8 @@ def test_exchange_nlp_padding_leaves_ipopt_the_restricted_problem():
     built for exactly the round's directions. (Bounded, their slacks sat at the relaxed bound,
     in the barrier and the complementarity measure: 28-38 iterations against 25, weights
     1e-2 apart on this pistol set.)"""
-    eligibility = Eligibility(
-        load_model(MODELS / "pistol.model.json"),
-        contact_specs(7, type="pcwf", mu=0.2),
-        torque_scale=1.0,
-    )
-    placer = Placer(eligibility, PlacementOptions(bound=False))
-    elements = [6, 5, 1, 3, 0, 5, 2]  # affine and weights-form contacts
-    model, rng = eligibility.model, np.random.default_rng(6)
-    frames = [ElementFrame.padded(model.elements[e], eligibility.torque_scale) for e in elements]
-    rows = tuple(len(frame.G) for frame in frames)
+    placer, frames, rows, rng = _pistol_exchange(6, type="pcwf", mu=0.2)
+    elements = PISTOL_SET
     components = placer._components()
     exact, padded = (
         ExchangeProblem(rows, capacity, 1e-10, 0.01, components=components)
