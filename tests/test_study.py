@@ -252,6 +252,34 @@ def test_a_local_cluster_runs_every_task_once_in_its_workers(tiny, tmp_path):
     assert (tmp_path / "summary.md").stat().st_size > 0
 
 
+def test_a_worker_keeps_to_one_group_of_tasks_until_every_group_is_started(tmp_path):
+    """Seeds of one group (all but the seed equal) go to one worker while groups are left to
+    start, so its plan memo serves them; then a free worker helps the fullest group from its
+    far end. Every task is handed out once."""
+    from closure_nlp.study.running import _Dispatch
+
+    study = load_study(write_study(tmp_path, TINY.replace("seeds = 2", "seeds = 5")))
+    groups = {}
+    for task in study.tasks:
+        groups.setdefault(task.memo_group(), []).append(task)
+    assert len(groups) == 2 and all(len(g) == 5 for g in groups.values())
+    assert all(len({t.mu for t in g}) == 1 for g in groups.values())
+    first, second = groups.values()
+    dispatch = _Dispatch(study.tasks)
+    got = {"a": [dispatch.next("a")], "b": [dispatch.next("b")]}
+    assert got["a"][0] is first[0] and got["b"][0] is second[0]
+    got["a"] += [dispatch.next("a") for _ in range(4)]
+    assert got["a"] == first and dispatch
+    # "a" is done with its group and none is left to start: it takes "b"'s last seed
+    got["a"].append(dispatch.next("a"))
+    assert got["a"][-1] is second[-1]
+    while dispatch:
+        got["b"].append(dispatch.next("b"))
+    assert got["b"] == second[:-1] and dispatch.next("a") is None and dispatch.next("c") is None
+    handed = [t.task_id for ts in got.values() for t in ts]
+    assert sorted(handed) == sorted(t.task_id for t in study.tasks)
+
+
 def plan_of(task):
     """What ``plan`` gives for a study task's model, contacts, seed and options, in this
     process."""
@@ -521,6 +549,26 @@ def test_killed_worker_then_resume_every_task_once(tiny, serial_rows, client, tm
     assert (third.run, third.failed, third.skipped) == (len(failed), 0, 4 - len(failed))
     assert len(list((out / "results").glob("*.parquet"))) == 4
     same_rows(read_results(out / "results").set_index("task_id"), serial_rows)
+
+
+def paced_runner(task, model_text):
+    """A fake row after a pause: 0.1 s per task with mu 0.2, 0.5 s with mu 0.4."""
+    time.sleep(0.1 if task.mu == 0.2 else 0.5)
+    return fake_runner(task, model_text)
+
+
+@pytest.mark.slow
+def test_a_cluster_worker_runs_a_group_of_seeds_itself(tmp_path, client):
+    """On 2 workers, the 4 seeds of the quick group all run on one worker (on the other, the
+    slow group's seeds, but for its last ones once the quick group is done): handed out in
+    grid order to whichever worker was free, they alternated."""
+    study = load_study(write_study(tmp_path, TINY.replace("seeds = 2", "seeds = 4")))
+    run = run_study(study, tmp_path / "out", client=client, runner=paced_runner)
+    assert (run.run, run.failed) == (8, 0)
+    rows = read_results(tmp_path / "out" / "results")
+    quick, slow = rows[rows.mu == 0.2], rows[rows.mu == 0.4]
+    assert quick.worker.nunique() == 1
+    assert (slow.worker != quick.worker.iloc[0]).sum() >= 2
 
 
 def held_once(task, model_text, folder: str, task_id: str):

@@ -6,6 +6,7 @@ import logging
 import os
 import re
 import time
+from collections import deque
 from collections.abc import Callable, Sequence
 from concurrent.futures import CancelledError
 from dataclasses import dataclass
@@ -229,10 +230,50 @@ def check_scheduler_address(address) -> str:
     return address
 
 
-def _run_dask(tasks: Sequence[Task], texts, record, runner, client, scheduler, workers) -> int:
-    """Submit every task, record rows as they complete; returns the number of workers.
+class _Dispatch:
+    """Which pending task a worker runs next. A worker keeps to one group of tasks (the same
+    model, contact parameters and options, :meth:`~closure_nlp.study.tasks.Task.memo_group`)
+    until it is done, then starts the next group nobody has started (grid order); when every
+    group is started, it helps the one with the most tasks left, from its far end.
 
-    Waits as long as it takes: a joined cluster without workers runs nothing until some join.
+    Seeds of a group often meet the same element sets, and a worker's plan memo serves only its
+    own tasks: handed out in grid order to whichever worker was free, the fixture study's
+    groups ran on both workers, and 188 s of its 1,136 s of task wall time went to tasks whose
+    element set the other worker had already placed."""
+
+    def __init__(self, tasks: Sequence[Task]):
+        groups: dict = {}
+        for task in tasks:
+            groups.setdefault(task.memo_group(), deque()).append(task)
+        self.fresh = deque(groups.values())
+        self.started: list[deque] = []
+        self.current: dict = {}  # worker -> (its group, whether it takes from the front)
+
+    def next(self, worker) -> Task | None:
+        group, front = self.current.get(worker, (None, True))
+        if not group:
+            if self.fresh:
+                group, front = self.fresh.popleft(), True
+                self.started.append(group)
+            else:
+                group, front = max(self.started, key=len, default=None), False
+                if not group:
+                    return None
+            self.current[worker] = (group, front)
+        return group.popleft() if front else group.pop()
+
+    def __bool__(self) -> bool:
+        """Whether any task is left to hand out."""
+        return bool(self.fresh) or any(self.started)
+
+
+def _run_dask(tasks: Sequence[Task], texts, record, runner, client, scheduler, workers) -> int:
+    """Run every task, record rows as they complete; returns the number of workers.
+
+    Each worker holds one task per thread (:class:`_Dispatch` picks them; a worker that dies
+    takes no queued task with it); a task goes to another worker only if its own is gone. A
+    joined cluster without workers runs nothing until some join; a worker that joins later
+    gets tasks as the others finish theirs.
     """
     import asyncio
     import uuid
@@ -251,35 +292,58 @@ def _run_dask(tasks: Sequence[Task], texts, record, runner, client, scheduler, w
             cluster = local_cluster(workers)
             client = own_client = Client(cluster)
             client.register_plugin(_ctrl_c_plugin())
-    futures = {}
+    futures = {}  # future -> (task, the worker it was given to)
     try:
-        used = len(client.scheduler_info().get("workers", {}))
+        used = len(client.scheduler_info(n_workers=-1).get("workers", {}))
         # every worker holds each model: one that dies does not take the models with it
         models = {d: client.scatter(text, hash=False, broadcast=True) for d, text in texts.items()}
         tag = uuid.uuid4().hex[:8]
         tries = dict.fromkeys((task.task_id for task in tasks), 0)
+        dispatch, held, retry = _Dispatch(tasks), {}, deque()
+        completed = as_completed()
 
-        def submit(task):
+        def submit(task, worker=None):
             if models[task.model_digest].status != "finished":  # lost with every holder
                 models[task.model_digest] = client.scatter(
                     texts[task.model_digest], hash=False, broadcast=True
                 )
             tries[task.task_id] += 1
             key = f"study-{task.task_id}-{tag}-{tries[task.task_id]}"
-            future = client.submit(runner, task, models[task.model_digest], key=key)
-            futures[future] = task
-            return future
+            # its worker, or any other one if that one is gone (a retry: any worker)
+            place = {} if worker is None else {"workers": [worker], "allow_other_workers": True}
+            future = client.submit(runner, task, models[task.model_digest], key=key, **place)
+            futures[future] = (task, worker)
+            held[worker] = held.get(worker, 0) + 1
+            completed.add(future)
 
-        completed = as_completed([submit(task) for task in tasks])
-        for future in completed:
-            task = futures.pop(future)
+        def fill():
+            while retry:
+                submit(retry.popleft())
+            info = client.scheduler_info(n_workers=-1).get("workers", {})
+            for worker, about in info.items():
+                while held.get(worker, 0) < about.get("nthreads", 1):
+                    task = dispatch.next(worker)
+                    if task is None:
+                        return
+                    submit(task, worker)
+
+        while True:
+            fill()
+            if not futures:
+                if not (dispatch or retry):
+                    break
+                client.wait_for_workers(1)  # nothing runs before a worker joins
+                continue
+            future = next(completed)
+            task, worker = futures.pop(future)
+            held[worker] -= 1
             try:
                 row = future.result()
             except CancelledError as exc:
                 # a result lost with its worker after the task ended: not the task's doing
                 if tries[task.task_id] <= LOST_RESULT_RETRIES:
                     future.release()
-                    completed.add(submit(task))
+                    retry.append(task)
                     continue
                 row = error_row(task, f"{type(exc).__name__}: {exc}")
             except (Exception, asyncio.CancelledError) as exc:  # noqa: BLE001 - a dead worker

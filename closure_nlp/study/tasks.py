@@ -32,6 +32,8 @@ from .store import ROW_COLUMNS
 
 TASK_VERSION = 2  # part of every task_id: bump when a task's meaning changes (2: alternatives)
 
+_NOT_SHARED = ("model", "model_file", "seed")
+
 # runner(task, model_text) -> row: what a worker runs for one task (tests swap it).
 Runner = Callable[["Task", "str | None"], dict]
 
@@ -88,6 +90,12 @@ class Task:
         """16 hex digits of the SHA-256 of the canonical JSON of :meth:`inputs`."""
         text = json.dumps(self.inputs(), sort_keys=True, separators=(",", ":"), allow_nan=False)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+    def memo_group(self) -> tuple:
+        """Everything but the seed: the tasks of one group share a worker's solvers and its plan
+        memo (:func:`run_task`), so seeds meeting the same element sets reuse each other's work
+        only when one worker runs them (:func:`~closure_nlp.study.running.run_study`)."""
+        return tuple(getattr(self, f.name) for f in fields(self) if f.name not in _NOT_SHARED)
 
     def specs(self):
         """The contact specs of this task (defaults for the parameters that are ``None``)."""
