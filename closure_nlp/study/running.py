@@ -237,9 +237,7 @@ class _Dispatch:
     group is started, it helps the one with the most tasks left, from its far end.
 
     Seeds of a group often meet the same element sets, and a worker's plan memo serves only its
-    own tasks: handed out in grid order to whichever worker was free, the fixture study's
-    groups ran on both workers, and 188 s of its 1,136 s of task wall time went to tasks whose
-    element set the other worker had already placed."""
+    own tasks: a group spread over workers places such a set once on each."""
 
     def __init__(self, tasks: Sequence[Task]):
         groups: dict = {}
