@@ -141,8 +141,11 @@ CAPACITY_KERNELS = (("zonotope", "capacity_many"),)
 # The second list starts with the slot game's bound, which ``advance`` calls deep inside (for
 # the signature it passes, :func:`signatures`): the first process reaches it seconds later and
 # loads it from the disk cache (should it come first, it compiles it too: the same kernel).
+# The first starts with Wolfe's nearest point (the local minimiser's callee, sharing nothing
+# with the slot game), so that ``advance`` reaches ``slot_bound`` after the other has cached it.
 COMPILE_GROUPS = (
     (
+        ("nearest_point", "min_norm_point"),
         ("branch_bound", "consider"),
         ("zonotope", "capacity_many"),
         ("branch_bound", "advance"),
@@ -150,7 +153,7 @@ COMPILE_GROUPS = (
     (
         ("branch_bound", "slot_bound"),
         *(("support", name) for name in ENTRY_POINTS["support"]),
-        *(("nearest_point", name) for name in ENTRY_POINTS["nearest_point"]),
+        ("nearest_point", "nearest_point_bounds"),
         ("descent", "local_minimum"),
         ("descent", "descend_many"),
     ),

@@ -320,14 +320,15 @@ def exact_bound(points, n, corners, unit, nearest, stop, give_up, wbar):
         C += 1
     lam = np.empty(n)
     # one tableau for the game and its added rows: a row joins an optimal game warm
-    one, exact = np.int64(1), True
+    one, exact = np.int64(1), np.bool_(True)  # not literals, and M strided as the slot
+    # game's: one compile of the game
     block = np.zeros(n, np.int64)
     T, basis = game_tableau(CORNERS, n, one)
     mix = np.empty(CORNERS)
-    low, span = game_open(M[:C], block, one, exact, T, basis)
+    low, span = game_open(M[:C, :n], block, one, exact, T, basis)
     for _ in range(CORNERS):
-        pivots, warm = game_solve(M[:C], block, one, exact, T, basis, low, span, lam, stop,
-                                  give_up, CELL_PIVOTS, GAME_EPS, mix[:C])  # fmt: skip
+        pivots, warm = game_solve(M[:C, :n], block, one, exact, T, basis, low, span, lam, stop,
+                                  give_up, np.int64(CELL_PIVOTS), GAME_EPS, mix[:C])  # fmt: skip
         fill(wbar, len(wbar), 0.0)
         for i in range(n):
             for k in range(6):
@@ -348,9 +349,9 @@ def exact_bound(points, n, corners, unit, nearest, stop, give_up, wbar):
             M[C, i] = dot6(unit[at], points[i])
         C += 1
         if warm:
-            game_add_row(M[:C], block, one, T, basis, low, span)
+            game_add_row(M[:C, :n], block, one, T, basis, low, span)
         else:
-            low, span = game_open(M[:C], block, one, exact, T, basis)
+            low, span = game_open(M[:C, :n], block, one, exact, T, basis)
     return box_bound(wbar, corners, unit, nearest)
 
 
@@ -420,14 +421,15 @@ def slot_bound(G, f, W, npc, ends, dirs, corners, unit, nearest, stop, give_up, 
         for k in range(K):
             M[c, k] = dot6(unit[picked[c]], cols[k])
     # one tableau for the game and its added rows and columns (:mod:`.slot_game`)
-    exact = False
+    exact = np.bool_(False)
     T, basis = game_tableau(CORNERS, len(cols), blocks)
     low, span = game_open(M[:C, :K], block[:K], blocks, exact, T, basis)
     ubar = np.empty(6)
     added = 0
     for _ in range(CORNERS + COLUMN_ROUNDS):
         pivots, warm = game_solve(M[:C, :K], block[:K], blocks, exact, T, basis, low, span,
-                                  lam, stop, give_up, SLOT_PIVOTS, SLOT_EPS, mix[:C])  # fmt: skip
+                                  lam, stop, give_up, np.int64(SLOT_PIVOTS), SLOT_EPS,
+                                  mix[:C])  # fmt: skip
         fill(wbar, len(wbar), 0.0)
         for k in range(K):
             for j in range(6):
