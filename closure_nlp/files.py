@@ -225,11 +225,21 @@ def write_json(path, data) -> Path:
     return write_atomic(path, json.dumps(data, indent=1, allow_nan=False) + "\n")
 
 
-def non_finite_key(value, key: str = "") -> str | None:
+def non_finite_key(value) -> str | None:
     """The key path (``placement.rho``, ``history[3]``) of the first NaN or infinity in a
     JSON-able value, or None when every number is finite."""
+    path = _non_finite_path(value)
+    if path is None:
+        return None
+    key = "".join(f".{k}" if isinstance(k, str) else f"[{k}]" for k in reversed(path))
+    return key.lstrip(".") or "value"
+
+
+def _non_finite_path(value) -> list | None:
+    """The keys down to the first NaN or infinity in ``value``, innermost first (named only
+    when one is found: an answer's every number is checked before it is printed)."""
     if isinstance(value, float):
-        return None if math.isfinite(value) else key or "value"
+        return None if math.isfinite(value) else []
     if isinstance(value, dict):
         items = value.items()
     elif isinstance(value, (list, tuple)):
@@ -237,9 +247,10 @@ def non_finite_key(value, key: str = "") -> str | None:
     else:
         return None
     for k, v in items:
-        found = non_finite_key(v, f"{key}.{k}" if isinstance(k, str) else f"{key}[{k}]")
-        if found:
-            return found.lstrip(".")
+        found = _non_finite_path(v)
+        if found is not None:
+            found.append(k)
+            return found
     return None
 
 

@@ -165,8 +165,9 @@ class WrenchSlots:
             G = self.G.copy()
             G[:, :, 3] *= spin[:, None]  # the spin column per unit of normal force
             tangential = self.pieces[:, :, 1:3].sum(axis=(1, 2)) + (spin > 0)
-            top = np.linalg.norm(G[:, :3, :], ord=2, axis=(1, 2))
-            bottom = np.linalg.norm(G[:, 3:, :], ord=2, axis=(1, 2))
+            # spectral norms (numpy's ord=2: the largest singular value), both parts in one call
+            parts = np.concatenate([G[:, :3, :], G[:, 3:, :]])
+            top, bottom = np.split(np.linalg.svd(parts, compute_uv=False).max(axis=-1), 2)
             object.__setattr__(self, "_row_norms_", (top, bottom, tangential))
         return self._row_norms_
 

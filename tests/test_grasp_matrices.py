@@ -1,0 +1,46 @@
+"""A contact set's grasp matrices, built for all its contacts at once."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from closure_nlp.contacts import Contact, ContactSet, grasp_matrices, local_frame, local_frames
+
+
+def _normals(rng, m):
+    n = rng.normal(size=(m, 3)) * 10.0 ** rng.integers(-3, 4, size=(m, 1))
+    n[rng.random((m, 3)) < 0.3] = 0.0  # axis-aligned normals: ties in the least-aligned axis
+    n[~n.any(axis=1), 2] = -1.0
+    return n
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_a_sets_grasp_matrices_are_each_contacts_own_to_the_bit(seed):
+    rng = np.random.default_rng(seed)
+    m = int(rng.integers(1, 40))
+    contacts = tuple(Contact(rng.normal(size=3) * 50.0, n) for n in _normals(rng, m))
+    reference = rng.normal(size=3)
+    scale = float(rng.random() + 0.1)
+    G = ContactSet(contacts, torque_scale=scale, reference_point=reference).grasp_matrices()
+    for c, Gi in zip(contacts, G, strict=True):
+        assert np.array_equal(Gi, grasp_matrices(c.position - reference, c.inward_normal, scale))
+    frames = local_frames(np.array([c.inward_normal for c in contacts]))
+    for c, frame in zip(contacts, frames, strict=True):
+        assert np.array_equal(frame, local_frame(c.inward_normal))
+
+
+def test_a_sets_grasp_matrices_map_forces_to_wrenches():
+    rng = np.random.default_rng(7)
+    contacts = tuple(Contact(rng.normal(size=3), n) for n in _normals(rng, 6))
+    scale = 0.5
+    G = ContactSet(contacts, torque_scale=scale).grasp_matrices()
+    for c, Gi in zip(contacts, G, strict=True):
+        frame = Gi[:3, :3]
+        assert np.allclose(frame.T @ frame, np.eye(3), atol=1e-12)
+        assert np.allclose(frame[:, 0], c.inward_normal, atol=1e-12)
+        assert np.allclose(np.cross(frame[:, 1], frame[:, 2]), frame[:, 0], atol=1e-12)
+        torque = np.cross(c.position, frame.T)  # r x each axis, by numpy's own cross
+        assert np.allclose(Gi[3:, :3], scale * torque.T, atol=1e-12)
+        assert np.allclose(Gi[3:, 3], scale * c.inward_normal, atol=1e-12)
+        assert not Gi[:3, 3].any()
