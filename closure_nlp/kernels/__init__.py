@@ -120,10 +120,12 @@ ENTRY_POINTS = {
     "zonotope": ("capacity_many",),
 }
 # The kernels a certified rho runs (the ``rho`` command's, :func:`warm_up`'s ``rho_only``),
-# ``advance``'s slot game included: a cold ``rho`` compiles these alone; the others (slot
-# values, row terms, Wolfe's nearest point of given points, the zonotope's capacity) compile
-# when a command that runs them first warms up, or at their first call.
+# ``advance``'s slot game included, and Wolfe's nearest point of given points, which the local
+# minimiser runs (compiled first, see :data:`COMPILE_GROUPS`): a cold ``rho`` compiles these
+# alone; the others (slot values, row terms, the zonotope's capacity) compile when a command
+# that runs them first warms up, or at their first call.
 RHO_KERNELS = (
+    ("nearest_point", "min_norm_point"),
     ("branch_bound", "consider"),
     ("branch_bound", "advance"),
     ("branch_bound", "slot_bound"),
