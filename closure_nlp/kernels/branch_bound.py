@@ -320,8 +320,8 @@ def exact_bound(points, n, corners, unit, nearest, stop, give_up, wbar):
         C += 1
     lam = np.empty(n)
     # one tableau for the game and its added rows: a row joins an optimal game warm
-    one, exact = np.int64(1), np.bool_(True)  # not literals, and M strided as the slot
-    # game's: one compile of the game
+    # typed values, not literals, and M strided as in the slot game: the game compiles once
+    one, exact = np.int64(1), np.bool_(True)
     block = np.zeros(n, np.int64)
     T, basis = game_tableau(CORNERS, n, one)
     mix = np.empty(CORNERS)
