@@ -37,7 +37,10 @@ samples approach a minimum only to first order in the cell size, and with an inc
 above the minimum whole neighbourhoods of it survive (an optimised lamp placement whose seed
 search missed the global basin by 0.26%: 18.3 s and unconverged without, 0.9 s with). Cells
 whose bound reaches the incumbent minus the allowed gap are dropped; the others are halved along
-their widest coordinate, until none is left or the budget is spent. The minimum over the sphere
+their widest coordinate, until none is left or the budget is spent, except a small cell holding
+the incumbent: it is cut into nested shells round it, down to an inner box small enough that the
+sphere's curvature costs it less than the gap (at a sharp minimum the shells drop at once, in
+place of a chain of halvings). The minimum over the sphere
 then lies in ``[min over dropped and live cells of their bounds, incumbent]``.
 
 Symmetry. When turns about an axis map the set onto itself (:mod:`closure_nlp.symmetry`: ``n``

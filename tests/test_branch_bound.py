@@ -297,3 +297,79 @@ def test_a_tiny_cell_keeps_its_angular_radius(half):
     delta, _ = kernels.cell_geometry(0, 1.0, lo, hi, np.eye(6), 1.0, centre, corners, unit)
     angle = np.arctan(half * np.sqrt(5.0))
     assert angle <= delta <= angle * (1 + 1e-6) + 1e-14
+
+
+def _volume(lo, hi):
+    return np.prod(np.maximum(hi - lo, 0.0), axis=-1)
+
+
+def _tile_exactly(parent_lo, parent_hi, lo, hi, rng):
+    """The boxes ``lo, hi`` (n, 5) lie inside the parent box, overlap in no volume and their
+    volumes add up to its volume: together they are the parent box."""
+    assert np.all(lo >= parent_lo) and np.all(hi <= parent_hi) and np.all(hi > lo)
+    assert np.isclose(_volume(lo, hi).sum(), _volume(parent_lo, parent_hi), rtol=1e-9, atol=0)
+    for a in range(len(lo)):
+        overlap = _volume(np.maximum(lo[a], lo[a + 1 :]), np.minimum(hi[a], hi[a + 1 :]))
+        assert np.all(overlap <= 1e-12 * _volume(parent_lo, parent_hi))
+    # and every point of the parent lies in some piece
+    points = parent_lo + (parent_hi - parent_lo) * rng.uniform(size=(500, 5))
+    inside = np.all((points[:, None] >= lo) & (points[:, None] <= hi), axis=2)
+    assert inside.any(axis=1).all()
+
+
+@pytest.mark.parametrize("shrink", [2.0, 4.0, 8.0])
+def test_shells_round_a_point_tile_the_box(shrink):
+    """A box cut into shells round a point (anywhere in it, on its faces too): the pieces tile
+    the box, the last is the inner box of half-width ``h`` round the point (clipped to the
+    box), and there are about ``10 log_shrink(width / h)`` of them."""
+    rng = np.random.default_rng(11)
+    for trial in range(40):
+        lo = rng.uniform(-1.0, 0.5, 5)
+        hi = lo + rng.uniform(0.01, 0.5, 5)
+        y = lo + (hi - lo) * rng.uniform(size=5)
+        if trial % 4 == 0:
+            y[trial % 5] = hi[trial % 5]  # on a face: the slabs beyond it are empty
+        h = 10.0 ** rng.uniform(-6, -2)
+        plo, phi = kernels.shells(lo, hi, y, h, shrink)
+        _tile_exactly(lo, hi, plo, phi, rng)
+        assert np.all(plo[-1] <= y) and np.all(y <= phi[-1])
+        assert np.all(phi[-1] - plo[-1] <= 2 * h + 1e-15)
+        levels = np.ceil(np.log(0.5 * (hi - lo).max() / h) / np.log(shrink))
+        assert len(plo) <= 10 * levels + 1
+
+
+def test_split_cuts_the_incumbents_cell_into_shells_and_halves_the_others():
+    """Every child lies in its parent and each parent's children tile it; the cell holding the
+    incumbent (small enough) gets an inner box of angular radius about ``radius`` round it."""
+    rng = np.random.default_rng(3)
+    axis, sign, lo, hi = _initial_cells(1)
+    metric = np.diag(rng.uniform(0.5, 2.0, 6))
+    u = rng.normal(size=6)
+    u /= np.linalg.norm(u)
+    x = np.linalg.solve(metric, u)
+    k = int(np.argmax(np.abs(x)))
+    y = np.delete(x, k) / abs(x[k])
+    holder = np.flatnonzero(
+        (axis == k) & (sign == np.sign(x[k])) & np.all((lo <= y) & (y <= hi), axis=1)
+    )[0]
+    # a small cell round the incumbent and two others
+    small_lo, small_hi = y - rng.uniform(0.01, 0.02, 5), y + rng.uniform(0.01, 0.02, 5)
+    cells = [holder, (holder + 1) % len(axis), (holder + 7) % len(axis)]
+    lo, hi = lo[cells].copy(), hi[cells].copy()
+    lo[0], hi[0] = small_lo, small_hi
+    axis, sign = axis[cells], sign[cells]
+    radius = 1e-4
+    caxis, csign, clo, chi, parent = kernels.split(axis, sign, lo, hi, 128, metric, u, radius, 0.6)
+    for c in range(3):
+        mine = parent == c
+        assert np.all(caxis[mine] == axis[c]) and np.all(csign[mine] == sign[c])
+        _tile_exactly(lo[c], hi[c], clo[mine], chi[mine], rng)
+    shells = np.flatnonzero(parent == 0)
+    assert len(shells) > 11  # more than one shell
+    inner = shells[-1]
+    assert np.all(clo[inner] <= y) and np.all(y <= chi[inner])
+    scratch = np.empty(6), np.empty((32, 6)), np.empty((32, 6))
+    delta, _ = kernels.cell_geometry(
+        axis[0], sign[0], clo[inner], chi[inner], metric, 1.0, *scratch
+    )
+    assert 0.99 * radius <= delta <= 1.01 * radius
