@@ -21,7 +21,7 @@ from numba import njit
 from .arrays import argsort, copy_into, copy_rows, fill
 from .slot_game import EPS as SLOT_EPS
 from .slot_game import MAX_PIVOTS as SLOT_PIVOTS
-from .slot_game import game_add_column, game_add_row, game_open, game_solve, game_tableau
+from .slot_game import game_grow_columns, game_grow_row, game_open, game_solve, game_tableau
 from .support import D_VALUE, OPTIONS, WRAPPER, no_vector, scratch, set_value, support_point
 
 SAMPLES = 11  # a cell's centre and the ends of its five axes
@@ -348,10 +348,7 @@ def exact_bound(points, n, corners, unit, nearest, stop, give_up, wbar):
         for i in range(n):
             M[C, i] = dot6(unit[at], points[i])
         C += 1
-        if warm:
-            game_add_row(M[:C, :n], block, one, T, basis, low, span)
-        else:
-            low, span = game_open(M[:C, :n], block, one, exact, T, basis)
+        low, span = game_grow_row(M[:C, :n], block, one, exact, T, basis, low, span, warm)
     return box_bound(wbar, corners, unit, nearest)
 
 
@@ -447,10 +444,8 @@ def slot_bound(G, f, W, npc, ends, dirs, corners, unit, nearest, stop, give_up, 
             for k in range(K):
                 M[C, k] = dot6(unit[at], cols[k])
             C += 1
-            if warm:
-                game_add_row(M[:C, :K], block[:K], blocks, T, basis, low, span)
-            else:
-                low, span = game_open(M[:C, :K], block[:K], blocks, exact, T, basis)
+            low, span = game_grow_row(M[:C, :K], block[:K], blocks, exact, T, basis, low, span,
+                                      warm)  # fmt: skip
             continue
         if low_in >= stop or added == COLUMN_ROUNDS:
             break
@@ -481,10 +476,8 @@ def slot_bound(G, f, W, npc, ends, dirs, corners, unit, nearest, stop, give_up, 
         for k in range(before, K):
             for c in range(C):
                 M[c, k] = dot6(unit[picked[c]], cols[k])
-            if warm:
-                game_add_column(M[:C, : k + 1], block[: k + 1], blocks, T, basis, low, span)
-        if not warm:
-            low, span = game_open(M[:C, :K], block[:K], blocks, exact, T, basis)
+        low, span = game_grow_columns(M[:C, :K], block[:K], blocks, exact, T, basis, low, span,
+                                      warm, before)  # fmt: skip
         added += 1
     bound = box_bound(wbar, corners, unit, nearest)
     return bound if bound > 0.0 else -np.inf

@@ -158,6 +158,28 @@ def game_add_column(M, block, blocks, T, basis, low, span):
 
 
 @njit(**OPTIONS)
+def game_grow_row(M, block, blocks, exact, T, basis, low, span, warm):
+    """Game row ``C - 1`` of ``M`` (C, K) into the game in ``T``: by :func:`game_add_row` when
+    the last solve left the tableau ``warm``, else the whole game opened afresh
+    (:func:`game_open`). Returns ``(low, span)``."""
+    if not warm:
+        return game_open(M, block, blocks, exact, T, basis)
+    game_add_row(M, block, blocks, T, basis, low, span)
+    return low, span
+
+
+@njit(**OPTIONS)
+def game_grow_columns(M, block, blocks, exact, T, basis, low, span, warm, first):
+    """Columns ``first .. K - 1`` of ``M`` (C, K) into the game in ``T``, as
+    :func:`game_grow_row` adds a row."""
+    if not warm:
+        return game_open(M, block, blocks, exact, T, basis)
+    for k in range(first, M.shape[1]):
+        game_add_column(M[:, : k + 1], block[: k + 1], blocks, T, basis, low, span)
+    return low, span
+
+
+@njit(**OPTIONS)
 def mix_bound(M, block, blocks, exact, T):
     """An upper bound on the game's value from the tableau's dual estimates of its rows
     (``T[0]``'s slack columns, clipped at 0 and normalised: the optimal mix at the optimum):
