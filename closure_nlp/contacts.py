@@ -102,24 +102,17 @@ def local_frame(normal: np.ndarray) -> np.ndarray:
     frame : (3, 3) float
         Columns ``n, o, t`` with ``n = o x t``.
     """
-    n = np.asarray(normal, dtype=float)
-    helper = np.zeros(3)
-    helper[int(np.argmin(np.abs(n)))] = 1.0  # the axis least aligned with n: never parallel
-    o = cross(n, helper)
-    o /= np.linalg.norm(o)
-    t = cross(n, o)  # o x (n x o) = n for unit, orthogonal n and o
-    return np.column_stack([n, o, t])
+    return local_frames(np.asarray(normal, dtype=float)[None])[0]
 
 
 def local_frames(normals: np.ndarray) -> np.ndarray:
-    """:func:`local_frame` of each of ``normals`` (m, 3), by the same operations on each (the
-    same frames to the bit, fewer numpy calls for a set of contacts): (m, 3, 3)."""
+    """:func:`local_frame` of each of ``normals`` (m, 3): (m, 3, 3)."""
     n = np.asarray(normals, dtype=float)
     helper = np.zeros(n.shape)
     # the axis least aligned with n: never parallel
     helper[np.arange(len(n)), np.argmin(np.abs(n), axis=1)] = 1.0
     o = cross(n, helper)
-    for row in o:  # one norm per frame, as numpy takes it of a vector
+    for row in o:  # a vector norm per frame: norm(axis=1) rounds differently
         row /= np.linalg.norm(row)
     t = cross(n, o)  # o x (n x o) = n for unit, orthogonal n and o
     return np.stack([n, o, t], axis=-1)

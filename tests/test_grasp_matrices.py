@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from closure_nlp.contacts import Contact, ContactSet, grasp_matrices, local_frame, local_frames
+from closure_nlp.contacts import Contact, ContactSet, grasp_matrices, local_frames
 
 
 def _normals(rng, m):
@@ -25,9 +25,6 @@ def test_a_sets_grasp_matrices_are_each_contacts_own_to_the_bit(seed):
     G = ContactSet(contacts, torque_scale=scale, reference_point=reference).grasp_matrices()
     for c, Gi in zip(contacts, G, strict=True):
         assert np.array_equal(Gi, grasp_matrices(c.position - reference, c.inward_normal, scale))
-    frames = local_frames(np.array([c.inward_normal for c in contacts]))
-    for c, frame in zip(contacts, frames, strict=True):
-        assert np.array_equal(frame, local_frame(c.inward_normal))
 
 
 def test_a_sets_grasp_matrices_map_forces_to_wrenches():
@@ -44,3 +41,26 @@ def test_a_sets_grasp_matrices_map_forces_to_wrenches():
         assert np.allclose(Gi[3:, :3], scale * torque.T, atol=1e-12)
         assert np.allclose(Gi[3:, 3], scale * c.inward_normal, atol=1e-12)
         assert not Gi[:3, 3].any()
+
+
+def _reference_frame(n):
+    """The frame's rule written out with numpy's own cross: o along n x e_k for the axis e_k
+    least aligned with n, t = n x o."""
+    e = np.zeros(3)
+    e[np.argmin(np.abs(n))] = 1.0
+    o = np.cross(n, e)
+    o = o / np.sqrt(o @ o)
+    return np.column_stack([n, o, np.cross(n, o)])
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_frames_follow_the_least_aligned_axis_rule(seed):
+    rng = np.random.default_rng(seed)
+    normals = _normals(rng, 50)
+    normals /= np.linalg.norm(normals, axis=1)[:, None]
+    frames = local_frames(normals)
+    for n, frame in zip(normals, frames, strict=True):
+        expected = _reference_frame(n)
+        assert np.allclose(frame, expected, rtol=0.0, atol=1e-15)
+        assert np.allclose(frame.T @ frame, np.eye(3), rtol=0.0, atol=1e-15)
+        assert np.linalg.det(frame) > 0.0
