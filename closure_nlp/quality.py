@@ -445,7 +445,7 @@ SEED_SEARCH = SearchOptions(
 class SupportMinimizer:
     """Global ``min_{|u|=1} p(u)`` for any :class:`WrenchSlots`, one cached NLP per shape.
 
-    Starts: two batched numpy descents, on ``p`` and on smoothings of it, from ``+-e_k`` and
+    Starts: two batched compiled descents, on ``p`` and on smoothings of it, from ``+-e_k`` and
     pseudo-random directions (and the warm start, when given), then IPOPT from the lowest end
     points of new basins; the best answer, by the support function evaluated at its unit
     direction, wins.

@@ -73,7 +73,7 @@ def test_slots_whose_arrays_disagree_are_refused_before_any_kernel(fields, messa
 def test_the_descent_refuses_directions_of_another_width():
     message = f"U: {SHAPE} (N, 6), got shape (3, 5)"
     _refused(message, descend, _slots(), np.ones((3, 5)))
-    _refused(message, descend, _slots(), np.ones((3, 5)), tau=0.1)  # the smoothed one in numpy
+    _refused(message, descend, _slots(), np.ones((3, 5)), tau=0.1)  # the smoothed one
 
 
 def test_the_nearest_point_refuses_no_points_and_short_inputs():

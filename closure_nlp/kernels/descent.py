@@ -1,6 +1,7 @@
 """Compiled descents of a support function over the unit sphere: the batched subgradient
-descent of :func:`closure_nlp.sphere_search.descend`, and a local minimiser (gradient
-sampling) that the default search and the certificate's incumbent use."""
+descent of :func:`closure_nlp.sphere_search.descend` (on ``p``, and the steps of its smoothed
+descent), and a local minimiser (gradient sampling) that the default search and the
+certificate's incumbent use."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ from numba import njit
 from .arrays import copy_into, dot
 from .branch_bound import cloud, normalise
 from .nearest_point import TOL, min_norm_point
-from .support import OPTIONS, scratch, support_point, support_value
+from .support import D_VALUE, OPTIONS, no_vector, scratch, set_value, support_point, support_value
 
 
 @njit(**OPTIONS)
@@ -173,3 +174,155 @@ def local_minimum(G, f, W, npc, ends, u0, max_iter, smallest):
             eps *= 0.1
             angle = eps
     return u, value, iterations, eps < smallest
+
+
+# The smoothed descent of a set with one row per slot (contacts), in the order of numpy's
+# operations in :func:`closure_nlp.sphere_search.descend` (its ``tau`` branch), so that both end
+# at the same directions to the bit: sums in numpy's orders (:func:`_pairwise_sum`, the
+# sequential einsum, :func:`_dot6`), exp, log, log1p, sin and cos from the same C library as
+# numpy's (numpy builds for AVX-512 have their own exp and log: there the two agree to
+# round-off, not to the bit). numpy's tanh (its own SIMD code) stays in numpy: the caller
+# applies it between :func:`smoothed_terms` and :func:`smoothed_values`.
+PAIRWISE_BLOCK = 128
+
+
+@njit(**OPTIONS)
+def _pairwise_sum(a, lo, hi):
+    """``a[lo:hi].sum()`` in numpy's order (its pairwise summation of a contiguous axis) for
+    up to :data:`PAIRWISE_BLOCK` terms (numpy splits longer ones in halves: not done here, a
+    recursive kernel crashes when loaded from numba's disk cache)."""
+    n = hi - lo
+    if n < 8:
+        total = 0.0
+        for i in range(lo, hi):
+            total += a[i]
+        return total
+    r = a[lo : lo + 8].copy()
+    i = lo + 8
+    while i < hi - n % 8:
+        for j in range(8):
+            r[j] += a[i + j]
+        i += 8
+    total = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
+    while i < hi:
+        total += a[i]
+        i += 1
+    return total
+
+
+@njit(**OPTIONS)
+def _dot6(a, b):
+    """``einsum("r,r->", a, b)`` of two (6,) in numpy's order (two SIMD lanes)."""
+    even = ((0.0 + a[0] * b[0]) + a[2] * b[2]) + a[4] * b[4]
+    odd = ((0.0 + a[1] * b[1]) + a[3] * b[3]) + a[5] * b[5]
+    return 0.0 + (even + odd)
+
+
+@njit(**OPTIONS)
+def _norm6(a):
+    """``np.linalg.norm(a)`` of a (6,) row (numpy's sum of squares, in its order)."""
+    total = 0.0
+    for k in range(6):
+        total += a[k] * a[k]
+    return np.sqrt(total)
+
+
+@njit(**OPTIONS)
+def _logaddexp0(y):
+    """``np.logaddexp(0.0, y)`` (numpy's formula)."""
+    if y == 0.0:
+        return 0.0 + np.log(2.0)
+    t = 0.0 - y
+    if t > 0.0:
+        return 0.0 + np.log1p(np.exp(-t))
+    if t <= 0.0:
+        return y + np.log1p(np.exp(t))
+    return t
+
+
+@njit(**OPTIONS)
+def smoothed_terms(G, f, W, npc, ends, U, tau, active, P, wrench, weights, top, X):
+    """Each row's value ``P`` (N, K) and support wrench (N, K, 6), the softmax ``weights``
+    (N, K) and log-sum-exp ``top`` (N,) of the rows, at the directions ``U`` (N, 6) marked
+    ``active``; into ``X`` (N, K + 1) the arguments whose tanh the sigmoids of
+    :func:`smoothed_values` take (``P / tau`` and ``-top / tau``, halved). One row per slot."""
+    K = len(f)
+    D = scratch(f)
+    e = np.empty(K)
+    for n in range(len(U)):
+        if not active[n]:
+            continue
+        set_value(G, f, W, npc, ends, U[n], D, None, no_vector(D), wrench[n])
+        for r in range(K):
+            P[n, r] = D[D_VALUE, r] + 0.0  # as numpy's ``rows + 0.0``: no -0.0
+        largest = P[n, 0]
+        for r in range(1, K):  # np.maximum's: a NaN wins
+            if not (largest >= P[n, r] or np.isnan(largest)):
+                largest = P[n, r]
+        for r in range(K):
+            e[r] = np.exp((P[n, r] - largest) / tau)
+        total = e[0] + _pairwise_sum(e, 1, K) if K > 1 else e[0]
+        top[n] = largest + tau * np.log(total)
+        for r in range(K):
+            weights[n, r] = e[r] / total
+            X[n, r] = 0.5 * (P[n, r] / tau)
+        X[n, K] = 0.5 * (-top[n] / tau)
+
+
+@njit(**OPTIONS)
+def smoothed_values(P, wrench, weights, top, T, tau, active, values, grads):
+    """The smoothed value (N,) and gradient (N, 6) from :func:`smoothed_terms` and ``T``
+    (N, K + 1), the tanh of its ``X``, at the ``active`` directions."""
+    K = P.shape[1]
+    lse = np.empty(K)
+    outer = np.empty(K)
+    for n in range(len(P)):
+        if not active[n]:
+            continue
+        for r in range(K):
+            lse[r] = _logaddexp0(P[n, r] / tau)
+        values[n] = tau * _pairwise_sum(lse, 0, K) - tau * _logaddexp0(-top[n] / tau)
+        below = 0.5 * (1.0 + T[n, K])
+        for r in range(K):
+            outer[r] = 0.5 * (1.0 + T[n, r]) + below * weights[n, r]
+        for k in range(6):
+            g = 0.0
+            for r in range(K):
+                g = g + outer[r] * wrench[n, r, k]
+            grads[n, k] = g
+
+
+@njit(**OPTIONS)
+def smoothed_trials(U, grads, angle, trial, moving):
+    """Each direction's trial: the step ``angle`` along its negative tangential gradient;
+    ``moving`` False where that gradient vanishes (no trial)."""
+    tangent = np.empty(6)
+    for n in range(len(U)):
+        gu = _dot6(grads[n], U[n])
+        for k in range(6):
+            tangent[k] = grads[n, k] - gu * U[n, k]
+        norm = _norm6(tangent)
+        moving[n] = norm > 1e-12
+        if not moving[n]:
+            continue
+        c, s = np.cos(angle[n]), np.sin(angle[n])
+        for k in range(6):
+            trial[n, k] = c * U[n, k] + s * (-tangent[k] / norm)
+        length = _norm6(trial[n])
+        for k in range(6):
+            trial[n, k] /= length
+
+
+@njit(**OPTIONS)
+def smoothed_accept(U, values, grads, angle, trial, moving, trial_values, trial_grads):
+    """Each moving direction takes its trial where the value fell (its angle grows by 1.5,
+    at most 0.6), else its angle halves."""
+    for n in range(len(U)):
+        if moving[n] and trial_values[n] < values[n]:
+            for k in range(6):
+                U[n, k] = trial[n, k]
+                grads[n, k] = trial_grads[n, k]
+            values[n] = trial_values[n]
+            angle[n] = min(angle[n] * 1.5, 0.6)
+        else:
+            angle[n] *= 0.5
