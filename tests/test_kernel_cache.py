@@ -223,8 +223,9 @@ def test_the_declared_signatures_are_those_the_library_calls():
     kernels.warm_up()  # rho, slot values, row terms, Wolfe's nearest point: every entry point
     declared = kernels.signatures()
     entries = {(m, n) for m, names in kernels.ENTRY_POINTS.items() for n in names}
-    grouped = [kernel for group in kernels.COMPILE_GROUPS for kernel in group]
-    assert sorted(grouped) == sorted(declared)  # each declared kernel compiled once
+    first, second = kernels.COMPILE_GROUPS
+    assert sorted({*first, *second}) == sorted(declared)  # each declared kernel compiled
+    assert len(set(first)) == len(first) and len(set(second)) == len(second)
     assert entries <= set(declared)
     for module, name in entries:
         dispatcher = getattr(importlib.import_module(f"closure_nlp.kernels.{module}"), name)
@@ -354,3 +355,57 @@ def test_the_package_cache_is_stamped_with_its_sources():
     cache = kernels._cache_folder(package)
     stamp = cache / "closure_nlp_kernels.sha256"
     assert stamp.read_text() == kernels.sources_digest(package)
+
+
+class _Helper:
+    """A stand-in for the helper process: running until ``ended`` is set."""
+
+    def __init__(self):
+        self.ended = False
+
+    def poll(self):
+        return 0 if self.ended else None
+
+
+def test_the_command_waits_for_a_kernel_of_both_lists_until_the_helper_marks_it(tmp_path):
+    # a kernel in both lists is the helper's: the command's process waits for its mark (then
+    # loads it from the cache), or compiles it itself once the helper has ended without it
+    import threading
+    import time
+
+    from closure_nlp import kernels
+
+    shared = set(kernels.COMPILE_GROUPS[0]) & set(kernels.COMPILE_GROUPS[1])
+    assert ("branch_bound", "slot_bound") in shared
+    assert kernels.COMPILE_GROUPS[0].index(("branch_bound", "advance")) > max(
+        kernels.COMPILE_GROUPS[0].index(kernel) for kernel in shared
+    )  # advance compiled once its parts are cached
+    mark, helper = tmp_path / "branch_bound.slot_bound", _Helper()
+    threading.Timer(0.3, mark.touch).start()
+    start = time.perf_counter()
+    kernels._wait_for(mark, helper)
+    assert mark.exists() and time.perf_counter() - start >= 0.25
+    # a helper that ended (failed): no wait, nor without one
+    helper.ended = True
+    start = time.perf_counter()
+    kernels._wait_for(tmp_path / "never", helper)
+    kernels._wait_for(tmp_path / "never", None)
+    assert time.perf_counter() - start < 0.2
+
+
+def test_the_helper_marks_each_kernel_it_is_done_with(tmp_path, monkeypatch):
+    # a stale declaration (a TypingError) is marked too: the other process must not wait on it
+    from numba import types
+
+    from closure_nlp import kernels
+
+    vector = types.Array(types.float64, 1, "C")
+    fill, dot = ("arrays", "fill"), ("arrays", "dot")
+    monkeypatch.setattr(kernels, "COMPILE_GROUPS", ((), (fill, dot)))
+    monkeypatch.setattr(
+        kernels,
+        "signatures",
+        lambda: {fill: (vector, types.int64, types.float64), dot: (vector, types.int64)},
+    )
+    kernels.compile_group(1, marks=tmp_path)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["arrays.dot", "arrays.fill"]

@@ -119,16 +119,23 @@ ENTRY_POINTS = {
     "descent": ("descend_many", "local_minimum"),
     "zonotope": ("capacity_many",),
 }
+# Kernels of the branch and bound that ``advance`` calls, compiled ahead for the types it passes
+# (:func:`signatures`, :data:`COMPILE_GROUPS`): the slot game's bound, the cell games, the
+# split of the live cells, Frank-Wolfe's bound, the cloud round the incumbent and the screen.
+ADVANCE_PARTS = tuple(
+    ("branch_bound", name)
+    for name in ("slot_bound", "exact_bound", "split", "frank_wolfe", "cloud", "screen")
+)
 # The kernels a certified rho runs (the ``rho`` command's, :func:`warm_up`'s ``rho_only``),
-# ``advance``'s slot game included, and Wolfe's nearest point of given points, which the local
-# minimiser runs (compiled first, see :data:`COMPILE_GROUPS`): a cold ``rho`` compiles these
-# alone; the others (slot values, row terms, the zonotope's capacity) compile when a command
-# that runs them first warms up, or at their first call.
+# ``advance``'s parts included, and Wolfe's nearest point of given points, which the local
+# minimiser runs: a cold ``rho`` compiles these alone; the others (slot values, row terms, the
+# zonotope's capacity) compile when a command that runs them first warms up, or at their first
+# call.
 RHO_KERNELS = (
     ("nearest_point", "min_norm_point"),
     ("branch_bound", "consider"),
     ("branch_bound", "advance"),
-    ("branch_bound", "slot_bound"),
+    *ADVANCE_PARTS,
     ("descent", "descend_many"),
     ("descent", "local_minimum"),
     ("nearest_point", "nearest_point_bounds"),
@@ -138,26 +145,29 @@ RHO_KERNELS = (
 # The zonotope's capacity: only a placement whose every contact is frictionless runs it (its
 # search, :func:`~closure_nlp.zonotope.climb`); a warm-up told that none will compiles it not.
 CAPACITY_KERNELS = (("zonotope", "capacity_many"),)
-# A cold compile splits the kernels in two lists of about equal compile time, one per process
-# (numba compiles under a lock: one process compiles on one core); both write the disk cache.
-# The second list starts with the slot game's bound, which ``advance`` calls deep inside (for
-# the signature it passes, :func:`signatures`): the first process reaches it seconds later and
-# loads it from the disk cache (should it come first, it compiles it too: the same kernel).
-# The first starts with Wolfe's nearest point (the local minimiser's callee, sharing nothing
-# with the slot game), so that ``advance`` reaches ``slot_bound`` after the other has cached it.
+# A cold compile splits the kernels in two lists, one per process (numba compiles under a lock:
+# one process compiles on one core); both write the disk cache. ``advance`` is compiled last,
+# once every part it calls is in the cache, so that it compiles only itself: the command's
+# process compiles some of its parts, the helper the slot game's bound and the cell games (the
+# longest chain), which the command's process waits for (a kernel in both lists: the helper
+# compiles it, the other waits until the helper has cached it, then loads it; should the helper
+# fail, it compiles it itself). Wolfe's nearest point of given points comes first: the helper's
+# local minimiser calls it.
 COMPILE_GROUPS = (
     (
         ("nearest_point", "min_norm_point"),
         ("branch_bound", "consider"),
-        ("zonotope", "capacity_many"),
+        *ADVANCE_PARTS[2:],
+        *ADVANCE_PARTS[:2],
         ("branch_bound", "advance"),
     ),
     (
-        ("branch_bound", "slot_bound"),
+        *ADVANCE_PARTS[:2],
         *(("support", name) for name in ENTRY_POINTS["support"]),
         ("nearest_point", "nearest_point_bounds"),
         ("descent", "local_minimum"),
         ("descent", "descend_many"),
+        ("zonotope", "capacity_many"),
     ),
 )
 
@@ -195,12 +205,23 @@ def signatures() -> dict:
     out["zonotope", "capacity_many"] = (f3, i2, i2, f1)
     work = types.Tuple((f2, i1, f2, f1, f2, f2, f1, i1, f1))  # :func:`.branch_bound.slot_work`
     out["branch_bound", "slot_bound"] = (*slots, f2, f2, f2, f8, f8, f8, f1, work)
+    out["branch_bound", "exact_bound"] = (f2, i8, f2, f2, f8, f8, f8, f1)
+    out["branch_bound", "split"] = (*cells, i8, f2, f1, f8, f8)
+    out["branch_bound", "frank_wolfe"] = (f2, i8, f1, f8, i8, f1, f1)
+    out["branch_bound", "cloud"] = (f1, f1, f2)
+    out["branch_bound", "screen"] = (*cells, f2, f8, f2, f8, f8, f1)
     return out
 
 
-def compile_group(group: int, rho_only: bool = False, capacity: bool = True) -> None:
+def compile_group(
+    group: int, rho_only: bool = False, capacity: bool = True, marks=None, helper=None
+) -> None:
     """Compile (or load from the disk cache) the kernels of ``COMPILE_GROUPS[group]``, in
-    order, those a warm-up of ``rho_only`` and ``capacity`` wants (:func:`_wanted`)."""
+    order, those a warm-up of ``rho_only`` and ``capacity`` wants (:func:`_wanted`).
+
+    ``marks``, a folder shared by the two processes of a cold compile: the helper (group 1)
+    marks there each kernel it is done with; the first group, for a kernel of both lists, waits
+    until the helper has marked it (or ``helper``, its process, has ended), then loads it."""
     import importlib
 
     from numba.core.errors import TypingError
@@ -209,26 +230,45 @@ def compile_group(group: int, rho_only: bool = False, capacity: bool = True) -> 
     for module, name in COMPILE_GROUPS[group]:
         if not _wanted((module, name), rho_only, capacity):
             continue
+        mark = None if marks is None else Path(marks) / f"{module}.{name}"
+        if mark is not None and group == 0 and (module, name) in COMPILE_GROUPS[1]:
+            _wait_for(mark, helper)
         try:
             kernel = getattr(importlib.import_module(f"{__name__}.{module}"), name)
             kernel.compile(declared[module, name])
         except TypingError:  # a stale declaration: the kernel compiles at its first call
             pass  # (tests/test_kernel_cache checks the declarations against the calls)
+        finally:
+            if mark is not None and group == 1:
+                mark.touch()
+
+
+def _wait_for(mark: Path, helper) -> None:
+    """Until ``mark`` exists or the process ``helper`` (None: none) has ended."""
+    import time
+
+    while helper is not None and helper.poll() is None and not mark.exists():
+        time.sleep(0.02)
 
 
 def _compile_in_parallel(rho_only: bool = False, capacity: bool = True) -> None:
-    """The first half of the kernels compiled here while another process compiles the second
+    """The first list of kernels compiled here while another process compiles the second
     (on a machine of one core, or should the other process fail, this one compiles it after:
     the same kernels, the same cache)."""
+    import shutil
     import subprocess
 
     helper = None
+    marks = tempfile.mkdtemp(prefix="closure_nlp_compile_")
     if (os.cpu_count() or 1) > 1:
         root = str(Path(__file__).resolve().parents[2])  # this package, first on the path
         env = {**os.environ, "PYTHONPATH": os.pathsep.join(
             p for p in (root, os.environ.get("PYTHONPATH")) if p
         )}  # fmt: skip
-        code = f"from {__name__} import compile_group; compile_group(1, {rho_only}, {capacity})"
+        code = (
+            f"from {__name__} import compile_group; "
+            f"compile_group(1, {rho_only}, {capacity}, {marks!r})"
+        )
         try:
             helper = subprocess.Popen(
                 [sys.executable, "-c", code],
@@ -240,7 +280,7 @@ def _compile_in_parallel(rho_only: bool = False, capacity: bool = True) -> None:
         except (OSError, ValueError):  # no interpreter to start: compile it all here
             helper = None
     try:
-        compile_group(0, rho_only, capacity)
+        compile_group(0, rho_only, capacity, marks, helper)
         if helper is not None:
             helper.wait()  # its kernels then load from the disk cache (or compile here, failed)
     except BaseException:  # an interrupt: no process left compiling behind
@@ -248,6 +288,8 @@ def _compile_in_parallel(rho_only: bool = False, capacity: bool = True) -> None:
             helper.kill()
             helper.wait()
         raise
+    finally:
+        shutil.rmtree(marks, ignore_errors=True)
 
 
 def _cached(rho_only: bool = False, capacity: bool = True) -> bool:

@@ -9,7 +9,7 @@ kernels use these instead."""
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, types
 
 from .support import OPTIONS
 
@@ -116,3 +116,42 @@ def argsort(values):
                 j -= 1
             order[j] = k
     return order
+
+
+try:  # numba's own binding of LAPACK's gesv, the routine np.linalg.solve calls in a kernel
+    from numba.np.linalg import _LAPACK, ensure_lapack
+    from numba.np.linalg import F_INT_nptype as _LAPACK_INT
+
+    ensure_lapack()
+    _gesv = _LAPACK().numba_xgesv(types.float64)
+except Exception:  # a numba without it: np.linalg.solve below
+    _gesv = None
+
+if _gesv is not None:
+
+    @njit(**OPTIONS)
+    def solve(a, b):
+        """``np.linalg.solve(a, b)`` for a square ``a`` (n, n) and a vector ``b`` (n,) of
+        finite numbers: the same LAPACK call (``dgesv``) on the same column-major copies, so
+        the same bits, without numba's checks and their formatted error messages (seconds of
+        compile in every caller)."""
+        n = len(b)
+        lu = np.empty((n, n))  # its rows a's columns: a in column-major order
+        for i in range(n):
+            for j in range(n):
+                lu[j, i] = a[i, j]
+        x = np.empty(n)
+        copy_into(x, b)
+        pivots = np.empty(n, _LAPACK_INT)
+        info = _gesv(ord("d"), n, 1, lu.ctypes, n, pivots.ctypes, x.ctypes, n)
+        # read after the call, so that numba keeps them alive through it
+        if info != 0 or pivots[0] < 1 or not np.isfinite(lu[n - 1, n - 1]):
+            fill(x, n, np.nan)  # singular: no solution
+        return x
+
+else:
+
+    @njit(**OPTIONS)
+    def solve(a, b):
+        """``np.linalg.solve(a, b)``."""
+        return np.linalg.solve(a, b.copy())

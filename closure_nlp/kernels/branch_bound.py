@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .arrays import argsort, copy_into, copy_rows, fill
+from .arrays import argsort, copy_into, copy_rows, fill, solve
 from .slot_game import EPS as SLOT_EPS
 from .slot_game import MAX_PIVOTS as SLOT_PIVOTS
 from .slot_game import game_grow_columns, game_grow_row, game_open, game_solve, game_tableau
@@ -998,7 +998,7 @@ def split(axis, sign, lo, hi, cells_per_round, metric, best_u, radius, below):
     (:func:`halve`). Returns (axis, sign, lo, hi, parent): ``parent[c]`` indexes the cell child
     ``c`` came from."""
     n = len(axis)
-    x = np.linalg.solve(metric, best_u.copy())
+    x = solve(metric, best_u)
     y = np.empty(5)
     h = np.zeros(n)
     centre = np.empty(6)
