@@ -111,12 +111,15 @@ def kernel_array(a) -> np.ndarray:
     return np.require(a, dtype=float, requirements=["C", "A", "W", "E"])
 
 
+# The steps of the smoothed descent of a placement's sphere search (:mod:`.descent`, called
+# from :func:`closure_nlp.sphere_search.descend`): not a certified rho's.
+SMOOTHED_STEPS = ("smoothed_terms", "smoothed_values", "smoothed_trials", "smoothed_accept")
 # The kernels called from Python (the others are compiled into them): warm_up calls each.
 ENTRY_POINTS = {
     "support": ("support_many", "evaluate_many", "rows_many", "row_wrenches_many", "slots_many"),
     "branch_bound": ("consider", "advance"),
     "nearest_point": ("min_norm_point", "nearest_point_bounds"),
-    "descent": ("descend_many", "local_minimum"),
+    "descent": ("descend_many", "local_minimum", *SMOOTHED_STEPS),
     "zonotope": ("capacity_many",),
 }
 # Kernels of the branch and bound that ``advance`` calls, compiled ahead for the types it passes
@@ -158,6 +161,7 @@ COMPILE_GROUPS = (
         ("nearest_point", "min_norm_point"),
         ("branch_bound", "consider"),
         *ADVANCE_PARTS[2:],
+        *(("descent", name) for name in SMOOTHED_STEPS),
         *ADVANCE_PARTS[:2],
         ("branch_bound", "advance"),
     ),
@@ -201,6 +205,12 @@ def signatures() -> dict:
     out["nearest_point", "nearest_point_bounds"] = (*slots, f2, f8, i8)
     out["descent", "descend_many"] = (*slots, f2, i8, f8)
     out["descent", "local_minimum"] = (*slots, f1, i8, f8)
+    b1 = types.Array(types.boolean, 1, "C")
+    terms = (f2, f3, f2, f1)  # P, wrench, weights, top (:func:`.descent.smoothed_terms`)
+    out["descent", "smoothed_terms"] = (*slots, f2, f8, b1, *terms, f2)
+    out["descent", "smoothed_values"] = (*terms, f2, f8, b1, f1, f2)
+    out["descent", "smoothed_trials"] = (f2, f2, f1, f2, b1)
+    out["descent", "smoothed_accept"] = (f2, f1, f2, f1, f2, b1, f1, f2)
     i2 = types.Array(types.int64, 2, "C")
     out["zonotope", "capacity_many"] = (f3, i2, i2, f1)
     work = types.Tuple((f2, i1, f2, f1, f2, f2, f1, i1, f1))  # :func:`.branch_bound.slot_work`
@@ -375,6 +385,7 @@ def _warm_the_others(closure, normals, capacity: bool) -> None:
     """The kernels called from Python that a certified rho does not run (the zonotope's
     capacity only with ``capacity``)."""
     from ..nearest_point import min_norm_point
+    from ..sphere_search import descend
     from ..wrenches import WrenchSlots
 
     slots = WrenchSlots.from_contacts(closure)
@@ -383,6 +394,7 @@ def _warm_the_others(closure, normals, capacity: bool) -> None:
     slots.row_support(U)
     slots.row_terms(U)
     min_norm_point(slots.support_points(np.vstack([U, -U])))
+    descend(slots, np.eye(6)[:2], 1, 0.1)  # the smoothed descent's steps
     if capacity:
         from ..zonotope import frictionless_capacity
 
