@@ -653,7 +653,15 @@ def bound_cells(
             if bound < target and delta < refine_below and not hopeless:
                 refine[0] = REFINE_SCALE * delta
                 cloud(U[n, low], refine, more)
-                have = size
+                # the game's columns: the points the cap bound's weights hold (its pivots
+                # cost in proportion to its columns), then the cloud's; measured (CPU, one
+                # process, alternating with all 43): 4 PCwF 1.08x, 4 SFCe 1.11x, 4 mixed
+                # 1.08x, the same cells within 2%
+                have = 0
+                for i in range(size):
+                    if lam[i] > 0.0:
+                        copy_into(pool[have], pool[i])
+                        have += 1
                 added = pool[have : have + REFINE_POINTS]
                 consider_in(G, f, W, npc, ends, more[:REFINE_POINTS], added, best, best_u, D)
                 have += REFINE_POINTS
