@@ -225,15 +225,19 @@ def game_solve(M, block, blocks, exact, T, basis, low, span, lam, stop, give_up,
     S = 2 + blocks + C
     L0 = 2 + blocks + (T.shape[0] - 1 - blocks)
     shut = 2 + blocks if exact else 2  # columns 2 .. shut - 1 never enter
+    # the columns that may enter, in scan order: the live slacks, then the weights
+    cols = np.empty(S - shut + K, np.int64)
+    for m in range(S - shut):
+        cols[m] = shut + m
+    for m in range(K):
+        cols[S - shut + m] = L0 + m
     pivots = 0
     gave_up = False
     warm = False  # a fresh game starts with t at 0, out of the basis: primal pivots alone
     for r in range(1, R):
         warm |= basis[r] == 1
     dual = True
-    for k in range(shut, S):
-        dual &= T[0, k] >= -eps
-    for k in range(L0, L0 + K):
+    for k in cols:
         dual &= T[0, k] >= -eps
     sums = np.empty(T.shape[1])
     feasible = not warm
@@ -252,12 +256,7 @@ def game_solve(M, block, blocks, exact, T, basis, low, span, lam, stop, give_up,
         j = np.int64(-1)
         if dual:  # the entering column keeps the reduced costs non-negative
             ratio = np.inf
-            for k in range(shut, S):
-                if T[i, k] < -eps:
-                    q = max(T[0, k], 0.0) / -T[i, k]
-                    if q < ratio:
-                        ratio, j = q, k
-            for k in range(L0, L0 + K):
+            for k in cols:
                 if T[i, k] < -eps:
                     q = max(T[0, k], 0.0) / -T[i, k]
                     if q < ratio:
@@ -266,15 +265,10 @@ def game_solve(M, block, blocks, exact, T, basis, low, span, lam, stop, give_up,
             fill(sums, len(sums), 0.0)
             for r in range(1, R):
                 if basis[r] != 1 and T[r, 0] < -FEASIBLE:
-                    for k in range(shut, S):
-                        sums[k] += T[r, k]
-                    for k in range(L0, L0 + K):
+                    for k in cols:
                         sums[k] += T[r, k]
             least = -eps
-            for k in range(shut, S):
-                if sums[k] < least:
-                    least, j = sums[k], k
-            for k in range(L0, L0 + K):
+            for k in cols:
                 if sums[k] < least:
                     least, j = sums[k], k
             if j >= 0:  # the first basic variable to reach 0, feasible or not
@@ -304,10 +298,7 @@ def game_solve(M, block, blocks, exact, T, basis, low, span, lam, stop, give_up,
         j, least = np.int64(-1), -eps
         if T[0, 1] < least:
             least, j = T[0, 1], np.int64(1)
-        for k in range(shut, S):
-            if T[0, k] < least:
-                least, j = T[0, k], k
-        for k in range(L0, L0 + K):
+        for k in cols:
             if T[0, k] < least:
                 least, j = T[0, k], k
         if j < 0:
