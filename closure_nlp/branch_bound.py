@@ -23,7 +23,8 @@ bound its parent kept (a halved cell is first bounded by that point alone, and d
 its samples are taken when that suffices), the support points of a tiny cloud around the
 incumbent (they hold every piece of ``p`` that meets at the minimum), and a cell that survives
 near the minimum (any cell, in a set of few slots) gets those of a cloud around its lowest
-sample, with a longer search of the weights. When these do not suffice, a set of few slots
+sample, with a longer search of the weights (a matrix game over the cloud's points and those
+the first weights hold). When these do not suffice, a set of few slots
 gives each slot its own weights (:func:`closure_nlp.kernels.branch_bound.slot_bound`):
 ``p = sum_i max(P_i, 0)`` wherever some slot value is positive, so any slot-wise combination
 of the slots' support points whose bound is positive over the cell bounds ``p`` there. A

@@ -580,7 +580,8 @@ def bound_cells(
     ``lin`` (exact on a linear piece of ``p``); Frank-Wolfe combinations of these with the
     incumbent's anchors (second order at a kink, approximately; not in a cell too flat for any
     cap bound, :data:`FLAT`); in small cells, the best
-    combination of these and a cloud around the lowest sample (:data:`REFINE_SCALE`), by a
+    combination of those the Frank-Wolfe weights hold and a cloud around the lowest sample
+    (:data:`REFINE_SCALE`), by a
     matrix game pivoted until its bound reaches ``stop`` (at least ``target``); then, for
     sets of at most :data:`SLOT_GAME_SLOTS` slots and a positive target, the game of every
     slot's own support points at the lowest sample and its cloud, and at the directions its
