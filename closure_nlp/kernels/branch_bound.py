@@ -579,13 +579,12 @@ def bound_cells(
     below ``target``. Single support points of the samples and the cell's inherited wrench
     ``lin`` (exact on a linear piece of ``p``); Frank-Wolfe combinations of these with the
     incumbent's anchors (second order at a kink, approximately; not in a cell too flat for any
-    cap bound, :data:`FLAT`); in small cells, the best
-    combination of those the Frank-Wolfe weights hold and a cloud around the lowest sample
-    (:data:`REFINE_SCALE`), by a
-    matrix game pivoted until its bound reaches ``stop`` (at least ``target``); then, for
-    sets of at most :data:`SLOT_GAME_SLOTS` slots and a positive target, the game of every
-    slot's own support points at the lowest sample and its cloud, and at the directions its
-    rows' optimal mixes point to (:func:`slot_bound`), else
+    cap bound, :data:`FLAT`); in small cells, the best combination of those the Frank-Wolfe
+    weights hold and a cloud around the lowest sample (:data:`REFINE_SCALE`), by a matrix game
+    pivoted until its bound reaches ``stop`` (at least ``target``); then, for sets of at most
+    :data:`SLOT_GAME_SLOTS` slots and a positive target, the game of every slot's own support
+    points at the lowest sample and its cloud, and at the directions its rows' optimal mixes
+    point to (:func:`slot_bound`), else
     the game with the corners' support points added.
 
     ``lin`` (N, 6): on entry a point of the set per cell (its parent's, see :func:`screen`),
@@ -654,10 +653,9 @@ def bound_cells(
             if bound < target and delta < refine_below and not hopeless:
                 refine[0] = REFINE_SCALE * delta
                 cloud(U[n, low], refine, more)
-                # the game's columns: the points the cap bound's weights hold (its pivots
-                # cost in proportion to its columns), then the cloud's; measured (CPU, one
-                # process, alternating with all 43): 4 PCwF 1.08x, 4 SFCe 1.11x, 4 mixed
-                # 1.08x, the same cells within 2%
+                # the game's columns: the points the cap bound's weights hold, then the
+                # cloud's (its pivots cost in proportion to its columns; all 43 samples and
+                # anchors drop the same cells within 2% at 1.08-1.11x the CPU)
                 have = 0
                 for i in range(size):
                     if lam[i] > 0.0:
