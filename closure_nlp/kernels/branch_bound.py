@@ -672,10 +672,10 @@ def bound_cells(
                 if bound < target and target > margin and slot_game:
                     copy_into(slot_dirs[0], U[n, low])
                     copy_rows(slot_dirs, one, more[:REFINE_POINTS])
-                    split = slot_bound(G, f, W, npc, ends, slot_dirs, corners, unit, nearest,
-                                       stop + 2 * margin, need, wbar, work)  # fmt: skip
+                    slotwise = slot_bound(G, f, W, npc, ends, slot_dirs, corners, unit, nearest,
+                                          stop + 2 * margin, need, wbar, work)  # fmt: skip
                     # its point belongs to the set only where it is positive: not inherited
-                    bound = max(bound, split - margin)
+                    bound = max(bound, slotwise - margin)
                 elif bound < target:
                     consider_in(G, f, W, npc, ends, unit, pool[have : have + CORNERS], best, best_u,
                                 D)  # fmt: skip

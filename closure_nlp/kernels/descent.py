@@ -219,15 +219,6 @@ def _dot6(a, b):
 
 
 @njit(**OPTIONS)
-def _norm6(a):
-    """``np.linalg.norm(a)`` of a (6,) row (numpy's sum of squares, in its order)."""
-    total = 0.0
-    for k in range(6):
-        total += a[k] * a[k]
-    return np.sqrt(total)
-
-
-@njit(**OPTIONS)
 def _logaddexp0(y):
     """``np.logaddexp(0.0, y)`` (numpy's formula)."""
     if y == 0.0:
@@ -301,14 +292,14 @@ def smoothed_trials(U, grads, angle, trial, moving):
         gu = _dot6(grads[n], U[n])
         for k in range(6):
             tangent[k] = grads[n, k] - gu * U[n, k]
-        norm = _norm6(tangent)
+        norm = np.sqrt(dot(tangent, tangent))  # np.linalg.norm's sum, in its order
         moving[n] = norm > 1e-12
         if not moving[n]:
             continue
         c, s = np.cos(angle[n]), np.sin(angle[n])
         for k in range(6):
             trial[n, k] = c * U[n, k] + s * (-tangent[k] / norm)
-        length = _norm6(trial[n])
+        length = np.sqrt(dot(trial[n], trial[n]))
         for k in range(6):
             trial[n, k] /= length
 
