@@ -460,7 +460,7 @@ def slot_bound(G, f, W, npc, ends, dirs, corners, unit, nearest, stop, give_up, 
             ubar[j] /= length
         # an empty ``slots`` as above: the version slot values compile, not a third one
         set_value(G, f, W, npc, ends, ubar, D, None, no_vector(D), rows)
-        reach, before = 0.0, K
+        reach, before = 0.0, np.int64(K)
         for i in range(m):
             if index[i] >= 0:
                 at = ends[i]

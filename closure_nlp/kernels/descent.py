@@ -252,7 +252,7 @@ def smoothed_terms(G, f, W, npc, ends, U, tau, active, P, wrench, weights, top, 
                 largest = P[n, r]
         for r in range(K):
             e[r] = np.exp((P[n, r] - largest) / tau)
-        total = e[0] + _pairwise_sum(e, 1, K) if K > 1 else e[0]
+        total = e[0] + _pairwise_sum(e, np.int64(1), K) if K > 1 else e[0]
         top[n] = largest + tau * np.log(total)
         for r in range(K):
             weights[n, r] = e[r] / total
@@ -272,7 +272,7 @@ def smoothed_values(P, wrench, weights, top, T, tau, active, values, grads):
             continue
         for r in range(K):
             lse[r] = _logaddexp0(P[n, r] / tau)
-        values[n] = tau * _pairwise_sum(lse, 0, K) - tau * _logaddexp0(-top[n] / tau)
+        values[n] = tau * _pairwise_sum(lse, np.int64(0), K) - tau * _logaddexp0(-top[n] / tau)
         below = 0.5 * (1.0 + T[n, K])
         for r in range(K):
             outer[r] = 0.5 * (1.0 + T[n, r]) + below * weights[n, r]
