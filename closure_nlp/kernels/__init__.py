@@ -165,7 +165,6 @@ COMPILE_GROUPS = (
         ("nearest_point", "min_norm_point"),
         ("branch_bound", "consider"),
         *ADVANCE_PARTS[2:],
-        *(("descent", name) for name in SMOOTHED_STEPS),
         *ADVANCE_PARTS[:2],
         ("branch_bound", "advance"),
     ),
@@ -175,6 +174,7 @@ COMPILE_GROUPS = (
         ("nearest_point", "nearest_point_bounds"),
         ("descent", "local_minimum"),
         ("descent", "descend_many"),
+        *(("descent", name) for name in SMOOTHED_STEPS),
         ("zonotope", "capacity_many"),
     ),
 )
