@@ -409,3 +409,48 @@ def test_the_helper_marks_each_kernel_it_is_done_with(tmp_path, monkeypatch):
     )
     kernels.compile_group(1, marks=tmp_path)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["arrays.dot", "arrays.fill"]
+
+
+def test_large_callees_link_after_the_callers_optimisation_and_others_compile_as_numba_does(
+    tmp_path,
+):
+    # a fresh process and cache: a kernel with a large callee, and a function of another
+    # package, both compiled here
+    code = """
+import numpy as np
+from numba import njit
+from numba.core import codegen
+from closure_nlp.kernels import _link
+from closure_nlp.kernels.branch_bound import cloud, tangent_basis
+assert codegen.JITCodeLibrary.finalize._closure_nlp
+before = codegen.JITCodeLibrary.finalize
+_link.install()
+assert codegen.JITCodeLibrary.finalize is before  # once
+late = []
+optimise = codegen.CPUCodeLibrary._optimize_final_module
+def record(self):
+    late.append(sorted(fn.name for fn in self._final_module.functions if not fn.is_declaration))
+    optimise(self)
+codegen.CPUCodeLibrary._optimize_final_module = record
+_link.LATE = 50  # tangent_basis, far larger, is cloud's callee
+u = np.array([1.0, 2, 3, 4, 5, 6]) / np.sqrt(91.0)
+out = np.empty((21, 6))
+cloud(u, np.array([0.1, 0.2]), out)
+assert np.isfinite(out).all()
+assert not any("tangent_basis" in name for name in late[-1]), late[-1]
+@njit
+def twice(x):
+    return 2.0 * x
+@njit
+def outer(x):
+    return twice(x) + 1.0
+assert outer(3.0) == 7.0
+assert any("twice" in name for name in late[-1]), late[-1]  # numba's own linking, before
+print("ok")
+"""
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path), "PYTHONPATH": str(ROOT)}
+    result = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=600
+    )
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert result.stdout.strip() == "ok"
