@@ -454,3 +454,29 @@ print("ok")
     )
     assert result.returncode == 0, result.stderr[-2000:]
     assert result.stdout.strip() == "ok"
+
+
+def test_a_numba_whose_finalize_differs_keeps_its_own(tmp_path):
+    # another numba's finalize (here a wrapper round this one's: another syntax tree) is not
+    # the one the late linking rewrites: installing leaves it in place
+    code = """
+from numba.core import codegen
+numba_finalize = codegen.JITCodeLibrary.finalize
+def finalize(self):
+    return numba_finalize(self)
+codegen.JITCodeLibrary.finalize = finalize
+from closure_nlp.kernels import _link
+assert _link.digest(numba_finalize) == _link.FINALIZE_DIGEST
+assert _link.digest(finalize) != _link.FINALIZE_DIGEST
+_link.install()
+assert codegen.JITCodeLibrary.finalize is finalize
+print("ok")
+"""
+    probe = tmp_path / "probe.py"  # a file: the wrapper's source can be read
+    probe.write_text(code)
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path), "PYTHONPATH": str(ROOT)}
+    result = subprocess.run(
+        [sys.executable, str(probe)], env=env, capture_output=True, text=True, timeout=600
+    )
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert result.stdout.strip() == "ok"

@@ -7,7 +7,8 @@ already optimised in its own library. A callee this large is not inlined into it
 body stays a function of its own), so it is linked after the caller's optimisation, as its own
 library optimised it; small callees, which the optimiser may inline into a loop, are linked
 before, as numba does. Only the libraries of this package's kernels are changed; anything else
-numba compiles is left alone.
+numba compiles is left alone, and so is a numba whose ``finalize`` is not the one this
+replaces (numba 0.63 to 0.68: earlier ones lack its reload-init step).
 """
 
 from __future__ import annotations
@@ -16,6 +17,9 @@ from __future__ import annotations
 # caller's optimisation (the inliner's threshold is a few hundred: none this large is inlined).
 LATE = 1000
 _MARK = "11closure_nlp7kernels"  # in the mangled name of every function of this package's kernels
+# The digest of numba's own ``CPUCodeLibrary.finalize`` (its syntax tree) that ``finalize``
+# below rewrites: any other numba keeps its own.
+FINALIZE_DIGEST = "1cf27cb4c518"
 
 
 def _size(module) -> int:
@@ -24,6 +28,18 @@ def _size(module) -> int:
         for fn in module.functions
         if not fn.is_declaration
     )
+
+
+def digest(function) -> str:
+    """The first 12 hex digits of the SHA-1 of ``function``'s syntax tree (its source parsed:
+    comments and layout do not count)."""
+    import ast
+    import hashlib
+    import inspect
+    import textwrap
+
+    tree = ast.parse(textwrap.dedent(inspect.getsource(function)))
+    return hashlib.sha1(ast.dump(tree.body[0]).encode()).hexdigest()[:12]
 
 
 def install() -> None:
@@ -41,6 +57,11 @@ def install() -> None:
     except (ImportError, AttributeError):
         return
     if getattr(numba_finalize, "_closure_nlp", False):
+        return
+    try:
+        if digest(numba_finalize) != FINALIZE_DIGEST:
+            return
+    except (OSError, TypeError, SyntaxError):  # no source to read: not the known one
         return
 
     def size(library) -> int:
