@@ -960,7 +960,9 @@ def shells(lo, hi, y, h, shrink):
     count = 11  # at least one shell
     for j in range(5):
         half[j] = 0.5 * (hi[j] - lo[j])
-    s = half.max()
+    s = half[0]
+    for j in range(1, 5):  # not half.max(): numpy's max costs more to compile than the loop
+        s = max(s, half[j])
     while s > h:
         s /= shrink
         count += 10
