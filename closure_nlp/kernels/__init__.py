@@ -152,14 +152,16 @@ RHO_KERNELS = (
 # The zonotope's capacity: only a placement whose every contact is frictionless runs it (its
 # search, :func:`~closure_nlp.zonotope.climb`); a warm-up told that none will compiles it not.
 CAPACITY_KERNELS = (("zonotope", "capacity_many"),)
+# The helper's kernels that the command's process waits for before ``advance``: the slot game's
+# bound and the cell games (the longest chain), then the cloud round the incumbent.
+AWAITED = (*ADVANCE_PARTS[:2], ("branch_bound", "cloud"))
 # A cold compile splits the kernels in two lists, one per process (numba compiles under a lock:
 # one process compiles on one core); both write the disk cache. ``advance`` is compiled last,
 # once every part it calls is in the cache, so that it compiles only itself: the command's
-# process compiles some of its parts, the helper the slot game's bound and the cell games (the
-# longest chain), which the command's process waits for (a kernel in both lists: the helper
-# compiles it, the other waits until the helper has cached it, then loads it; should the helper
-# fail, it compiles it itself). Wolfe's nearest point of given points comes first: the helper's
-# local minimiser calls it.
+# process compiles the other parts, the helper :data:`AWAITED` first (a kernel in both lists:
+# the helper compiles it, the other waits until the helper has cached it, then loads it; should
+# the helper fail, it compiles it itself). Wolfe's nearest point of given points comes first:
+# the helper's local minimiser calls it.
 COMPILE_GROUPS = (
     (
         ("nearest_point", "min_norm_point"),
@@ -168,13 +170,11 @@ COMPILE_GROUPS = (
         ("branch_bound", "frank_wolfe"),
         ("branch_bound", "screen"),
         ("support", "support_many"),
-        *ADVANCE_PARTS[:2],
-        ("branch_bound", "cloud"),
+        *AWAITED,
         ("branch_bound", "advance"),
     ),
     (
-        *ADVANCE_PARTS[:2],
-        ("branch_bound", "cloud"),
+        *AWAITED,
         *(("support", name) for name in ENTRY_POINTS["support"][1:]),
         ("nearest_point", "nearest_point_bounds"),
         ("descent", "local_minimum"),
@@ -239,7 +239,7 @@ def compile_group(
     order, those a warm-up of ``rho_only`` and ``capacity`` wants (:func:`_wanted`).
 
     ``marks``, a folder shared by the two processes of a cold compile: the helper (group 1)
-    marks there each kernel it is done with; the first group, for a kernel of both lists, waits
+    marks there each kernel it is done with; the first group, for a kernel of :data:`AWAITED`, waits
     until the helper has marked it (or ``helper``, its process, has ended), then loads it."""
     import importlib
 
@@ -250,7 +250,7 @@ def compile_group(
         if not _wanted((module, name), rho_only, capacity):
             continue
         mark = None if marks is None else Path(marks) / f"{module}.{name}"
-        if mark is not None and group == 0 and (module, name) in COMPILE_GROUPS[1]:
+        if mark is not None and group == 0 and (module, name) in AWAITED:
             _wait_for(mark, helper)
         try:
             kernel = getattr(importlib.import_module(f"{__name__}.{module}"), name)
