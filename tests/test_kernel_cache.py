@@ -480,3 +480,19 @@ print("ok")
     )
     assert result.returncode == 0, result.stderr[-2000:]
     assert result.stdout.strip() == "ok"
+
+
+def test_the_compile_helper_imports_this_package_whatever_the_working_folder(tmp_path):
+    # ``python -c`` puts the working folder first on the path: another checkout there must not
+    # be the package the helper process compiles
+    decoy = tmp_path / "closure_nlp"
+    decoy.mkdir()
+    (decoy / "__init__.py").write_text("raise ImportError('the checkout in the working folder')\n")
+    from closure_nlp import kernels
+
+    code = kernels.helper_code("import closure_nlp; print(closure_nlp.__file__)")
+    result = subprocess.run(
+        [sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=120
+    )
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert Path(result.stdout.strip()).resolve() == (ROOT / "closure_nlp" / "__init__.py").resolve()

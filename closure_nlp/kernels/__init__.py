@@ -270,6 +270,14 @@ def _wait_for(mark: Path, helper) -> None:
         time.sleep(0.02)
 
 
+def helper_code(statements: str) -> str:
+    """``statements`` for ``python -c``, with this package first on the path: ``-c`` puts the
+    working folder first, where another checkout of the package would otherwise be imported
+    (and its kernels compiled into another cache)."""
+    root = str(Path(__file__).resolve().parents[2])
+    return f"import sys; sys.path.insert(0, {root!r}); {statements}"
+
+
 def _compile_in_parallel(rho_only: bool = False, capacity: bool = True) -> None:
     """The first list of kernels compiled here while another process compiles the second
     (on a machine of one core, or should the other process fail, this one compiles it after:
@@ -280,18 +288,13 @@ def _compile_in_parallel(rho_only: bool = False, capacity: bool = True) -> None:
     helper = None
     marks = tempfile.mkdtemp(prefix="closure_nlp_compile_")
     if (os.cpu_count() or 1) > 1:
-        root = str(Path(__file__).resolve().parents[2])  # this package, first on the path
-        env = {**os.environ, "PYTHONPATH": os.pathsep.join(
-            p for p in (root, os.environ.get("PYTHONPATH")) if p
-        )}  # fmt: skip
-        code = (
+        code = helper_code(
             f"from {__name__} import compile_group; "
             f"compile_group(1, {rho_only}, {capacity}, {marks!r})"
         )
         try:
             helper = subprocess.Popen(
                 [sys.executable, "-c", code],
-                env=env,
                 stdin=subprocess.DEVNULL,
                 stdout=subprocess.DEVNULL,
                 stderr=subprocess.DEVNULL,
