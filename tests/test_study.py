@@ -552,8 +552,10 @@ def test_killed_worker_then_resume_every_task_once(tiny, serial_rows, client, tm
 
 
 def paced_runner(task, model_text):
-    """A fake row after a pause: 0.1 s per task with mu 0.2, 0.5 s with mu 0.4."""
-    time.sleep(0.1 if task.mu == 0.2 else 0.5)
+    """A fake row after a pause: 0.1 s per task with mu 0.2, 1.5 s with mu 0.4. A slow task
+    outlasts the whole quick group by far, so the order below holds even when one worker
+    starts its first task a second or more after the other (a loaded machine)."""
+    time.sleep(0.1 if task.mu == 0.2 else 1.5)
     return fake_runner(task, model_text)
 
 
@@ -562,6 +564,7 @@ def test_a_cluster_worker_runs_a_group_of_seeds_itself(tmp_path, client):
     """On 2 workers, the 4 seeds of the quick group all run on one worker (on the other, the
     slow group's seeds, but for its last ones once the quick group is done): handed out in
     grid order to whichever worker was free, they alternated."""
+    client.wait_for_workers(2)  # a worker an earlier test killed may still be restarting
     study = load_study(write_study(tmp_path, TINY.replace("seeds = 2", "seeds = 4")))
     run = run_study(study, tmp_path / "out", client=client, runner=paced_runner)
     assert (run.run, run.failed) == (8, 0)
