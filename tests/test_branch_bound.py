@@ -121,16 +121,31 @@ def test_cell_bounds_hold_under_the_reference(kind):
     axis, sign, lo, hi = axis[pick], sign[pick], lo[pick], hi[pick]
     best, best_u = np.array([np.inf, 0.0]), np.zeros(6)
     U, points, values = (np.empty((len(pick), *shape)) for shape in ((11, 6), (11, 6), (11,)))
-    kernels.evaluate_cells(
-        *slots.packed, axis, sign, lo, hi, np.eye(6), U, points, values, best, best_u
+    # the centres' samples and the cells' geometry, every cell kept (no gap reached)
+    geo, centre_w, centre_v = (
+        kernels.geometry(len(pick)),
+        np.empty((len(pick), 6)),
+        np.empty(len(pick)),
     )
+    tally = np.array([np.inf, 0, 0, -1, 0, 0], dtype=float)
+    live = kernels.screen_centres(
+        *slots.packed, axis, sign, lo, hi, np.eye(6), 1.0, -np.inf, 0.0, tally, best, best_u, geo,
+        False, centre_w, centre_v,
+    )  # fmt: skip
+    assert len(live) == len(pick)
+    kernels.evaluate_cells(
+        *slots.packed, axis, sign, lo, hi, np.eye(6), U, points, values, best, best_u, centre_w,
+        centre_v,
+    )  # fmt: skip
+    # the geometry as the screen left it, then computed afresh into room for it
+    fresh = kernels.geometry(len(pick))
     bounds = [
         kernels.bound_cells(
             *slots.packed, axis, sign, lo, hi, np.eye(6), 1.0, U, points, values, target, target,
             0.0, 12, 10.0, best, best_u, np.empty((kernels.ANCHORS, 6)), np.zeros(7),
-            np.full((len(pick), 6), np.nan),
+            np.full((len(pick), 6), np.nan), room, cached,
         )
-        for target in (np.inf, best[0])
+        for target, room, cached in ((np.inf, geo, True), (best[0], fresh, False))
     ]  # fmt: skip
     bound = np.maximum(*bounds)
     for n in range(len(pick)):
@@ -167,9 +182,14 @@ def test_cells_screened_by_an_inherited_point_hold_the_target():
     values = slots.support(x / np.linalg.norm(x, axis=1, keepdims=True))
     target = float(np.median(values))
     tally = np.array([np.inf, 0, 0, -1, 0, 0], dtype=float)
-    live = kernels.screen(axis, sign, lo, hi, np.eye(6), 1.0, lin, target, 0.0, tally)
+    geo = kernels.geometry(len(axis))
+    live = kernels.screen(axis, sign, lo, hi, np.eye(6), 1.0, lin, target, 0.0, tally, geo)
     dropped = np.setdiff1d(np.arange(len(pick)), live)
     assert 0 < len(dropped) < len(pick)
+    fresh = kernels.geometry(1)  # the kept cells' geometry, in order
+    for row, n in enumerate(live):
+        kernels.geometry_into(axis, sign, lo, hi, np.eye(6), 1.0, fresh, n, 0)
+        assert all(np.array_equal(have[row], want[0]) for have, want in zip(geo, fresh))
     for n in dropped:
         low = min(reference.support(u, ref) for u in _cell_directions(rng, axis, sign, lo, hi, n))
         assert low >= target - 1e-12 * max(1.0, abs(target)), (n, low, target)
@@ -192,12 +212,26 @@ def test_cells_screened_by_their_centre_hold_the_target():
     kernels.consider(*slots.packed, start, np.empty((len(start), 6)), best, best_u)
     gap = 0.3 * abs(best[0])  # a coarse gap: some cells dropped, some kept
     tally = np.array([np.inf, 0, 0, -1, 0, 0], dtype=float)
-    live = kernels.screen_centres(
-        *slots.packed, axis, sign, lo, hi, np.eye(6), 1.0, gap, 0.0, tally, best, best_u
+    geo, centre_w, centre_v = (
+        kernels.geometry(len(axis)),
+        np.empty((len(axis), 6)),
+        np.empty(len(axis)),
     )
+    live = kernels.screen_centres(
+        *slots.packed, axis, sign, lo, hi, np.eye(6), 1.0, gap, 0.0, tally, best, best_u, geo,
+        False, centre_w, centre_v,
+    )  # fmt: skip
     dropped = np.setdiff1d(np.arange(len(pick)), live)
     assert 0 < len(dropped) < len(pick)
     assert best[1] == len(start) + len(pick)  # every centre evaluated
+    # the kept cells' geometry and centre samples, in order: as computed afresh
+    fresh = kernels.geometry(1)
+    for row, n in enumerate(live):
+        kernels.geometry_into(axis, sign, lo, hi, np.eye(6), 1.0, fresh, n, 0)
+        for have, want in zip(geo, fresh):
+            assert np.array_equal(have[row], want[0])
+        assert centre_v[row] == slots.support(geo[2][row][None])[0]
+        assert centre_v[row] == pytest.approx(reference.support(geo[2][row], ref), abs=1e-12)
     assert reference.support(best_u, ref) == pytest.approx(best[0], abs=1e-12)
     for n in dropped:
         low = min(reference.support(u, ref) for u in _cell_directions(rng, axis, sign, lo, hi, n))

@@ -228,7 +228,8 @@ def signatures() -> dict:
     out["branch_bound", "split"] = (*cells, i8, f2, f1, f8, f8)
     out["branch_bound", "frank_wolfe"] = (f2, i8, f1, f8, i8, f1, f1)
     out["branch_bound", "cloud"] = (f1, f1, f2)
-    out["branch_bound", "screen"] = (*cells, f2, f8, f2, f8, f8, f1)
+    geo = types.Tuple((f1, f1, f2, f3, f3))  # :func:`.branch_bound.geometry`
+    out["branch_bound", "screen"] = (*cells, f2, f8, f2, f8, f8, f1, geo)
     return out
 
 
