@@ -104,14 +104,14 @@ def test_a_read_only_package_compiles_into_the_user_cache_and_loads_from_it(tmp_
         "import numpy as np\n"
         "from closure_nlp.kernels import arrays\n"
         "print(arrays.dot(np.arange(3.0), np.arange(3.0)))\n"
-        "stats = arrays.dot.stats\n"
+        "stats = arrays.dot.python.stats  # a kernel-only kernel called from Python\n"
         "print(sum(stats.cache_hits.values()), sum(stats.cache_misses.values()))\n"
         "print(Path(stats.cache_path).is_relative_to(os.environ['NUMBA_CACHE_DIR']))\n"
     )
     env = _env(PYTHONPATH=str(ROOT), XDG_CACHE_HOME=str(tmp_path / "cache"))
     folder = tmp_path / "cache" / "closure_nlp" / "numba"
     assert _run(code, env, tmp_path) == ["5.0", "0 1", "True"]  # compiled, cached
-    assert list(folder.rglob("arrays.dot-*.nbi"))
+    assert list(folder.rglob("arrays.dot.python-*.nbi"))
     assert _run(code, env, tmp_path) == ["5.0", "1 0", "True"]  # loaded from that cache
 
 
@@ -496,3 +496,44 @@ def test_the_compile_helper_imports_this_package_whatever_the_working_folder(tmp
     )
     assert result.returncode == 0, result.stderr[-2000:]
     assert Path(result.stdout.strip()).resolve() == (ROOT / "closure_nlp" / "__init__.py").resolve()
+
+
+def test_a_kernel_only_kernel_is_linked_into_its_callers_and_never_compiled_to_machine_code(
+    tmp_path,
+):
+    # fresh processes and cache: a kernel only kernels call is kept, and cached, as the module
+    # its callers link; a caller compiled in a later process loads it from the cache; called
+    # from Python it runs a copy compiled with its entry
+    from closure_nlp.kernels import _link
+
+    code = """
+import sys
+import numpy as np
+from numba import njit
+from closure_nlp.kernels import _link, arrays
+a = np.arange(4.0)
+@njit(cache=False)
+def caller(a, add):
+    return arrays.dot(a, a) + add
+assert caller(a, float(sys.argv[1])) == 14.0 + float(sys.argv[1])
+assert isinstance(arrays.dot, _link._kernel_only_class())
+(sig,) = arrays.dot.signatures
+library = arrays.dot.overloads[sig].library
+print(library._closure_nlp_linking, getattr(library, "_compiled_object", None) is None)
+print(sum(arrays.dot.stats.cache_hits.values()), sum(arrays.dot.stats.cache_misses.values()))
+print(arrays.dot(a, a), arrays.dot.python.signatures == [sig])
+"""
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path), "PYTHONPATH": str(ROOT)}
+
+    def run(add):
+        result = subprocess.run(
+            [sys.executable, "-c", code, add], env=env, capture_output=True, text=True,
+            timeout=600,
+        )  # fmt: skip
+        assert result.returncode == 0, result.stderr[-2000:]
+        return result.stdout.strip().splitlines()
+
+    assert run("0") == ["True True", "0 1", "14.0 True"]  # compiled, cached
+    cached = list(tmp_path.rglob("arrays.dot-*.nbc"))
+    assert cached and all(_link.LINKING.encode() in path.read_bytes() for path in cached)
+    assert run("1") == ["True True", "1 0", "14.0 True"]  # loaded into a new caller

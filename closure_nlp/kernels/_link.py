@@ -1,4 +1,4 @@
-"""Link a kernel's large callees after its own optimisation, not before.
+"""How the libraries of this package's kernels are linked and compiled to machine code.
 
 numba links the optimised code of every kernel a kernel calls into the kernel's own module and
 then optimises the whole module again: a kernel such as the branch and bound's ``advance``
@@ -6,9 +6,16 @@ spent most of its compile re-optimising the slot game, the cell games and the sp
 already optimised in its own library. A callee this large is not inlined into its caller (its
 body stays a function of its own), so it is linked after the caller's optimisation, as its own
 library optimised it; small callees, which the optimiser may inline into a loop, are linked
-before, as numba does. Only the libraries of this package's kernels are changed; anything else
-numba compiles is left alone, and so is a numba whose ``finalize`` is not the one this
-replaces (numba 0.63 to 0.68: earlier ones lack its reload-init step).
+before, as numba does.
+
+A kernel that only other kernels call (:func:`kernel_only`) has no Python entry, and its
+library is never compiled to machine code: numba would compile each library with its whole
+linked tree, though only the callers' machine code (each holding its callees) ever runs. Its
+library is kept, and cached, as the optimised module its callers link.
+
+Only the libraries of this package's kernels are changed; anything else numba compiles is left
+alone, and so is a numba whose ``finalize`` is not the one this replaces (numba 0.63 to 0.68:
+earlier ones lack its reload-init step).
 """
 
 from __future__ import annotations
@@ -17,6 +24,9 @@ from __future__ import annotations
 # caller's optimisation (the inliner's threshold is a few hundred: none this large is inlined).
 LATE = 1000
 _MARK = "11closure_nlp7kernels"  # in the mangled name of every function of this package's kernels
+_ENTRY = "_ZN7cpython"  # numba's Python entry of a function: its mangled name in this namespace
+# How a kernel-only library is cached: the optimised module its callers link, no machine code.
+LINKING = "closure_nlp.linking"
 # The digest of numba's own ``CPUCodeLibrary.finalize`` (its syntax tree) that ``finalize``
 # below rewrites: any other numba keeps its own.
 FINALIZE_DIGEST = "1cf27cb4c518"
@@ -46,13 +56,20 @@ def install() -> None:
     """Patch numba's JIT code library (once, idempotent); without the private names it
     relies on (another numba), leave numba as it is."""
     try:
+        from llvmlite import binding as llvm
         from numba.core import codegen
         from numba.core.compiler_lock import require_global_compiler_lock
 
         library_class = codegen.JITCodeLibrary
         numba_finalize = library_class.finalize
-        needed = ("_optimize_final_module", "_get_module_for_linking", "_finalize_final_module")
-        if not all(hasattr(library_class, name) for name in needed):
+        needed = (
+            "_optimize_final_module", "_get_module_for_linking", "_finalize_final_module",
+            "_finalize_dynamic_globals", "_verify_declare_only_symbols", "_unserialize",
+            "serialize_using_object_code",
+        )  # fmt: skip
+        if not all(hasattr(library_class, name) for name in needed) or not hasattr(
+            codegen.JITCPUCodegen, "set_env"
+        ):
             return
     except (ImportError, AttributeError):
         return
@@ -72,6 +89,11 @@ def install() -> None:
     def finalize(self):
         if not any(_MARK in fn.name for fn in self._final_module.functions):
             return numba_finalize(self)
+        # no Python entry among its own functions: a kernel-only kernel (its callers' code runs)
+        linking_only = not any(
+            fn.name.startswith(_ENTRY) and not fn.is_declaration
+            for fn in self._final_module.functions
+        )
         require_global_compiler_lock()
         self._codegen._check_llvm_bugs()
         self._raise_if_finalized()
@@ -90,7 +112,94 @@ def install() -> None:
         for module in late:
             self._final_module.link_in(module, preserve=True)
         self._final_module.verify()
-        self._finalize_final_module()
+        if not linking_only:
+            self._finalize_final_module()
+            return
+        self._finalize_dynamic_globals()  # numba caches no library that uses them
+        self._verify_declare_only_symbols()
+        self._closure_nlp_linking = True
+        self._finalized = True
 
+    def serialize_using_object_code(self):
+        if getattr(self, "_closure_nlp_linking", False):
+            return (self.name, LINKING, self._get_module_for_linking().as_bitcode())
+        return numba_serialize(self)
+
+    def unserialize(cls, codegen, state):
+        name, kind, data = state
+        if kind != LINKING:
+            return numba_unserialize(cls, codegen, state)
+        self = codegen.create_library(name)
+        self._shared_module = llvm.parse_bitcode(data)
+        self._closure_nlp_linking = True
+        self._finalized = True
+        return self
+
+    def set_env(self, env_name, env):
+        # a kernel-only library is in no engine: no environment to point at (numba would
+        # write to address 0)
+        if self._engine.is_symbol_defined(env_name):
+            numba_set_env(self, env_name, env)
+
+    numba_serialize = library_class.serialize_using_object_code
+    numba_unserialize = library_class._unserialize.__func__
+    numba_set_env = codegen.JITCPUCodegen.set_env
     finalize._closure_nlp = True
     library_class.finalize = finalize
+    library_class.serialize_using_object_code = serialize_using_object_code
+    library_class._unserialize = classmethod(unserialize)
+    codegen.JITCPUCodegen.set_env = set_env
+
+
+def kernel_only(**options):
+    """``numba.njit(**options)`` for a kernel that only other kernels call: compiled without
+    its Python entry (and, with the linking installed, without machine code of its own). A
+    call from Python runs a copy compiled with its entry (:class:`KernelOnly`)."""
+    from numba import njit
+
+    def decorate(function):
+        kernel = njit(**options, no_cpython_wrapper=True, no_cfunc_wrapper=True)(function)
+        kernel.__class__ = _kernel_only_class()
+        kernel.python_options = options
+        return kernel
+
+    return decorate
+
+
+_KERNEL_ONLY = []
+
+
+def _kernel_only_class():
+    if not _KERNEL_ONLY:
+        from numba.core.registry import CPUDispatcher
+
+        class KernelOnly(CPUDispatcher):
+            """A kernel without a Python entry: called from Python, it runs ``python``, the
+            same function compiled with its entry (and cached apart), compiled at the first
+            such call (tests; the library calls only entry points from Python)."""
+
+            _python = None
+
+            @property
+            def python(self):
+                if self._python is None:
+                    import types
+
+                    from numba import njit
+
+                    f = self.py_func
+                    copy = types.FunctionType(
+                        f.__code__, f.__globals__, f.__name__, f.__defaults__, f.__closure__
+                    )
+                    copy.__kwdefaults__ = f.__kwdefaults__
+                    copy.__qualname__ = f"{f.__qualname__}.python"  # its own cache files
+                    copy.__module__ = f.__module__
+                    copy.__doc__ = f.__doc__
+                    self._python = njit(**self.python_options)(copy)
+                return self._python
+
+            def __call__(self, *args, **kwargs):
+                return self.python(*args, **kwargs)
+
+        _KERNEL_ONLY.append(KernelOnly)
+    return _KERNEL_ONLY[0]

@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ._link import kernel_only
 from .arrays import argsort, copy_into, copy_rows, fill, solve
 from .slot_game import EPS as SLOT_EPS
 from .slot_game import MAX_PIVOTS as SLOT_PIVOTS
@@ -84,7 +85,7 @@ FLAT = 0.5
 ROUND_STEP = {**OPTIONS, "inline": "always"}
 
 
-@njit(**OPTIONS)
+@kernel_only(**OPTIONS)
 def face_point(axis, sign, y, metric, out):
     """``metric @ x`` for the cube-face point ``x`` with ``x[axis] = sign`` and the other five
     coordinates ``y`` (5,); into ``out`` (6,), unnormalised."""
@@ -98,7 +99,7 @@ def face_point(axis, sign, y, metric, out):
         out[r] = s
 
 
-@njit(**OPTIONS)
+@kernel_only(**OPTIONS)
 def normalise(x):
     s = 0.0
     for k in range(len(x)):
@@ -108,7 +109,7 @@ def normalise(x):
         x[k] /= s
 
 
-@njit(**OPTIONS)
+@kernel_only(**OPTIONS)
 def cell_samples(axis, sign, lo, hi, metric, out):
     """Unit directions of the cell's centre and its five axes' ends: ``out`` (11, 6)."""
     y = np.empty(5)
@@ -123,7 +124,7 @@ def cell_samples(axis, sign, lo, hi, metric, out):
         normalise(out[s])
 
 
-@njit(**OPTIONS)
+@kernel_only(**OPTIONS)
 def cell_geometry(axis, sign, lo, hi, metric, floor, centre, corners, unit):
     """The cap holding the cell: fills its centre (6,), its 32 corners (mapped by ``metric``)
     and their unit directions (32, 6); returns the cap's angular radius and a lower bound on
@@ -174,7 +175,7 @@ def cell_geometry(axis, sign, lo, hi, metric, floor, centre, corners, unit):
     return delta, np.sqrt(far) * floor
 
 
-@njit(**OPTIONS)
+@kernel_only(**OPTIONS)
 def geometry(n):
     """Room for the :func:`cell_geometry` of ``n`` cells, one row each: (delta (n,), nearest
     (n,), centre (n, 6), corners (n, 32, 6), unit (n, 32, 6)). The screens fill the rows of
@@ -186,7 +187,7 @@ def geometry(n):
     )  # fmt: skip
 
 
-@njit(**OPTIONS)
+@kernel_only(**OPTIONS)
 def geometry_into(axis, sign, lo, hi, metric, floor, geo, n, row):
     """:func:`cell_geometry` of cell ``n`` into row ``row`` of ``geo`` (:func:`geometry`)."""
     delta, nearest, centre, corners, unit = geo
@@ -195,7 +196,7 @@ def geometry_into(axis, sign, lo, hi, metric, floor, geo, n, row):
     )
 
 
-@njit(**OPTIONS)
+@kernel_only(**OPTIONS)
 def move_geometry(geo, n, row):
     """Row ``n`` of ``geo`` (:func:`geometry`) copied to row ``row``."""
     delta, nearest, centre, corners, unit = geo
@@ -206,7 +207,7 @@ def move_geometry(geo, n, row):
         copy_rows(unit[row], np.int64(0), unit[n])
 
 
-@njit(**OPTIONS)
+@kernel_only(**OPTIONS)
 def box_bound(w, corners, unit, nearest):
     """A lower bound of ``w . u`` over the cell: exact (the smallest over the unit corners)
     where ``w . x >= 0`` at every corner, else the most negative ``w . x`` over the smallest
@@ -221,7 +222,7 @@ def box_bound(w, corners, unit, nearest):
     return low if raw >= 0.0 else raw / nearest
 
 
-@njit(**OPTIONS)
+@kernel_only(**OPTIONS)
 def line_search(beta, s, A, b, C):
     """argmax over [0, 1] of ``beta g - s sqrt(A g^2 + 2 b g + C)`` (concave)."""
     if not A > 0.0:
@@ -239,7 +240,7 @@ def line_search(beta, s, A, b, C):
     return min(1.0, max(0.0, g))
 
 
-@njit(**OPTIONS)
+@kernel_only(**OPTIONS)
 def frank_wolfe(points, n, c, delta, steps, lam, wbar):
     """Convex weights ``lam`` of ``points[:n]`` for a high cap bound ``cos(delta) wbar . c -
     sin(delta) |wbar_perp|`` (concave in the weights; every iterate is valid); fills ``lam``
@@ -308,7 +309,7 @@ def frank_wolfe(points, n, c, delta, steps, lam, wbar):
     return cd * lam_a - sd * b_bar
 
 
-@njit(**OPTIONS)
+@kernel_only(**OPTIONS)
 def game_weights(M, lam, stop=np.inf, max_pivots=MAX_PIVOTS, give_up=-np.inf):
     """Convex weights ``lam`` (K,) maximising ``min_c (M lam)_c`` for ``M`` (C, K): the value
     of a small matrix game by a fresh convex game (:func:`.slot_game.game_solve`, scaled to
@@ -328,7 +329,7 @@ def game_weights(M, lam, stop=np.inf, max_pivots=MAX_PIVOTS, give_up=-np.inf):
     return pivots
 
 
-@njit(**OPTIONS)
+@kernel_only(**OPTIONS)
 def exact_bound(points, n, corners, unit, nearest, stop, give_up, wbar):
     """The corner bound of the best convex combination of ``points[:n]`` against the cell's
     unit corners (a matrix game), or of one whose game value reaches ``stop`` or that
@@ -393,7 +394,7 @@ def dot6(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3] + a[4] * b[4] + a[5] * b[5]
 
 
-@njit(**OPTIONS)
+@kernel_only(**OPTIONS)
 def slot_bound(G, f, W, npc, ends, dirs, corners, unit, nearest, stop, give_up, wbar, work):
     """The corner bound of the best combination of every slot's own support points at the
     directions ``dirs`` (N, 6), each slot with its own weights summing to at most 1
@@ -518,7 +519,7 @@ def slot_bound(G, f, W, npc, ends, dirs, corners, unit, nearest, stop, give_up, 
     return bound if bound > 0.0 else -np.inf
 
 
-@njit(**OPTIONS)
+@kernel_only(**OPTIONS)
 def slot_work(f, ends, N):
     """The buffers of :func:`slot_bound` for ``N`` directions and its added columns."""
     N += COLUMN_ROUNDS
@@ -530,7 +531,7 @@ def slot_work(f, ends, N):
     )  # fmt: skip
 
 
-@njit(**OPTIONS)
+@kernel_only(**OPTIONS)
 def tangent_basis(u, E):
     """An orthonormal basis (5, 6) of the tangent space at unit ``u``: a Householder
     reflection taking ``u`` to ``+-e_0``, its other columns."""
@@ -545,7 +546,7 @@ def tangent_basis(u, E):
             E[j - 1, k] = (1.0 if k == j else 0.0) - 2.0 * v[k] * v[j] / vv
 
 
-@njit(**OPTIONS)
+@kernel_only(**OPTIONS)
 def cloud(u, scales, out):
     """``u`` and ``u +- eps e_j`` along a tangent basis, normalised: ``out`` (1 + 10 k, 6).
     Their support points hold every piece of ``p`` that meets at ``u``."""
@@ -570,7 +571,7 @@ def consider(G, f, W, npc, ends, U, points, best, best_u):
     return consider_in(G, f, W, npc, ends, U, points, best, best_u, scratch(f))
 
 
-@njit(**OPTIONS)
+@kernel_only(**OPTIONS)
 def consider_in(G, f, W, npc, ends, U, points, best, best_u, D):
     """:func:`consider` with the caller's scratch ``D`` (:func:`~.support.scratch`): a loop
     over cells allocates it once (at 2,000 contacts a fresh one per call cost more than the
@@ -726,7 +727,7 @@ def bound_cells(
     return out
 
 
-@njit(**OPTIONS)
+@kernel_only(**OPTIONS)
 def screen(axis, sign, lo, hi, metric, floor, lin, target, margin, tally, geo):
     """Which cells (indices) the linear bound of their inherited point ``lin`` (N, 6) leaves
     below ``target``; the others are dropped before their samples are taken, their bounds
@@ -910,7 +911,7 @@ def advance(
             copy_into(lin[c], inherited[live[c]])
 
 
-@njit(**OPTIONS)
+@kernel_only(**OPTIONS)
 def take_cells(axis, sign, lo, hi, rows):
     """The cells ``rows`` (indices, repeats allowed): a loop, not fancy indexing (numba
     compiles numpy's broadcasting for each array type)."""
@@ -925,7 +926,7 @@ def take_cells(axis, sign, lo, hi, rows):
     return axis2, sign2, lo2, hi2
 
 
-@njit(**OPTIONS)
+@kernel_only(**OPTIONS)
 def halve(axis, sign, lo, hi, cells_per_round):
     """Every cell cut in two across its widest coordinate, ``cuts`` times (``2^cuts``
     children, ``cuts <= 5``), so that a round holds about ``cells_per_round`` cells."""
@@ -965,7 +966,7 @@ SHELL_ALIVE = 4
 INNER_SHARE = 0.5
 
 
-@njit(**OPTIONS)
+@kernel_only(**OPTIONS)
 def holds(axis, sign, lo, hi, x, y):
     """Whether the ray through ``metric @ x`` meets the cell's box; its face coordinates into
     ``y`` (5,)."""
@@ -982,7 +983,7 @@ def holds(axis, sign, lo, hi, x, y):
     return True
 
 
-@njit(**OPTIONS)
+@kernel_only(**OPTIONS)
 def shells(lo, hi, y, h, shrink):
     """The box ``[lo, hi]`` (5,) cut round its point ``y``: an inner box ``y +- h`` (clipped
     to the box) and nested shells between, each ``shrink`` times smaller than the one holding
@@ -1038,7 +1039,7 @@ def shells(lo, hi, y, h, shrink):
     return out_lo[: n + 1], out_hi[: n + 1]
 
 
-@njit(**OPTIONS)
+@kernel_only(**OPTIONS)
 def split(axis, sign, lo, hi, cells_per_round, metric, best_u, radius, below):
     """The live cells' children: a cell of angular radius under ``below`` holding the
     incumbent ``best_u`` cut into :func:`shells` round it, its inner box of angular radius
