@@ -330,6 +330,20 @@ def game_weights(M, lam, stop=np.inf, max_pivots=MAX_PIVOTS, give_up=-np.inf):
 
 
 @kernel_only(**OPTIONS)
+def lowest_corners(unit, wbar, rows_in):
+    """The lowest ``unit[q] . wbar`` over the corners in a game's rows (``rows_in[q]``), the
+    lowest over the others and the corner of the latter (-1: none)."""
+    low_in, low_out, at = np.inf, np.inf, -1
+    for q in range(CORNERS):
+        v = dot6(unit[q], wbar)
+        if rows_in[q]:
+            low_in = min(low_in, v)
+        elif v < low_out:
+            low_out, at = v, q
+    return low_in, low_out, at
+
+
+@kernel_only(**OPTIONS)
 def exact_bound(points, n, corners, unit, nearest, stop, give_up, wbar):
     """The corner bound of the best convex combination of ``points[:n]`` against the cell's
     unit corners (a matrix game), or of one whose game value reaches ``stop`` or that
@@ -371,13 +385,7 @@ def exact_bound(points, n, corners, unit, nearest, stop, give_up, wbar):
                 wbar[k] += lam[i] * points[i, k]
         if pivots < 0:  # more rows only lower the value
             break
-        low_in, low_out, at = np.inf, np.inf, -1
-        for q in range(CORNERS):
-            v = dot6(unit[q], wbar)
-            if rows_in[q]:
-                low_in = min(low_in, v)
-            elif v < low_out:
-                low_out, at = v, q
+        low_in, low_out, at = lowest_corners(unit, wbar, rows_in)
         if at < 0 or low_out >= min(low_in, stop):
             break
         rows_in[at] = True
@@ -467,13 +475,7 @@ def slot_bound(G, f, W, npc, ends, dirs, corners, unit, nearest, stop, give_up, 
         for k in range(K):
             for j in range(6):
                 wbar[j] += lam[k] * cols[k, j]
-        low_in, low_out, at = np.inf, np.inf, -1
-        for q in range(CORNERS):
-            v = dot6(unit[q], wbar)
-            if rows_in[q]:
-                low_in = min(low_in, v)
-            elif v < low_out:
-                low_out, at = v, q
+        low_in, low_out, at = lowest_corners(unit, wbar, rows_in)
         if pivots >= 0 and at >= 0 and low_out < low_in:  # given up, more rows only lower it
             rows_in[at] = True
             picked[C] = at
