@@ -516,7 +516,7 @@ a = np.arange(4.0)
 def caller(a, add):
     return arrays.dot(a, a) + add
 assert caller(a, float(sys.argv[1])) == 14.0 + float(sys.argv[1])
-assert isinstance(arrays.dot, _link._kernel_only_class())
+assert isinstance(arrays.dot, _link.KernelOnly)
 (sig,) = arrays.dot.signatures
 library = arrays.dot.overloads[sig].library
 print(library._closure_nlp_linking, getattr(library, "_compiled_object", None) is None)

@@ -20,6 +20,11 @@ earlier ones lack its reload-init step).
 
 from __future__ import annotations
 
+import types
+
+from numba import njit
+from numba.core.registry import CPUDispatcher
+
 # A callee library whose module holds more instructions than this is linked after the
 # caller's optimisation (the inliner's threshold is a few hundred: none this large is inlined).
 LATE = 1000
@@ -151,55 +156,40 @@ def install() -> None:
     codegen.JITCPUCodegen.set_env = set_env
 
 
+class KernelOnly(CPUDispatcher):
+    """A kernel without a Python entry (:func:`kernel_only`): called from Python, it runs
+    ``python``, the same function compiled with its entry (and cached apart) at the first such
+    call (tests: the library calls only entry points from Python)."""
+
+    _python = None
+
+    @property
+    def python(self):
+        if self._python is None:
+            f = self.py_func
+            copy = types.FunctionType(
+                f.__code__, f.__globals__, f.__name__, f.__defaults__, f.__closure__
+            )
+            copy.__kwdefaults__ = f.__kwdefaults__
+            copy.__qualname__ = f"{f.__qualname__}.python"  # its own cache files
+            copy.__module__ = f.__module__
+            copy.__doc__ = f.__doc__
+            self._python = njit(**self.python_options)(copy)
+        return self._python
+
+    def __call__(self, *args, **kwargs):
+        return self.python(*args, **kwargs)
+
+
 def kernel_only(**options):
     """``numba.njit(**options)`` for a kernel that only other kernels call: compiled without
-    its Python entry (and, with the linking installed, without machine code of its own). A
-    call from Python runs a copy compiled with its entry (:class:`KernelOnly`)."""
-    from numba import njit
+    its Python entry (and, with the linking installed, without machine code of its own); a
+    :class:`KernelOnly`."""
 
     def decorate(function):
         kernel = njit(**options, no_cpython_wrapper=True, no_cfunc_wrapper=True)(function)
-        kernel.__class__ = _kernel_only_class()
+        kernel.__class__ = KernelOnly  # numba's dispatcher, but for calls from Python
         kernel.python_options = options
         return kernel
 
     return decorate
-
-
-_KERNEL_ONLY = []
-
-
-def _kernel_only_class():
-    if not _KERNEL_ONLY:
-        from numba.core.registry import CPUDispatcher
-
-        class KernelOnly(CPUDispatcher):
-            """A kernel without a Python entry: called from Python, it runs ``python``, the
-            same function compiled with its entry (and cached apart), compiled at the first
-            such call (tests; the library calls only entry points from Python)."""
-
-            _python = None
-
-            @property
-            def python(self):
-                if self._python is None:
-                    import types
-
-                    from numba import njit
-
-                    f = self.py_func
-                    copy = types.FunctionType(
-                        f.__code__, f.__globals__, f.__name__, f.__defaults__, f.__closure__
-                    )
-                    copy.__kwdefaults__ = f.__kwdefaults__
-                    copy.__qualname__ = f"{f.__qualname__}.python"  # its own cache files
-                    copy.__module__ = f.__module__
-                    copy.__doc__ = f.__doc__
-                    self._python = njit(**self.python_options)(copy)
-                return self._python
-
-            def __call__(self, *args, **kwargs):
-                return self.python(*args, **kwargs)
-
-        _KERNEL_ONLY.append(KernelOnly)
-    return _KERNEL_ONLY[0]
