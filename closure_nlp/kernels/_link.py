@@ -72,8 +72,15 @@ def install() -> None:
             "_finalize_dynamic_globals", "_verify_declare_only_symbols", "_unserialize",
             "serialize_using_object_code",
         )  # fmt: skip
-        if not all(hasattr(library_class, name) for name in needed) or not hasattr(
-            codegen.JITCPUCodegen, "set_env"
+        llvm_needed = (
+            "create_pipeline_tuning_options", "create_new_module_pass_manager",
+            "create_pass_builder",
+        )  # fmt: skip
+        if (
+            not all(hasattr(library_class, name) for name in needed)
+            or not all(hasattr(llvm, name) for name in llvm_needed)
+            or not hasattr(llvm.create_new_module_pass_manager(), "add_loop_strength_reduce_pass")
+            or not hasattr(codegen.JITCPUCodegen, "set_env")
         ):
             return
     except (ImportError, AttributeError):
@@ -120,6 +127,13 @@ def install() -> None:
         if not linking_only:
             self._finalize_final_module()
             return
+        # compiling a module to machine code runs the code generator's own passes on it, loop
+        # strength reduction among them, and numba links that module into the callers: the
+        # callers' code is as fast only with it (4 PCwF certified 1-5% slower per set without)
+        tuning = llvm.create_pipeline_tuning_options(3)
+        passes = llvm.create_new_module_pass_manager()
+        passes.add_loop_strength_reduce_pass()
+        passes.run(self._final_module, llvm.create_pass_builder(self._codegen._tm, tuning))
         self._finalize_dynamic_globals()  # numba caches no library that uses them
         self._verify_declare_only_symbols()
         self._closure_nlp_linking = True
