@@ -153,8 +153,9 @@ RHO_KERNELS = (
 # search, :func:`~closure_nlp.zonotope.climb`); a warm-up told that none will compiles it not.
 CAPACITY_KERNELS = (("zonotope", "capacity_many"),)
 # The helper's kernels that the command's process waits for before ``advance``: the slot game's
-# bound and the cell games (the longest chain), then the cloud round the incumbent.
-AWAITED = (*ADVANCE_PARTS[:2], ("branch_bound", "cloud"))
+# bound and the cell games (the longest chain), then the cloud round the incumbent and
+# Frank-Wolfe's bound.
+AWAITED = (*ADVANCE_PARTS[:2], ("branch_bound", "cloud"), ("branch_bound", "frank_wolfe"))
 # A cold compile splits the kernels in two lists, one per process (numba compiles under a lock:
 # one process compiles on one core); both write the disk cache. ``advance`` is compiled last,
 # once every part it calls is in the cache, so that it compiles only itself: the command's
@@ -167,7 +168,6 @@ COMPILE_GROUPS = (
         ("nearest_point", "min_norm_point"),
         ("branch_bound", "consider"),
         ("branch_bound", "split"),
-        ("branch_bound", "frank_wolfe"),
         ("branch_bound", "screen"),
         ("support", "support_many"),
         *AWAITED,
