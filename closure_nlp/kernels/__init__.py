@@ -155,7 +155,9 @@ CAPACITY_KERNELS = (("zonotope", "capacity_many"),)
 # The helper's kernels that the command's process waits for before ``advance``: the slot game's
 # bound and the cell games (the longest chain), then the cloud round the incumbent and
 # Frank-Wolfe's bound.
-AWAITED = (*ADVANCE_PARTS[:2], ("branch_bound", "cloud"), ("branch_bound", "frank_wolfe"))
+AWAITED = tuple(
+    ("branch_bound", name) for name in ("slot_bound", "exact_bound", "cloud", "frank_wolfe")
+)
 # A cold compile splits the kernels in two lists, one per process (numba compiles under a lock:
 # one process compiles on one core); both write the disk cache. ``advance`` is compiled last,
 # once every part it calls is in the cache, so that it compiles only itself: the command's
@@ -167,15 +169,14 @@ COMPILE_GROUPS = (
     (
         ("nearest_point", "min_norm_point"),
         ("branch_bound", "consider"),
-        ("branch_bound", "split"),
-        ("branch_bound", "screen"),
+        *(part for part in ADVANCE_PARTS if part not in AWAITED),
         ("support", "support_many"),
         *AWAITED,
         ("branch_bound", "advance"),
     ),
     (
         *AWAITED,
-        *(("support", name) for name in ENTRY_POINTS["support"][1:]),
+        *(("support", name) for name in ENTRY_POINTS["support"] if name != "support_many"),
         ("nearest_point", "nearest_point_bounds"),
         ("descent", "local_minimum"),
         ("descent", "descend_many"),
