@@ -1216,7 +1216,7 @@ def main(argv=None) -> int:
         json.dump(report, sys.stdout, indent=2)
         sys.stdout.write("\n")
         return 0
-    from .kernels import warm_up
+    from .rho.warm_up import warm_up
 
     warm_up()  # a kernel compiled inside a timed call would count its compile as its cost
     if args.what == "seeds":

@@ -1274,7 +1274,7 @@ def _compile_kernels(args) -> None:
     ``--quiet``."""
     if args.run not in (_cmd_rho, _cmd_eligibility, _cmd_select, _cmd_place, _cmd_plan, _cmd_study):
         return
-    from .kernels import warm_up
+    from .rho.warm_up import warm_up
 
     shown = not args.quiet and sys.stderr.isatty()
     notify = (lambda text: sys.stderr.write(f"{text}\n")) if shown else None

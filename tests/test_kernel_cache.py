@@ -118,7 +118,7 @@ def test_a_read_only_package_compiles_into_the_user_cache_and_loads_from_it(tmp_
 @pytest.mark.slow  # a cold compile of every kernel
 def test_a_cold_cache_compiles_once_and_says_so(tmp_path):
     code = (
-        "from closure_nlp.kernels import warm_up\n"
+        "from closure_nlp.rho.warm_up import warm_up\n"
         "lines = []\n"
         "first = warm_up(lines.append)\n"
         "print(first is not None and first > 0, len(lines))\n"
@@ -128,7 +128,7 @@ def test_a_cold_cache_compiles_once_and_says_so(tmp_path):
     env = _env(PYTHONPATH=str(ROOT), NUMBA_CACHE_DIR=str(tmp_path / "numba"))
     assert _run(code, env, tmp_path) == ["True 2", "True True", "True 2"]
     # a new process finds everything in the disk cache: nothing to say
-    again = "from closure_nlp.kernels import warm_up\nlines = []\n"
+    again = "from closure_nlp.rho.warm_up import warm_up\nlines = []\n"
     again += "print(warm_up(lines.append) is None, len(lines))\n"
     assert _run(again, env, tmp_path) == ["True 0"]
 
@@ -137,7 +137,8 @@ def test_the_rho_command_loads_only_the_kernels_of_rho(tmp_path):
     from closure_nlp import kernels
 
     code = (
-        "from closure_nlp.kernels import nearest_point, support, warm_up\n"
+        "from closure_nlp.kernels import nearest_point, support\n"
+        "from closure_nlp.rho.warm_up import warm_up\n"
         "print(warm_up(rho_only=True) is None, bool(support.rows_many.overloads),\n"
         "      bool(support.slots_many.overloads), bool(nearest_point.min_norm_point.overloads),\n"
         "      bool(support.evaluate_many.overloads))\n"
@@ -145,7 +146,7 @@ def test_the_rho_command_loads_only_the_kernels_of_rho(tmp_path):
     env = _env(PYTHONPATH=str(ROOT))
     if "NUMBA_CACHE_DIR" in os.environ:
         env["NUMBA_CACHE_DIR"] = os.environ["NUMBA_CACHE_DIR"]
-    if not kernels._cached(rho_only=True):  # a cold cache: this first process compiles them
+    if not kernels.cached(rho_only=True):  # a cold cache: this first process compiles them
         # Wolfe's nearest point of given points first (the local minimiser's, in the helper)
         assert _run(code, env, tmp_path) == ["False False False True True"]
     # warm: the kernels of rho loaded, not those of rows, slots and Wolfe's nearest point
@@ -161,11 +162,12 @@ def test_a_cold_rho_compiles_the_kernels_of_rho_and_a_later_command_the_others(t
     code = (
         "import sys\n"
         "from closure_nlp import kernels\n"
+        "from closure_nlp.rho import warm_up\n"
         "lines = []\n"
         "rho_only, capacity = sys.argv[1] == 'rho', sys.argv[1] == 'all'\n"
-        "first = kernels.warm_up(lines.append, rho_only=rho_only, capacity=capacity)\n"
+        "first = warm_up.warm_up(lines.append, rho_only=rho_only, capacity=capacity)\n"
         "print(first is not None, len(lines))\n"
-        "cached = kernels._cached\n"
+        "cached = kernels.cached\n"
         "print(cached(rho_only=True), cached(capacity=False), cached())\n"
     )
     env = _env(PYTHONPATH=str(ROOT), NUMBA_CACHE_DIR=str(tmp_path / "numba"))
@@ -219,8 +221,9 @@ def test_the_declared_signatures_are_those_the_library_calls():
     import importlib
 
     from closure_nlp import kernels
+    from closure_nlp.rho import warm_up
 
-    kernels.warm_up()  # rho, slot values, row terms, Wolfe's nearest point: every entry point
+    warm_up.warm_up()  # rho, slot values, row terms, Wolfe's nearest point: every entry point
     declared = kernels.signatures()
     entries = {(m, n) for m, names in kernels.ENTRY_POINTS.items() for n in names}
     first, second = kernels.COMPILE_GROUPS
