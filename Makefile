@@ -29,16 +29,17 @@ test-slow: $(STAMP)
 	MPLBACKEND=Agg $(BIN)/python -m pytest -q -n auto -m slow --durations=15
 
 lint: $(STAMP)
-	$(BIN)/ruff check closure_nlp tests examples models
+	$(BIN)/ruff check closure_nlp tests examples models benchmarks
+	$(BIN)/lint-imports
 
 bench: $(STAMP)
-	$(BIN)/python -m closure_nlp.bench rho
-	$(BIN)/python -m closure_nlp.bench rho-hat
-	$(BIN)/python -m closure_nlp.bench certify
-	$(BIN)/python -m closure_nlp.bench engine
-	$(BIN)/python -m closure_nlp.bench batch
-	$(BIN)/python -m closure_nlp.bench select
-	$(BIN)/python -m closure_nlp.bench plan
+	$(BIN)/python -m benchmarks.bench rho
+	$(BIN)/python -m benchmarks.bench rho-hat
+	$(BIN)/python -m benchmarks.bench certify
+	$(BIN)/python -m benchmarks.bench engine
+	$(BIN)/python -m benchmarks.bench batch
+	$(BIN)/python -m benchmarks.bench select
+	$(BIN)/python -m benchmarks.bench plan
 
 # The outside implementations compared in examples/compare_solvers.py --peers, each in its own
 # environment under .peers/ (never part of `make test`). graspnetAPI's own requirements do not

@@ -2,21 +2,24 @@
 
     python examples/compare_solvers.py [--small] [--out examples/out] [--seeds 3]
 
-The suite: random contact sets (``closure_nlp.random_sets``) of every contact type and mixed,
+The suite: random contact sets (``closure_nlp.contact.random_sets``) of every contact type and
+mixed,
 m = 2..7, force closure and not. For each set the certified bounds ``lo <= rho <= hi``
-(``closure_nlp.certify``, started at IPOPT's direction) are the yardstick; a method's error is
+(``closure_nlp.rho.certificate``, started at IPOPT's direction) are the yardstick; a method's error
+is
 how far its rho falls outside ``[lo, hi]`` (0 inside). Methods:
 
-* IPOPT: ``closure_nlp.quality.search_rho`` with ``solver="ipopt"`` (our search alone, with
+* IPOPT: ``closure_nlp.rho.support_minimum.search_rho`` with ``solver="ipopt"`` (our search alone,
+with
   the CasADi support-minimum NLP), solver built and warmed up first.
-* SLSQP from +-e_k: the paper's multi-start SQP (``closure_nlp.bench.paper_baseline``).
+* SLSQP from +-e_k: the paper's multi-start SQP (``benchmarks.bench.paper_baseline``).
 * GraspIt!/Dex-Net style: every friction cone cut to 8 edges (soft fingers: 8 edges and the two
   spin tips), the convex hull of the union of all edge wrenches at ``f_max``, epsilon = distance
   from the origin to the nearest facet, sign flipped to rho's convention (0 when qhull finds no
   interior). This is the hull of the *union* of the contacts' wrenches (an L1 grasp wrench
   space with polyhedral cones), a smaller set than the paper's ``W_c^M`` (union of all
   Minkowski sums): its error says how much that choice changes the number, not a solver error.
-* cvxpy SOCP: ``closure_nlp.crosscheck.distance_cvxpy``, exact for sets that are not force
+* cvxpy SOCP: ``closure_nlp.rho.crosscheck.distance_cvxpy``, exact for sets that are not force
   closure (and only there: it returns 0 for the others).
 * cvxpy force-closure check: the verdict only (rank + SOCP margin).
 
@@ -47,16 +50,17 @@ import matplotlib
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
-from closure_nlp.bench import paper_baseline
-from closure_nlp.certify import certified_bounds
-from closure_nlp.contacts import ContactSet, ContactType, contact_specs, load_contact_set
-from closure_nlp.crosscheck import ball_minimum, force_closure_check
-from closure_nlp.elements import load_model
-from closure_nlp.eligibility import Eligibility
-from closure_nlp.files import write_atomic
-from closure_nlp.quality import SupportMinimizer, rho, search_rho
-from closure_nlp.random_sets import random_contact_set
-from closure_nlp.wrenches import WrenchSlots
+from benchmarks.bench import paper_baseline
+from closure_nlp.base.files import write_atomic
+from closure_nlp.contact.contact_set import ContactSet, ContactType, load_contact_set
+from closure_nlp.contact.random_sets import random_contact_set
+from closure_nlp.contact.wrenches import WrenchSlots
+from closure_nlp.model.elements import load_model
+from closure_nlp.model.scale import contact_specs
+from closure_nlp.rho.certificate import certified_bounds
+from closure_nlp.rho.crosscheck import ball_minimum, force_closure_check
+from closure_nlp.rho.rho_hat import Eligibility
+from closure_nlp.rho.support_minimum import SupportMinimizer, rho, search_rho
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402  (after the backend is chosen)

@@ -18,12 +18,12 @@ from pathlib import Path
 
 import numpy as np
 
-from closure_nlp.contacts import contact_specs
-from closure_nlp.elements import load_model
-from closure_nlp.eligibility import Eligibility
-from closure_nlp.files import write_atomic
-from closure_nlp.placement import PlacementOptions
-from closure_nlp.planning import plan
+from closure_nlp.base.files import write_atomic
+from closure_nlp.model.elements import load_model
+from closure_nlp.model.scale import contact_specs
+from closure_nlp.placement.placer import PlacementOptions
+from closure_nlp.planning.plan import plan
+from closure_nlp.rho.rho_hat import Eligibility
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -26,13 +26,12 @@ from pathlib import Path
 
 import trimesh
 
-from closure_nlp.characterize import characterize_mesh, drop_outward_as_read
-from closure_nlp.contacts import contact_specs
-from closure_nlp.eligibility import Eligibility
-from closure_nlp.errors import MethodError
-from closure_nlp.files import write_atomic
-from closure_nlp.planning import plan
-from closure_nlp.scale import resolve
+from closure_nlp.base.errors import MethodError
+from closure_nlp.base.files import write_atomic
+from closure_nlp.model.characterize import characterize_mesh, drop_outward_as_read
+from closure_nlp.model.scale import contact_specs, resolve
+from closure_nlp.planning.plan import plan
+from closure_nlp.rho.rho_hat import Eligibility
 
 OUT = Path(__file__).parent / "out"
 MESHES = {

@@ -1,6 +1,6 @@
 """The spread of rho over seeds on the three examples, the chosen seed starred.
 
-    python -m closure_nlp.bench seeds > examples/out/bench_seeds.json
+    python -m benchmarks.bench seeds > examples/out/bench_seeds.json
     python examples/seeds_spread.py [examples/out/bench_seeds.json] [--out docs/seeds_spread.png]
 
 Reads the ``examples`` part of a ``bench seeds`` report (each example's seeds, their rho and the
@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from closure_nlp.drawing import pyplot, save_figure
+from closure_nlp.report.drawing import pyplot, save_figure
 
 HERE = Path(__file__).resolve().parent
 

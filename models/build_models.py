@@ -12,7 +12,8 @@ counts are the paper's:
 - ``pistol``: 7 facets (5 faces of the receiver block, muzzle, grip butt) and 42 line segments
   (18 rulings of the round barrel, 24 of the elliptic, raked grip).
 
-The elements are built from the known geometry, not by :func:`closure_nlp.characterize`, so the
+The elements are built from the known geometry, not by :func:`closure_nlp.model.characterize`, so
+the
 counts are exact: every element lies on the mesh surface (facets and segments on mesh faces and
 edges, points at mesh vertices) with its inward normal pointing into the solid. Parts of a mesh
 (handle and body, barrel and receiver) may overlap instead of being fused: the STL is for
@@ -27,7 +28,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from closure_nlp.elements import Element, ElementKind, Model, save_model
+from closure_nlp.model.elements import Element, ElementKind, Model, save_model
 
 HERE = Path(__file__).resolve().parent
 FACET, SEGMENT, POINT = ElementKind.FACET, ElementKind.SEGMENT, ElementKind.POINT

@@ -1,7 +1,7 @@
 """The corpus of hostile and extreme inputs, generated, not stored.
 
 Each :class:`Case` writes its files into a folder and runs one command through the in-process CLI
-entry ``closure_nlp.cli.main`` (or one API call); :func:`outcome` sorts what happened into the
+entry ``closure_nlp.cli.main.main`` (or one API call); :func:`outcome` sorts what happened into the
 outcomes: a clear error, an answer, a traceback (an internal error or an exception escaping),
 a NaN (a non-finite number printed), a hang. ``tests/test_hostile.py`` runs every case in
 ``make test``; ``python -m tests.hostile`` prints the table.
@@ -108,7 +108,7 @@ _NAN_TEXT = re.compile(r"(?<![A-Za-z_])(nan|inf|-inf|NaN|Infinity)(?![A-Za-z_])"
 
 def run_case(case: Case, folder: Path) -> Outcome:
     """Run one case in ``folder`` (created) and classify it."""
-    import closure_nlp.cli as cli
+    import closure_nlp.cli.main as cli
 
     folder.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
@@ -788,11 +788,13 @@ def _flag_cases() -> list[Case]:
 
 
 def _api_cases() -> list[Case]:
-    from closure_nlp.contacts import Contact, ContactSet, contact_set_from_dict, contact_specs
-    from closure_nlp.elements import Element, Model, model_from_dict
-    from closure_nlp.eligibility import Eligibility
-    from closure_nlp.files import load_json, read_mesh
-    from closure_nlp.quality import rho
+    from closure_nlp.base.files import load_json
+    from closure_nlp.contact.contact_set import Contact, ContactSet, contact_set_from_dict
+    from closure_nlp.model.elements import Element, Model, model_from_dict
+    from closure_nlp.model.meshes import read_mesh
+    from closure_nlp.model.scale import contact_specs
+    from closure_nlp.rho.rho_hat import Eligibility
+    from closure_nlp.rho.support_minimum import rho
 
     cases = []
 
@@ -908,11 +910,11 @@ def _api_cases() -> list[Case]:
     api("model_from_dict(list)", lambda: model_from_dict([]).elements, ERROR)
     api("contact_set_from_dict(None)", lambda: contact_set_from_dict(None).contacts, ERROR)
 
-    from closure_nlp.characterize import characterize
-    from closure_nlp.elements import save_model, simplex_weights
-    from closure_nlp.files import write_json
-    from closure_nlp.placement import PlacementOptions
-    from closure_nlp.selection import SelectionOptions, heuristic
+    from closure_nlp.base.files import write_json
+    from closure_nlp.model.characterize import characterize
+    from closure_nlp.model.elements import save_model, simplex_weights
+    from closure_nlp.placement.placer import PlacementOptions
+    from closure_nlp.selection.algorithms import SelectionOptions, heuristic
 
     for label, kwargs in [
         ("starts=0", {"starts": 0}),
@@ -924,7 +926,7 @@ def _api_cases() -> list[Case]:
         ("round_search=str", {"round_search": "light"}),
     ]:
         api(f"PlacementOptions({label})", lambda kw=kwargs: PlacementOptions(**kw).starts, ERROR)
-    from closure_nlp.quality import SupportMinimizer
+    from closure_nlp.rho.support_minimum import SupportMinimizer
 
     for label, kwargs in [
         ("search=dict", {"search": {"samples": 8}}),
@@ -1424,12 +1426,13 @@ def _strict_cases() -> list[Case]:
         )
     )
 
-    from closure_nlp.contacts import Contact, ContactSet, contact_set_from_dict, contact_specs
-    from closure_nlp.elements import model_from_dict
-    from closure_nlp.eligibility import Eligibility
-    from closure_nlp.placement import PlacementOptions
-    from closure_nlp.quality import rho
-    from closure_nlp.selection import heuristic
+    from closure_nlp.contact.contact_set import Contact, ContactSet, contact_set_from_dict
+    from closure_nlp.model.elements import model_from_dict
+    from closure_nlp.model.scale import contact_specs
+    from closure_nlp.placement.placer import PlacementOptions
+    from closure_nlp.rho.rho_hat import Eligibility
+    from closure_nlp.rho.support_minimum import rho
+    from closure_nlp.selection.algorithms import heuristic
 
     model = model_from_dict(box)
     specs = contact_specs(4)

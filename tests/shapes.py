@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from closure_nlp.elements import Element, Model
+from closure_nlp.model.elements import Element, Model
 
 
 def box_facets(half=1.0) -> list[Element]:

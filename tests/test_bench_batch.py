@@ -2,7 +2,7 @@
 
 import json
 
-from closure_nlp import bench
+from benchmarks import bench
 
 
 def test_the_batch_runs_every_file_in_one_process_and_reports_per_file(capsys):

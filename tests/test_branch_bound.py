@@ -10,14 +10,14 @@ import numpy as np
 import pytest
 from scipy.optimize import linprog
 
-from closure_nlp.branch_bound import BranchBoundOptions, _initial_cells, sphere_minimum
-from closure_nlp.certify import certified_bounds
-from closure_nlp.contacts import Contact, ContactSet, ContactType, contact_set_from_dict
+from closure_nlp.contact.contact_set import Contact, ContactSet, ContactType, contact_set_from_dict
+from closure_nlp.contact.random_sets import random_contact_set
+from closure_nlp.contact.wrenches import WrenchSlots
 from closure_nlp.kernels import branch_bound as kernels
-from closure_nlp.quality import SupportMinimizer
-from closure_nlp.random_sets import random_contact_set
-from closure_nlp.sphere_search import sphere_samples
-from closure_nlp.wrenches import WrenchSlots
+from closure_nlp.rho.certificate import certified_bounds
+from closure_nlp.rho.sphere_branch_bound import BranchBoundOptions, _initial_cells, sphere_minimum
+from closure_nlp.rho.sphere_search import sphere_samples
+from closure_nlp.rho.support_minimum import SupportMinimizer
 
 from . import reference
 from .test_certify import symmetric_sets

@@ -14,19 +14,19 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from closure_nlp.certify import certified_bounds, tolerance_unit
-from closure_nlp.contacts import (
+from closure_nlp.contact.contact_set import (
     Contact,
     ContactSet,
     ContactType,
     contact_set_from_dict,
     grasp_matrices,
 )
-from closure_nlp.crosscheck import ball_minimum
+from closure_nlp.contact.random_sets import random_contact_set
+from closure_nlp.contact.wrenches import WrenchSlots
 from closure_nlp.kernels import branch_bound as kernels
-from closure_nlp.quality import SEED_SEARCH, SupportMinimizer, rho
-from closure_nlp.random_sets import random_contact_set
-from closure_nlp.wrenches import WrenchSlots
+from closure_nlp.rho.certificate import certified_bounds, tolerance_unit
+from closure_nlp.rho.crosscheck import ball_minimum
+from closure_nlp.rho.support_minimum import SEED_SEARCH, SupportMinimizer, rho
 
 from . import reference
 

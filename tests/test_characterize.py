@@ -10,9 +10,14 @@ import numpy as np
 import pytest
 import trimesh
 
-from closure_nlp.characterize import characterize, characterize_mesh, load_mesh, winding_number
-from closure_nlp.cli import main
-from closure_nlp.elements import ElementKind, load_model
+from closure_nlp.cli.main import main
+from closure_nlp.model.characterize import (
+    characterize,
+    characterize_mesh,
+    load_mesh,
+    winding_number,
+)
+from closure_nlp.model.elements import ElementKind, load_model
 
 ROOT = Path(__file__).resolve().parents[1]
 MODELS = ROOT / "models"
@@ -403,7 +408,7 @@ def test_draw_model_highlights_and_sizes_contacts():
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from closure_nlp.drawing import draw_contacts, draw_model
+    from closure_nlp.report.drawing import draw_contacts, draw_model
 
     model = load_model(MODELS / "cup.model.json")
     fig = plt.figure()
@@ -516,7 +521,7 @@ def test_a_patch_of_tiny_triangles_makes_no_library_warning():
     such triangles (a boolean union leaves some) divided 0 by 0."""
     import warnings
 
-    from closure_nlp.planar import facets
+    from closure_nlp.model.planar import facets
 
     tiny = 1e-7 * np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
     mesh = trimesh.Trimesh(tiny, [[0, 1, 2]], process=False)
@@ -528,8 +533,8 @@ def test_a_patch_of_tiny_triangles_makes_no_library_warning():
 
 
 def test_drop_outward_leaves_out_exactly_the_refused_elements():
-    from closure_nlp.characterize import drop_outward
-    from closure_nlp.model_mesh import check_normals, outward_elements
+    from closure_nlp.model.characterize import drop_outward
+    from closure_nlp.model.model_mesh import check_normals, outward_elements
 
     found = characterize_mesh(l_bracket())
     model, mesh = found.model, found.mesh
@@ -579,7 +584,7 @@ def test_pybullet_meshes_characterize_into_models_the_commands_accept(name, tmp_
     )
     assert code == 0, err
     model = load_model(out)
-    from closure_nlp.model_mesh import check_normals, read_model_mesh
+    from closure_nlp.model.model_mesh import check_normals, read_model_mesh
 
     check_normals(model, read_model_mesh(model))
     code, _, err = run_cli(capsys, "eligibility", out, "--elements", "0,1,2,3", "--type", "pcwf")
@@ -591,7 +596,7 @@ def test_pybullet_meshes_characterize_into_models_the_commands_accept(name, tmp_
 def test_thinning_keeps_the_greedy_points(spacing):
     """thin's ball-at-a-time search against the definition, by brute force: in order, a point
     is kept unless a point kept before it lies closer than the spacing."""
-    from closure_nlp.drafts import thin
+    from closure_nlp.model.drafts import thin
 
     rng = np.random.default_rng(3)
     points = rng.random((400, 3))

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-import closure_nlp.cli as cli
+import closure_nlp.cli.main as cli
 
 ROOT = Path(__file__).resolve().parents[1]
 BOX = ROOT / "examples" / "box_7fpc.contacts.json"
@@ -98,7 +98,7 @@ def test_an_unreachable_scheduler_is_a_failure_of_the_environment(tmp_path):
     code = (
         "import sys\n"
         "import closure_nlp.study.running as running\n"
-        "from closure_nlp.cli import main\n"
+        "from closure_nlp.cli.main import main\n"
         "running.CONNECT_SECONDS = 1\n"
         "sys.exit(main(sys.argv[1:]))\n"
     )

@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import closure_nlp.cli as cli
-from closure_nlp.quality import rho as real_rho
+import closure_nlp.cli.main as cli
+from closure_nlp.rho.support_minimum import rho as real_rho
 
 ROOT = Path(__file__).resolve().parents[1]
 BOX = str(ROOT / "examples" / "box_7fpc.contacts.json")
@@ -99,7 +99,7 @@ def test_sigint_during_ipopt_exits_130_with_one_line(tmp_path):
     an answer; the CLI must stop instead, with one line and no partial report."""
     out = tmp_path / "plan"
     t0 = time.perf_counter()  # how long the imports take on this machine now
-    subprocess.run([sys.executable, "-c", "import closure_nlp.cli"], env=_env(), check=True)
+    subprocess.run([sys.executable, "-c", "import closure_nlp.cli.main"], env=_env(), check=True)
     startup = time.perf_counter() - t0
     proc = subprocess.Popen(
         [
@@ -145,7 +145,7 @@ def run():
 def test_an_interrupt_inside_a_package_that_swallows_it_is_not_lost(tmp_path, monkeypatch):
     """Ctrl-C while a package that catches every exception is on the stack (CasADi in a solve,
     trimesh while imported) raises once that package returns."""
-    from closure_nlp import interrupts
+    from closure_nlp.base import interrupts
 
     (tmp_path / "swallower").mkdir()
     (tmp_path / "swallower" / "__init__.py").write_text(SWALLOWER)
@@ -201,13 +201,13 @@ def test_ctrl_c_while_starting_is_one_line():
     """A KeyboardInterrupt while the CLI's modules are still importing (simulated right after
     the startup hook is in place) prints one line; importing the package and the CLI leaves
     sys.excepthook as it was."""
-    code = "import closure_nlp._cli_startup\nraise KeyboardInterrupt\n"
+    code = "import closure_nlp.cli.startup\nraise KeyboardInterrupt\n"
     proc = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, text=True, env=_env(), timeout=60
     )
     assert proc.stderr == "interrupted: stopped by Ctrl-C while starting\n"
     check = (
-        "import sys\nhook = sys.excepthook\nimport closure_nlp, closure_nlp.cli\n"
+        "import sys\nhook = sys.excepthook\nimport closure_nlp, closure_nlp.cli.main\n"
         "assert sys.excepthook is hook\n"
     )
     subprocess.run([sys.executable, "-c", check], env=_env(), timeout=60, check=True)
@@ -216,9 +216,9 @@ def test_ctrl_c_while_starting_is_one_line():
 API_LOOP = """
 import os, signal, sys, threading, time
 import numpy as np
-from closure_nlp.bench import random_contact_set
-from closure_nlp.quality import SupportMinimizer
-from closure_nlp.wrenches import WrenchSlots
+from benchmarks.bench import random_contact_set
+from closure_nlp.rho.support_minimum import SupportMinimizer
+from closure_nlp.contact.wrenches import WrenchSlots
 
 slots = WrenchSlots.from_contacts(random_contact_set(np.random.default_rng(0), ["pcwf"] * 120))
 problem = SupportMinimizer().problem(slots)

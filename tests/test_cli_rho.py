@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from closure_nlp.cli import main
+from closure_nlp.cli.main import main
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "box_7fpc.contacts.json"
 
@@ -108,7 +108,7 @@ def test_timing_search_is_the_search_alone(capsys, monkeypatch):
     """``timing.search`` is the result's own search time, not the search and certificate."""
     import dataclasses
 
-    import closure_nlp.cli as cli
+    import closure_nlp.cli.main as cli
 
     real = cli.rho
 

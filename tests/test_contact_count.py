@@ -34,20 +34,21 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from closure_nlp import cli
-from closure_nlp.contact_count import (
+from closure_nlp.cli import main as cli
+from closure_nlp.contact.contact_set import Contact, ContactSet, load_contact_set
+from closure_nlp.contact.count import (
     closure_count_problem,
     require_closure_count,
     wrench_dimensions,
 )
-from closure_nlp.contacts import Contact, ContactSet, contact_specs, load_contact_set
-from closure_nlp.crosscheck import force_closure_cvxpy
-from closure_nlp.elements import save_model
-from closure_nlp.eligibility import Eligibility
-from closure_nlp.placement import Placer
-from closure_nlp.planning import plan
-from closure_nlp.random_sets import random_contact_set
-from closure_nlp.selection import heuristic, iterative
+from closure_nlp.contact.random_sets import random_contact_set
+from closure_nlp.model.elements import save_model
+from closure_nlp.model.scale import contact_specs
+from closure_nlp.placement.place import Placer
+from closure_nlp.planning.plan import plan
+from closure_nlp.rho.crosscheck import force_closure_cvxpy
+from closure_nlp.rho.rho_hat import Eligibility
+from closure_nlp.selection.algorithms import heuristic, iterative
 from tests.shapes import box_model
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"

@@ -9,21 +9,21 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from closure_nlp.branch_bound import BranchBoundOptions
-from closure_nlp.certify import CertifiedBounds, CertifyOptions, certified_bounds
-from closure_nlp.cli import main
-from closure_nlp.contacts import Contact, ContactSet, ContactType, grasp_matrices
-from closure_nlp.crosscheck import (
+from closure_nlp.base.tolerances import Tolerances
+from closure_nlp.cli.main import main
+from closure_nlp.contact.contact_set import Contact, ContactSet, ContactType, grasp_matrices
+from closure_nlp.contact.random_sets import random_contact_set
+from closure_nlp.contact.wrenches import WrenchSlots
+from closure_nlp.rho.certificate import CertifiedBounds, CertifyOptions, certified_bounds
+from closure_nlp.rho.crosscheck import (
     ball_minimum,
     distance_cvxpy,
     force_closure_check,
     force_closure_cvxpy,
 )
-from closure_nlp.nearest_point import min_norm_point
-from closure_nlp.quality import SearchOptions, SupportMinimizer, rho, search_rho
-from closure_nlp.random_sets import random_contact_set
-from closure_nlp.tolerances import Tolerances
-from closure_nlp.wrenches import WrenchSlots
+from closure_nlp.rho.hull_distance import min_norm_point
+from closure_nlp.rho.sphere_branch_bound import BranchBoundOptions
+from closure_nlp.rho.support_minimum import SearchOptions, SupportMinimizer, rho, search_rho
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "box_7fpc.contacts.json"
@@ -293,7 +293,7 @@ def test_min_norm_point_is_optimal_on_nearly_degenerate_clouds(seed):
 def test_nearest_point_bracket_of_a_lamp_element_set_closes():
     """Four lamp facets whose rho_hat > 0: the bracket stalled 2.1e-6 wide before the line-search
     fallback of Wolfe's minor cycle."""
-    from closure_nlp.bench import paper_eligibility
+    from benchmarks.bench import paper_eligibility
 
     slots = paper_eligibility("lamp").slots([28, 34, 55, 41])
     bounds = certified_bounds(slots, SupportMinimizer()(slots).direction)

@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from closure_nlp.elements import (
+from closure_nlp.model.elements import (
     Element,
     ElementKind,
     Model,

@@ -7,12 +7,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from closure_nlp.certify import certified_bounds
-from closure_nlp.contacts import ContactSet, contact_specs
-from closure_nlp.crosscheck import force_closure_cvxpy
-from closure_nlp.elements import load_model
-from closure_nlp.eligibility import Eligibility, padded_rows, rho_hat
-from closure_nlp.quality import SupportMinProblem, rho
+from closure_nlp.contact.contact_set import ContactSet
+from closure_nlp.model.elements import load_model
+from closure_nlp.model.scale import contact_specs
+from closure_nlp.rho.certificate import certified_bounds
+from closure_nlp.rho.crosscheck import force_closure_cvxpy
+from closure_nlp.rho.rho_hat import Eligibility, padded_rows, rho_hat
+from closure_nlp.rho.support_minimum import SupportMinProblem, rho
 from tests import reference
 from tests.shapes import box_model, random_model
 
@@ -202,7 +203,7 @@ def test_model_based_api_uses_the_command_lines_defaults(capsys):
     here from the file's vertices); the CLI's rho_hat of the same set is the API's."""
     import json
 
-    from closure_nlp.cli import main
+    from closure_nlp.cli.main import main
 
     path = MODELS / "cup.model.json"
     cup = load_model(path)

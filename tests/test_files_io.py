@@ -13,9 +13,9 @@ from pathlib import Path
 
 import pytest
 
-import closure_nlp.cli as cli
-import closure_nlp.files as files
-from closure_nlp.files import (
+import closure_nlp.base.files as files
+import closure_nlp.cli.main as cli
+from closure_nlp.base.files import (
     MAX_INPUT_BYTES,
     check_input,
     load_json,
@@ -153,7 +153,7 @@ def _kill_at(out: Path, step: str, exchange: bool) -> int:
     when ``staged_folder`` reaches ``step``."""
     code = (
         "import os, signal, sys\n"
-        "import closure_nlp.files as files\n"
+        "import closure_nlp.base.files as files\n"
         "step = sys.argv[2]\n"
         "if sys.argv[3] == 'renames':\n"
         "    files._RENAMEAT2 = None\n"

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from closure_nlp.contacts import Contact, ContactSet, grasp_matrices, local_frames
+from closure_nlp.contact.contact_set import Contact, ContactSet, grasp_matrices, local_frames
 
 
 def _normals(rng, m):

@@ -209,7 +209,7 @@ def test_the_capacity_compiles_for_commands_that_may_place_frictionless_contacts
     # the zonotope's capacity runs only in placements whose contacts are all frictionless
     from argparse import Namespace
 
-    from closure_nlp import cli
+    from closure_nlp.cli import main as cli
 
     args = Namespace(run=getattr(cli, f"_cmd_{command}"), type=kind, mu=mu)
     assert cli._frictionless_placements(args) is compiled
@@ -290,12 +290,12 @@ def test_read_only_and_strided_inputs_reuse_the_compiled_kernels():
     # writeable copies, so no call compiles a kernel again inside an answer's timing
     import numpy as np
 
-    from closure_nlp.contacts import Contact, ContactSet
+    from closure_nlp.contact.contact_set import Contact, ContactSet
+    from closure_nlp.contact.wrenches import WrenchSlots
     from closure_nlp.kernels import descent
     from closure_nlp.kernels import nearest_point as kernel
-    from closure_nlp.nearest_point import _start_directions, min_norm_point
-    from closure_nlp.quality import _local_minimum
-    from closure_nlp.wrenches import WrenchSlots
+    from closure_nlp.rho.hull_distance import _start_directions, min_norm_point
+    from closure_nlp.rho.support_minimum import _local_minimum
 
     normals = np.vstack([np.eye(3), -np.eye(3)])
     slots = WrenchSlots.from_contacts(ContactSet(tuple(Contact(-n, n) for n in normals[:4])))

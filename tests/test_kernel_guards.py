@@ -5,12 +5,12 @@ without bounds checks: such an array would be read or written past its end)."""
 import numpy as np
 import pytest
 
-from closure_nlp.branch_bound import sphere_minimum
-from closure_nlp.contacts import Contact, ContactSet
-from closure_nlp.nearest_point import min_norm_point, nearest_point_bounds
-from closure_nlp.sphere_search import descend
-from closure_nlp.wrenches import WrenchSlots
-from closure_nlp.zonotope import frictionless_capacity
+from closure_nlp.contact.contact_set import Contact, ContactSet
+from closure_nlp.contact.wrenches import WrenchSlots
+from closure_nlp.rho.frictionless import frictionless_capacity
+from closure_nlp.rho.hull_distance import min_norm_point, nearest_point_bounds
+from closure_nlp.rho.sphere_branch_bound import sphere_minimum
+from closure_nlp.rho.sphere_search import descend
 
 NORMALS = np.vstack([np.eye(3), -np.eye(3)])
 SHAPE = "expected real numbers of shape"

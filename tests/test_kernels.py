@@ -6,8 +6,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from closure_nlp.contacts import ContactType
-from closure_nlp.wrenches import WrenchSlots
+from closure_nlp.contact.contact_set import ContactType
+from closure_nlp.contact.wrenches import WrenchSlots
 from tests import reference
 
 TYPES = [t.value for t in ContactType]
@@ -136,9 +136,9 @@ def test_local_minimum_converges_on_soft_fingers():
     steps crawl) converges within its iteration cap from every start, never ends above its
     start, and ends at a local minimum of the reference support function: no direction of a
     small circle around its end is lower (to the wrench scale's round-off)."""
-    from closure_nlp.quality import _local_minimum
-    from closure_nlp.random_sets import random_contact_set
-    from closure_nlp.sphere_search import sphere_samples
+    from closure_nlp.contact.random_sets import random_contact_set
+    from closure_nlp.rho.sphere_search import sphere_samples
+    from closure_nlp.rho.support_minimum import _local_minimum
 
     rng = np.random.default_rng(3)
     for _ in range(6):

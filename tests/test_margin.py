@@ -8,14 +8,14 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-import closure_nlp.cli as cli
-from closure_nlp.contacts import contact_specs
-from closure_nlp.elements import Element, Model, save_model
-from closure_nlp.eligibility import Eligibility
-from closure_nlp.margin import shrunk, with_margin
-from closure_nlp.placement import PlacementOptions
-from closure_nlp.planning import plan
-from closure_nlp.selection import heuristic
+import closure_nlp.cli.main as cli
+from closure_nlp.model.elements import Element, Model, save_model
+from closure_nlp.model.scale import contact_specs
+from closure_nlp.placement.margin import shrunk, with_margin
+from closure_nlp.placement.placer import PlacementOptions
+from closure_nlp.planning.plan import plan
+from closure_nlp.rho.rho_hat import Eligibility
+from closure_nlp.selection.algorithms import heuristic
 from tests.shapes import box_model
 
 

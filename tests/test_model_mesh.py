@@ -8,9 +8,9 @@ from pathlib import Path
 
 import pytest
 
-import closure_nlp.cli as cli
-from closure_nlp.elements import ElementKind, load_model
-from closure_nlp.model_mesh import check_normals, read_model_mesh
+import closure_nlp.cli.main as cli
+from closure_nlp.model.elements import ElementKind, load_model
+from closure_nlp.model.model_mesh import check_normals, read_model_mesh
 
 MODELS = Path(__file__).resolve().parents[1] / "models"
 

@@ -9,9 +9,9 @@ from pathlib import Path
 
 import pytest
 
-from closure_nlp.cli import main
-from closure_nlp.elements import load_model
-from closure_nlp.numbers import bracket, certain, fixed, length, lengths
+from closure_nlp.base.formatting import bracket, certain, fixed, length, lengths
+from closure_nlp.cli.main import main
+from closure_nlp.model.elements import load_model
 
 MODELS = Path(__file__).resolve().parents[1] / "models"
 

@@ -9,9 +9,9 @@ from pathlib import Path
 
 import pytest
 
-import closure_nlp.cli as cli
-from closure_nlp.elements import save_model
-from closure_nlp.files import staged_folder
+import closure_nlp.cli.main as cli
+from closure_nlp.base.files import staged_folder
+from closure_nlp.model.elements import save_model
 
 from .shapes import box_model
 
@@ -119,7 +119,7 @@ def test_temporary_folder_of_a_killed_run_is_removed_by_the_next(tmp_path):
     out = tmp_path / "set"
     code = (
         "import os, signal, sys\n"
-        "from closure_nlp.files import staged_folder\n"
+        "from closure_nlp.base.files import staged_folder\n"
         "with staged_folder(sys.argv[1]) as staged:\n"
         "    (staged / 'report.json').write_text('partial')\n"
         "    os.kill(os.getpid(), signal.SIGKILL)\n"
@@ -139,7 +139,7 @@ def test_temporary_folder_of_a_killed_run_is_removed_by_the_next(tmp_path):
 
 
 def test_temporary_file_of_a_killed_write_is_removed_by_the_next(tmp_path):
-    from closure_nlp.files import write_atomic
+    from closure_nlp.base.files import write_atomic
 
     stale = tmp_path / ".x.json.partial-999999999-abc.tmp"  # no such process
     stale.write_text("half")

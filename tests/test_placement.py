@@ -9,21 +9,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from closure_nlp import cli
-from closure_nlp.certify import certified_bounds
-from closure_nlp.contacts import ContactSet, contact_specs, load_contact_set
-from closure_nlp.elements import Element, Model, load_model, save_model
-from closure_nlp.eligibility import Eligibility
-from closure_nlp.placement import (
-    ElementFrame,
-    ExchangeLP,
-    ExchangeProblem,
-    PlacementOptions,
-    Placer,
-    nearest_weights,
-)
-from closure_nlp.quality import rho, search_rho
-from closure_nlp.wrenches import WrenchSlots
+from closure_nlp.cli import main as cli
+from closure_nlp.contact.contact_set import ContactSet, load_contact_set
+from closure_nlp.contact.wrenches import WrenchSlots
+from closure_nlp.model.elements import Element, Model, load_model, nearest_weights, save_model
+from closure_nlp.model.scale import contact_specs
+from closure_nlp.placement.place import Placer
+from closure_nlp.placement.placer import ElementFrame, ExchangeLP, ExchangeProblem, PlacementOptions
+from closure_nlp.rho.certificate import certified_bounds
+from closure_nlp.rho.rho_hat import Eligibility
+from closure_nlp.rho.support_minimum import rho, search_rho
 from tests import reference
 from tests.shapes import box_model
 
@@ -121,8 +116,8 @@ def test_contact_moves_to_a_neighbour_only_when_that_helps():
 def test_rounds_count_every_exchange_round(monkeypatch, solver):
     """Neighbour trials that do not help still cost rounds: ``rounds`` counts every solve of
     the restricted problem (sequential LP or IPOPT), with and without shared working sets."""
-    from closure_nlp import placement
-    from closure_nlp.sequential_lp import ModelSLP
+    from closure_nlp.placement import placer as placement
+    from closure_nlp.placement.sequential_lp import ModelSLP
 
     solves = []
     kinds = [placement.ExchangeSLP] if solver == "slp" else [placement.ExchangeProblem, ModelSLP]
@@ -176,7 +171,7 @@ def test_frictionless_exchange_is_a_linear_programme(monkeypatch):
     reaches IPOPT's optimum of the same NLP, with weights in their simplices and the trust
     region that attain it; the placement says which solver it used, and ``"ipopt"`` forces
     the NLP."""
-    from closure_nlp import placement
+    from closure_nlp.placement import placer as placement
 
     placer, frames, rows, rng = _pistol_exchange(4, type="fpc")
     elements, model = PISTOL_SET, placer.eligibility.model
@@ -243,7 +238,7 @@ def test_affine_position_form_matches_the_weights_form(monkeypatch):
     (``AFFINE_ROWS``): the same NLP, so a solve gives the same optimum as the weights form. (Not
     the same weights: on a 24-vertex facet many weights give one position, so whole placements
     part ways after a few rounds, as any change of IPOPT's path makes them.)"""
-    from closure_nlp import placement
+    from closure_nlp.placement import placer as placement
 
     placer, frames, rows, rng = _pistol_exchange(2, type="pcwf", mu=0.3)
     elements, model = PISTOL_SET, placer.eligibility.model
@@ -293,7 +288,7 @@ def test_friction_components_leave_the_exchange_nlp_unchanged(kind):
 def test_exchange_nlp_built_without_the_parameters_gradient_takes_the_same_iterates(monkeypatch):
     """Built without CasADi's gradient for the parameters' multipliers (``NLPSOL_OPTIONS``),
     the exchange NLP takes the same iterations to the same weights and ``r``, to the bit."""
-    from closure_nlp import placement
+    from closure_nlp.placement import placer as placement
 
     placer, frames, rows, rng = _pistol_exchange(6, type="pcwf", mu=0.2)
     elements = PISTOL_SET
@@ -343,7 +338,7 @@ def test_exchange_nlp_padding_leaves_ipopt_the_restricted_problem():
 
 def test_screened_rounds_are_not_certified(monkeypatch):
     """Only the start (when needed) and the final rho are certified, screening or not."""
-    from closure_nlp import quality
+    from closure_nlp.rho import support_minimum as quality
 
     calls = []
     certified = quality.certified_rho  # the start's rho and the final one both go through it
@@ -363,8 +358,8 @@ def test_neighbour_trials_ruled_out_only_when_no_placement_can_win():
     """A neighbour trial is skipped when one direction of its elements' support function shows
     that no placement on them beats the current one; the certified rho_hat of every skipped
     set (the independent proof: What_c^M holds every placement) confirms it."""
-    from closure_nlp.elements import load_model
-    from closure_nlp.scale import auto_torque_scale
+    from closure_nlp.model.elements import load_model
+    from closure_nlp.model.scale import auto_torque_scale
 
     model = load_model(MODELS / "lamp.model.json")
     specs = contact_specs(4, type="pcwf", mu=0.2)
@@ -401,8 +396,8 @@ def test_nearest_weights():
     ("name", "kind", "m"), [("lamp", "pcwf", 4), ("cup", "sfce", 4), ("pistol", "fpc", 7)]
 )
 def test_example_models_end_in_force_closure(name, kind, m):
-    from closure_nlp.elements import load_model
-    from closure_nlp.planning import plan
+    from closure_nlp.model.elements import load_model
+    from closure_nlp.planning.plan import plan
 
     model = load_model(MODELS / f"{name}.model.json")
     eligibility = Eligibility(
@@ -491,7 +486,7 @@ def test_an_exchange_run_ends_on_a_value_the_default_search_confirms(monkeypatch
     run's final value must still be one the eligibility's own search cannot lower on the final
     weights (``validate``, the default); without the check it is not (the control: the crippled
     search does miss here)."""
-    from closure_nlp import placement
+    from closure_nlp.placement import placer as placement
 
     crippled = placement.SearchOptions(
         samples=0, descent_iterations=0, smoothing=(), ipopt_starts=1
@@ -517,8 +512,8 @@ def test_an_exchange_run_ends_on_a_value_the_default_search_confirms(monkeypatch
 def test_exchange_nlp_cache_keeps_the_most_recent_shapes(monkeypatch):
     """Shapes beyond MAX_EXCHANGE_PROBLEMS evict the least recently used one (a study worker's
     memory); a placement gives the same answer with a cache of one."""
-    from closure_nlp import placement
-    from closure_nlp.solver_cache import PerThread
+    from closure_nlp.base.solver_cache import PerThread
+    from closure_nlp.placement import placer as placement
 
     model = _strip_model()
     eligibility = Eligibility(model, contact_specs(4, type="pcwf", mu=0.5), torque_scale=0.5)

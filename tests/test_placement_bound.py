@@ -5,18 +5,21 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from closure_nlp import placement_bound
-from closure_nlp.contacts import ContactSet, contact_specs
-from closure_nlp.eligibility import Eligibility
-from closure_nlp.placement import PlacementOptions, Placer
-from closure_nlp.placement_bound import (
+from closure_nlp.contact.contact_set import ContactSet
+from closure_nlp.model.scale import contact_specs
+from closure_nlp.placement import ceiling as placement_bound
+from closure_nlp.placement import max_min_lp as lp_solvers
+from closure_nlp.placement.ceiling import (
     BoundOptions,
     CellLP,
     capacity_bound,
     element_pieces,
     relative_gap,
 )
-from closure_nlp.quality import rho
+from closure_nlp.placement.place import Placer
+from closure_nlp.placement.placer import PlacementOptions
+from closure_nlp.rho.rho_hat import Eligibility
+from closure_nlp.rho.support_minimum import rho
 from tests.shapes import box_model
 
 
@@ -111,7 +114,7 @@ def test_dual_bound_holds_for_any_weights():
         )
         assert (A @ lam).min() <= result.value
         y = rng.dirichlet(np.ones(30))
-        assert (A @ lam).min() <= placement_bound.dual_bound(A, owner, y)
+        assert (A @ lam).min() <= lp_solvers.dual_bound(A, owner, y)
 
 
 def test_row_generation_reaches_the_full_lp():
@@ -208,7 +211,7 @@ def test_options_are_checked():
 def test_gap_text_says_what_was_proved():
     from types import SimpleNamespace
 
-    from closure_nlp.placement_bound import gap_text
+    from closure_nlp.placement.ceiling import gap_text
 
     base = dict(capacity_bound=0.6, bound_nodes=12, bound_elements=((1,), (2,)))
     held = SimpleNamespace(**base, gap=0.013, gap_reached=True)
@@ -225,33 +228,33 @@ def test_gap_text_says_what_was_proved():
 def test_the_two_lp_solvers_agree():
     """HiGHS called directly and through scipy's linprog give the same LP value and a dual
     whose recomputed bound is that value."""
-    if placement_bound._Highs is None:
+    if lp_solvers.Highs is None:
         pytest.skip("highspy is not installed")
     rng = np.random.default_rng(5)
     owner = np.array([0, 0, 1, 1, 1, 2, 2, 2, 2])
     for _ in range(5):
         A = rng.random((60, 9)) ** 2
-        x1, d1, v1 = placement_bound._highs(A, owner, 3)
-        x2, d2, v2 = placement_bound._linprog(A, owner, 3)
+        x1, d1, v1 = lp_solvers.highs_solve(A, owner, 3)
+        x2, d2, v2 = lp_solvers.linprog_solve(A, owner, 3)
         assert v1 == pytest.approx(v2, rel=1e-8)
         for d in (d1, d2):
             y = np.maximum(-d, 0.0)
-            assert placement_bound.dual_bound(A, owner, y / y.sum()) == pytest.approx(v1, rel=1e-7)
+            assert lp_solvers.dual_bound(A, owner, y / y.sum()) == pytest.approx(v1, rel=1e-7)
 
 
 def test_a_failed_highs_solve_falls_back(monkeypatch):
     """A HiGHS solve that does not end optimal (numerical trouble) is redone, then handed to
     scipy's linprog: the same LP value, never an exception or a wrong bound."""
-    if placement_bound._Highs is None:
+    if lp_solvers.Highs is None:
         pytest.skip("highspy is not installed")
     rng = np.random.default_rng(6)
     owner = np.array([0, 0, 1, 1, 2, 2])
     A = rng.random((40, 6))
-    expected = placement_bound._linprog(A, owner, 3)[2]
-    monkeypatch.setattr(placement_bound, "_OPTIMAL", object())  # no status is "optimal"
+    expected = lp_solvers.linprog_solve(A, owner, 3)[2]
+    monkeypatch.setattr(lp_solvers, "OPTIMAL", object())  # no status is "optimal"
     calls = []
-    linprog = placement_bound._linprog
-    monkeypatch.setattr(placement_bound, "_linprog", lambda *a: calls.append(1) or linprog(*a))
+    linprog = lp_solvers.linprog_solve
+    monkeypatch.setattr(lp_solvers, "linprog_solve", lambda *a: calls.append(1) or linprog(*a))
     result = placement_bound._solve_lp(A, owner, np.zeros((40, 6)))
     assert calls and result.lp_value == pytest.approx(expected, rel=1e-9)
     assert result.value == pytest.approx(expected, rel=1e-6)
@@ -264,8 +267,8 @@ def test_every_solver_failing_still_gives_a_certified_bound(monkeypatch):
     def failed(*args):
         raise RuntimeError("capacity bound: the LP solver failed (test)")
 
-    monkeypatch.setattr(placement_bound, "_highs", failed)
-    monkeypatch.setattr(placement_bound, "_linprog", failed)
+    monkeypatch.setattr(lp_solvers, "highs_solve", failed)
+    monkeypatch.setattr(lp_solvers, "linprog_solve", failed)
     model = box_model(2.0)
     specs = contact_specs(4, type="pcwf", mu=0.5)
     bad, closure = _violations(Eligibility(model, specs, 0.5), (0, 1, 2, 3), 3, 4, depth=(4, 8))

@@ -10,11 +10,12 @@ from dataclasses import replace
 
 import pytest
 
-from closure_nlp.contacts import contact_specs
-from closure_nlp.eligibility import Eligibility
-from closure_nlp.placement import PlacementOptions, Placer
-from closure_nlp.planning import plan
-from closure_nlp.selection import SelectionOptions, _multiset
+from closure_nlp.model.scale import contact_specs
+from closure_nlp.placement.place import Placer
+from closure_nlp.placement.placer import PlacementOptions
+from closure_nlp.planning.plan import plan
+from closure_nlp.rho.rho_hat import Eligibility
+from closure_nlp.selection.algorithms import SelectionOptions, _multiset
 from tests.shapes import box_model, corner_model
 
 QUICK = PlacementOptions(bound=False, starts=1, extra_starts=0, neighbour_moves=0, certify=False)
@@ -85,9 +86,9 @@ def test_the_pool_ranks_unranked_sets_by_their_light_value(hand):
     """Screens that stopped once a set could not win leave it without a light value; the plan's
     pool of further sets gives it one (the light search the screen would have run), keeps the
     eligible ones and ranks them with the rest, lowest first."""
-    from closure_nlp.planning import _pool
-    from closure_nlp.quality import signed_distance
-    from closure_nlp.selection import SCREEN_SEARCH, heuristic, iterative
+    from closure_nlp.planning.single import _pool
+    from closure_nlp.rho.support_minimum import signed_distance
+    from closure_nlp.selection.algorithms import SCREEN_SEARCH, heuristic, iterative
 
     run = iterative(hand, heuristic(hand, seed=1).elements)
     assert run.unranked_sets
@@ -107,7 +108,7 @@ def test_the_pool_ranks_unranked_sets_by_their_light_value(hand):
 def test_the_ceiling_is_computed_once_for_the_placement_returned(hand, monkeypatch):
     """With the ceiling on, the sets placed before one holds get the exchange method alone: the
     plan bounds the placement it returns, once, from that placement's start elements."""
-    from closure_nlp import placement_bound
+    from closure_nlp.placement import ceiling as placement_bound
 
     calls = []
     real = placement_bound.bounded
@@ -131,7 +132,7 @@ def test_sets_no_placement_can_hold_are_not_placed(hand, monkeypatch):
     """Alternatives that lone_contact proves hopeless are skipped (here every set is declared
     so, with a double); selection.placeable off places them as before. (The new selection
     runs, which skip them alike, are left out: they cost most of a plan.)"""
-    from closure_nlp import planning
+    from closure_nlp.planning import single as planning
 
     monkeypatch.setattr(planning, "lone_contact", lambda eligibility, elements: 0)
     monkeypatch.setattr(planning, "FRESH_RUNS", 0)  # the iterative run's own sets only

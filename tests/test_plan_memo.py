@@ -6,12 +6,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from closure_nlp import planning
-from closure_nlp.contacts import contact_specs
-from closure_nlp.eligibility import Eligibility
-from closure_nlp.placement import PlacementOptions, Placer
-from closure_nlp.planning import plan
-from closure_nlp.selection import SelectionOptions
+from closure_nlp.model.scale import contact_specs
+from closure_nlp.placement.place import Placer
+from closure_nlp.placement.placer import PlacementOptions
+from closure_nlp.planning import single as planning
+from closure_nlp.planning.plan import plan
+from closure_nlp.rho.rho_hat import Eligibility
+from closure_nlp.selection.algorithms import SelectionOptions
 from tests.shapes import box_model
 
 QUICK = PlacementOptions(bound=False, starts=1, extra_starts=0, neighbour_moves=0)

@@ -9,13 +9,13 @@ import sys
 import pytest
 import tqdm
 
-from closure_nlp import cli
-from closure_nlp.contacts import contact_specs
-from closure_nlp.elements import save_model
-from closure_nlp.eligibility import Eligibility
-from closure_nlp.placement import PlacementOptions
-from closure_nlp.planning import plan
-from closure_nlp.progress import STAGES, ProgressLine
+from closure_nlp.base.progress import STAGES, ProgressLine
+from closure_nlp.cli import main as cli
+from closure_nlp.model.elements import save_model
+from closure_nlp.model.scale import contact_specs
+from closure_nlp.placement.placer import PlacementOptions
+from closure_nlp.planning.plan import plan
+from closure_nlp.rho.rho_hat import Eligibility
 from tests.shapes import box_model
 
 

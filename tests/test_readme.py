@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from closure_nlp.cli import main
+from closure_nlp.cli.main import main
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"

@@ -11,12 +11,11 @@ import numpy as np
 import pytest
 import trimesh
 
-from closure_nlp.characterize import SPACING_FRACTION, characterize_mesh, winding_number
-from closure_nlp.cli import main
-from closure_nlp.contacts import contact_specs
-from closure_nlp.elements import load_model, save_model
-from closure_nlp.eligibility import Eligibility
-from closure_nlp.scale import MU_S_FRACTION, resolve, scale_warnings
+from closure_nlp.cli.main import main
+from closure_nlp.model.characterize import SPACING_FRACTION, characterize_mesh, winding_number
+from closure_nlp.model.elements import load_model, save_model
+from closure_nlp.model.scale import MU_S_FRACTION, contact_specs, resolve, scale_warnings
+from closure_nlp.rho.rho_hat import Eligibility
 
 DOMINO = (0.025, 0.006, 0.051)  # metres, like pybullet's domino
 
@@ -69,7 +68,7 @@ def test_scale_warnings_name_what_looks_wrong():
 
 @pytest.mark.slow
 def test_metre_scale_domino_plan_spreads_locators_like_millimetres():
-    from closure_nlp.planning import plan
+    from closure_nlp.planning.plan import plan
 
     runs, spread = {}, {}
     for units, factor in (("m", 1.0), ("mm", 1000.0)):

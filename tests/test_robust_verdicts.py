@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 import trimesh
 
-import closure_nlp.cli as cli
-from closure_nlp.accuracy import ModelTolerance
-from closure_nlp.characterize import characterize_mesh
-from closure_nlp.contacts import load_contact_set
-from closure_nlp.elements import load_model, save_model
-from closure_nlp.quality import rho
-from closure_nlp.random_sets import random_contact_set
+import closure_nlp.cli.main as cli
+from closure_nlp.contact.accuracy import ModelTolerance
+from closure_nlp.contact.contact_set import load_contact_set
+from closure_nlp.contact.random_sets import random_contact_set
+from closure_nlp.model.characterize import characterize_mesh
+from closure_nlp.model.elements import load_model, save_model
+from closure_nlp.rho.support_minimum import rho
 
 
 def _held_set(tmp_path, tolerance=None):

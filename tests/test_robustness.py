@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from closure_nlp.certify import tolerance_unit
-from closure_nlp.contacts import Contact, ContactSet
-from closure_nlp.quality import rho
-from closure_nlp.random_sets import random_contact_set
-from closure_nlp.robustness import ModelTolerance, is_robust, support_shift, tolerance_from_dict
-from closure_nlp.tolerances import DEFAULT_TOLERANCES
-from closure_nlp.wrenches import WrenchSlots
+from closure_nlp.base.tolerances import DEFAULT_TOLERANCES
+from closure_nlp.contact.contact_set import Contact, ContactSet
+from closure_nlp.contact.random_sets import random_contact_set
+from closure_nlp.contact.wrenches import WrenchSlots
+from closure_nlp.rho.certificate import tolerance_unit
+from closure_nlp.rho.robustness import ModelTolerance, is_robust, support_shift, tolerance_from_dict
+from closure_nlp.rho.support_minimum import rho
 
 
 def _tilted(n, angle, rng):

@@ -11,13 +11,14 @@ import json
 
 import pytest
 
-from closure_nlp import cli
-from closure_nlp.contacts import contact_specs
-from closure_nlp.elements import load_model, save_model
-from closure_nlp.eligibility import Eligibility
-from closure_nlp.placement import PlacementOptions, Placer
-from closure_nlp.planning import plan
-from closure_nlp.selection import run_selection
+from closure_nlp.cli import main as cli
+from closure_nlp.model.elements import load_model, save_model
+from closure_nlp.model.scale import contact_specs
+from closure_nlp.placement.place import Placer
+from closure_nlp.placement.placer import PlacementOptions
+from closure_nlp.planning.plan import plan
+from closure_nlp.rho.rho_hat import Eligibility
+from closure_nlp.selection.algorithms import run_selection
 from tests.shapes import box_model
 
 OPTIONS = ["--mu", "0.4", "--mu-s", "0.5", "--torque-scale", "0.1"]

@@ -9,11 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from closure_nlp.contacts import contact_specs
-from closure_nlp.elements import model_from_dict
-from closure_nlp.eligibility import Eligibility
-from closure_nlp.placement import PlacementOptions, Placer, nearest_weights
-from closure_nlp.scale import resolve
+from closure_nlp.model.elements import model_from_dict, nearest_weights
+from closure_nlp.model.scale import contact_specs, resolve
+from closure_nlp.placement.place import Placer
+from closure_nlp.placement.placer import PlacementOptions
+from closure_nlp.rho.rho_hat import Eligibility
 from tests.shapes import box_facets
 
 MODELS = Path(__file__).resolve().parents[1] / "models"
@@ -59,7 +59,7 @@ def test_examples_times_1000_agree_within_the_gap(name, kind, elements):
     small = model_from_dict(_scaled(data, 1.0), MODELS)
     big = model_from_dict({**_scaled(data, 1000.0), "units": ""}, MODELS)  # micrometres
     if elements is None:  # the first elements of the model's eligible kind, one per contact
-        from closure_nlp.selection import heuristic
+        from closure_nlp.selection.algorithms import heuristic
 
         scale = resolve(small)
         count = 7 if kind == "fpc" else 4

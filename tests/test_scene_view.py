@@ -11,10 +11,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from closure_nlp.cli import main
-from closure_nlp.contacts import Contact, ContactSet
-from closure_nlp.drawing import UP_AXES, build_scene, export_scene, model_extent, scene_view
-from closure_nlp.elements import load_model
+from closure_nlp.cli.main import main
+from closure_nlp.contact.contact_set import Contact, ContactSet
+from closure_nlp.model.elements import load_model
+from closure_nlp.report.drawing import UP_AXES, build_scene, export_scene, model_extent, scene_view
 
 MODELS = Path(__file__).resolve().parents[1] / "models"
 BOX = Path(__file__).resolve().parents[1] / "examples" / "box_7fpc.contacts.json"

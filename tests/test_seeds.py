@@ -12,13 +12,15 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from closure_nlp import cli, planning, seeds
-from closure_nlp.contacts import contact_specs
-from closure_nlp.elements import save_model
-from closure_nlp.eligibility import Eligibility
-from closure_nlp.placement import PlacementOptions
-from closure_nlp.planning import PlanResult, plan
-from closure_nlp.selection import SelectionOptions
+from closure_nlp.cli import main as cli
+from closure_nlp.model.elements import save_model
+from closure_nlp.model.scale import contact_specs
+from closure_nlp.placement.placer import PlacementOptions
+from closure_nlp.planning import seeds, single
+from closure_nlp.planning.plan import plan
+from closure_nlp.planning.single import PlanResult
+from closure_nlp.rho.rho_hat import Eligibility
+from closure_nlp.selection.algorithms import SelectionOptions
 from tests.shapes import box_model
 from tests.test_threads import without_time
 
@@ -31,10 +33,10 @@ def hand() -> Eligibility:
 
 
 def patch_plan(monkeypatch, fake) -> None:
-    """``planning.plan`` replaced by ``fake``, in the worker processes too: those are forked
-    here whatever threads earlier tests left behind (a forkserver's workers would import the
-    real plan)."""
-    monkeypatch.setattr(planning, "plan", fake)
+    """One seed's plan (``single.plan_one``) replaced by ``fake``, in the worker processes
+    too: those are forked here whatever threads earlier tests left behind (a forkserver's
+    workers would import the real plan)."""
+    monkeypatch.setattr(single, "plan_one", fake)
     monkeypatch.setattr(seeds, "_context", lambda: multiprocessing.get_context("fork"))
 
 
@@ -113,7 +115,7 @@ def fake_plan(eligibility, *, seed, **kwargs):
 @pytest.mark.parametrize("workers", [1, 2])
 def test_a_failed_or_marginal_seed_does_not_stop_the_plan(monkeypatch, workers):
     patch_plan(monkeypatch, fake_plan)
-    from closure_nlp.seeds import plan_seeds
+    from closure_nlp.planning.seeds import plan_seeds
 
     best = plan_seeds(hand(), seed=0, seeds=5, workers=workers)
     spread = best.seeds.to_dict()
@@ -149,7 +151,7 @@ def slow_plan(eligibility, *, seed, **kwargs):
 @pytest.mark.parametrize("workers", [1, 2])
 def test_the_budget_stops_new_seeds_and_the_report_says_so(monkeypatch, workers):
     patch_plan(monkeypatch, slow_plan)
-    from closure_nlp.seeds import plan_seeds
+    from closure_nlp.planning.seeds import plan_seeds
 
     spread = plan_seeds(hand(), seeds=6, workers=workers, budget=0.2).seeds
     assert len(spread.runs) == workers  # those started at once; none after the budget
@@ -246,7 +248,7 @@ def tied_plan(eligibility, *, seed, **kwargs):
 @pytest.mark.parametrize("workers", [1, 2])
 def test_a_tie_goes_to_the_lowest_seed_whatever_the_order_the_seeds_finish(monkeypatch, workers):
     patch_plan(monkeypatch, tied_plan)
-    from closure_nlp.seeds import plan_seeds
+    from closure_nlp.planning.seeds import plan_seeds
 
     best = plan_seeds(hand(), seed=0, seeds=3, workers=workers)
     spread = best.seeds.to_dict()
@@ -273,7 +275,7 @@ def memo_plan(eligibility, *, seed, memo, **kwargs):
 @pytest.mark.parametrize("workers", [1, 2])
 def test_a_seed_takes_the_steps_every_earlier_seed_computed_in_any_process(monkeypatch, workers):
     patch_plan(monkeypatch, memo_plan)
-    from closure_nlp.seeds import plan_seeds
+    from closure_nlp.planning.seeds import plan_seeds
 
     spread = plan_seeds(hand(), seed=0, seeds=4, workers=workers).seeds
     reused = {run.seed: run.result.reused for run in spread.runs}
@@ -284,7 +286,7 @@ def test_a_seed_takes_the_steps_every_earlier_seed_computed_in_any_process(monke
 def test_memo_entries_cross_to_a_copy_of_the_eligibility():
     import pickle
 
-    from closure_nlp.planning import adopt_memo, memo_entries
+    from closure_nlp.planning.single import adopt_memo, memo_entries
 
     here, other = hand(), hand()
     memo = {("placement", here, (0, 1, 2, 3), QUICK): "placed", ("x", other, (), None): "no"}

@@ -8,11 +8,11 @@ import re
 import numpy as np
 import pytest
 
-from closure_nlp import cli
-from closure_nlp.contacts import contact_specs
-from closure_nlp.elements import Element, Model, load_model, save_model
-from closure_nlp.eligibility import Eligibility
-from closure_nlp.selection import SelectionOptions, heuristic, iterative, run_selection
+from closure_nlp.cli import main as cli
+from closure_nlp.model.elements import Element, Model, load_model, save_model
+from closure_nlp.model.scale import contact_specs
+from closure_nlp.rho.rho_hat import Eligibility
+from closure_nlp.selection.algorithms import SelectionOptions, heuristic, iterative, run_selection
 from tests.shapes import corner_model
 
 
@@ -223,8 +223,8 @@ def test_cli_select_failure_is_exit_1(capsys, tmp_path):
 def test_screens_that_stop_early_change_no_decision(ring, monkeypatch):
     """The iterative run's screens stop once a set is shown unable to win: the run takes the
     same steps to the same set as with screens that search to the end."""
-    from closure_nlp import quality
-    from closure_nlp.quality import SupportMinimizer, SupportMinProblem
+    from closure_nlp.rho import support_minimum as quality
+    from closure_nlp.rho.support_minimum import SupportMinimizer, SupportMinProblem
 
     runs = []  # local solver runs, IPOPT's or the compiled minimiser's
     solve = SupportMinProblem.solve
@@ -270,8 +270,8 @@ def test_a_lone_frictionless_contact_on_a_flat_makes_a_set_hopeless(torque_scale
     either sign along the flat, so rho_hat calls the set eligible while one contact there gives
     one sign: no placement is force closure. lone_contact names that contact, at any torque
     scale; with two flats, or with friction on the flat's contact, it names none."""
-    from closure_nlp.elements import load_model
-    from closure_nlp.selection import lone_contact
+    from closure_nlp.model.elements import load_model
+    from closure_nlp.selection.algorithms import lone_contact
 
     model = load_model(SHAFT)
     torques = _axial_torques(model, ONE_FLAT)
@@ -291,9 +291,9 @@ def test_a_lone_frictionless_contact_on_a_flat_makes_a_set_hopeless(torque_scale
 def test_full_searches_that_stop_early_change_no_decision_nor_the_plans_pool(monkeypatch):
     """The iterative run's full searches of neighbours stop once a set is shown unable to win
     (its value at or above the bar or the step's candidate): the run takes the same steps, and
-    the plan's pool of further sets (:func:`~closure_nlp.planning._pool`, which finishes those
+    the plan's pool of further sets (:func:`~closure_nlp.planning.plan._pool`, which finishes those
     searches from the same start) is the same, value for value, as with searches to the end."""
-    from closure_nlp.planning import _pool
+    from closure_nlp.planning.single import _pool
 
     model = load_model(SHAFT)
     eligibility = Eligibility(model, contact_specs(7, type="fpc"), torque_scale=1.0)

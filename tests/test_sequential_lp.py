@@ -9,24 +9,25 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from closure_nlp.contacts import ContactType, contact_specs
-from closure_nlp.elements import load_model
-from closure_nlp.eligibility import Eligibility
-from closure_nlp.placement import (
+from closure_nlp.contact.contact_set import ContactType
+from closure_nlp.contact.wrenches import WrenchSlots
+from closure_nlp.model.elements import load_model
+from closure_nlp.model.scale import contact_specs
+from closure_nlp.placement.place import Placer
+from closure_nlp.placement.placer import (
     ElementFrame,
     ExchangeProblem,
     ExchangeSLP,
     PlacementOptions,
-    Placer,
     _unpadded,
 )
-from closure_nlp.sequential_lp import (
+from closure_nlp.placement.sequential_lp import (
     ModelSLP,
     linearised_support,
     model_linearisation,
     restricted_model,
 )
-from closure_nlp.wrenches import WrenchSlots
+from closure_nlp.rho.rho_hat import Eligibility
 
 MODELS = Path(__file__).resolve().parents[1] / "models"
 TYPES = [ContactType.FPC, ContactType.PCWF, ContactType.SFCL, ContactType.SFCE]

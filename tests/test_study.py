@@ -17,8 +17,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from closure_nlp.cli import main
-from closure_nlp.elements import save_model
+from closure_nlp.cli.main import main
+from closure_nlp.model.elements import save_model
 from closure_nlp.study import (
     clear_cache,
     load_study,
@@ -180,7 +180,7 @@ def test_the_summary_gives_what_plan_with_seeds_would_return(tiny, tmp_path):
 
 def test_the_summary_breaks_a_tie_as_plan_with_seeds_does(tmp_path):
     """Seeds 1 and 2 tie within the certified accuracy (2 lower by round-off): seed 1, as
-    plan --seeds chooses (closure_nlp.seeds.choose, tests/test_seeds.py)."""
+    plan --seeds chooses (closure_nlp.planning.seeds.choose, tests/test_seeds.py)."""
     rhos = {0: (-0.5, True), 1: (-1.035491704129848, True), 2: (-1.0354917041300218, True)}
 
     def runner(task, model_text):
@@ -283,9 +283,9 @@ def test_a_worker_keeps_to_one_group_of_tasks_until_every_group_is_started(tmp_p
 def plan_of(task):
     """What ``plan`` gives for a study task's model, contacts, seed and options, in this
     process."""
-    from closure_nlp.elements import load_model
-    from closure_nlp.eligibility import Eligibility
-    from closure_nlp.planning import plan
+    from closure_nlp.model.elements import load_model
+    from closure_nlp.planning.plan import plan
+    from closure_nlp.rho.rho_hat import Eligibility
 
     eligibility = Eligibility(load_model(task.model_file), task.specs(), task.torque_scale)
     return plan(

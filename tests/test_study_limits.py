@@ -9,8 +9,8 @@ from pathlib import Path
 
 import pytest
 
-import closure_nlp.cli as cli
-from closure_nlp.validation import MAX_STUDY_TASKS
+import closure_nlp.cli.main as cli
+from closure_nlp.base.validation import MAX_STUDY_TASKS
 
 ROOT = Path(__file__).resolve().parents[1]
 LAMP = ROOT / "models" / "lamp.model.json"

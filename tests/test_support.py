@@ -5,10 +5,16 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from closure_nlp.contacts import Contact, ContactSet, ContactType, grasp_matrices, local_frame
-from closure_nlp.random_sets import random_contact_set
-from closure_nlp.sphere_search import smoothed_support
-from closure_nlp.wrenches import WrenchSlots
+from closure_nlp.contact.contact_set import (
+    Contact,
+    ContactSet,
+    ContactType,
+    grasp_matrices,
+    local_frame,
+)
+from closure_nlp.contact.random_sets import random_contact_set
+from closure_nlp.contact.wrenches import WrenchSlots
+from closure_nlp.rho.sphere_search import smoothed_support
 from tests import reference
 
 TYPES = [t.value for t in ContactType]

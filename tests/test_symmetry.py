@@ -7,12 +7,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from closure_nlp.bench import cylinder_set, opposite_pair
-from closure_nlp.branch_bound import BranchBoundOptions, sphere_minimum
-from closure_nlp.contacts import Contact, ContactSet
-from closure_nlp.random_sets import random_contact_set
-from closure_nlp.symmetry import axis_frame, find_symmetry
-from closure_nlp.wrenches import WrenchSlots
+from benchmarks.bench import cylinder_set, opposite_pair
+from closure_nlp.contact.contact_set import Contact, ContactSet
+from closure_nlp.contact.random_sets import random_contact_set
+from closure_nlp.contact.wrenches import WrenchSlots
+from closure_nlp.rho.sphere_branch_bound import BranchBoundOptions, sphere_minimum
+from closure_nlp.rho.symmetry import axis_frame, find_symmetry
 
 from . import reference
 from .test_certify import symmetric_sets

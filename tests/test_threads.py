@@ -8,13 +8,13 @@ import threading
 import numpy as np
 import pytest
 
-from closure_nlp.contacts import contact_specs
-from closure_nlp.eligibility import Eligibility
-from closure_nlp.placement import PlacementOptions
-from closure_nlp.planning import plan
-from closure_nlp.quality import rho
-from closure_nlp.random_sets import random_contact_set
-from closure_nlp.selection import SelectionOptions
+from closure_nlp.contact.random_sets import random_contact_set
+from closure_nlp.model.scale import contact_specs
+from closure_nlp.placement.placer import PlacementOptions
+from closure_nlp.planning.plan import plan
+from closure_nlp.rho.rho_hat import Eligibility
+from closure_nlp.rho.support_minimum import rho
+from closure_nlp.selection.algorithms import SelectionOptions
 from tests.shapes import box_model, random_model
 
 QUICK = PlacementOptions(starts=1, extra_starts=0, neighbour_moves=0, max_rounds=5)

@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from closure_nlp.analytic_centre import analytic_centre
-from closure_nlp.ties import first_largest, lowest_first
+from closure_nlp.base.ties import first_largest, lowest_first
+from closure_nlp.placement.analytic_centre import analytic_centre
 
 
 def test_near_equal_values_are_taken_in_index_order_at_any_scale():

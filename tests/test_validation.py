@@ -5,11 +5,8 @@ import json
 import numpy as np
 import pytest
 
-from closure_nlp.contacts import Contact, ContactSet, contact_set_from_dict, contact_specs
-from closure_nlp.elements import Element, Model
-from closure_nlp.eligibility import Eligibility
-from closure_nlp.files import load_json, read_mesh
-from closure_nlp.validation import (
+from closure_nlp.base.files import load_json
+from closure_nlp.base.validation import (
     MAX_COORDINATE,
     MAX_ELEMENT_CONTACTS,
     MAX_SET_CONTACTS,
@@ -17,6 +14,11 @@ from closure_nlp.validation import (
     as_unit_vector,
     as_vector,
 )
+from closure_nlp.contact.contact_set import Contact, ContactSet, contact_set_from_dict
+from closure_nlp.model.elements import Element, Model
+from closure_nlp.model.meshes import read_mesh
+from closure_nlp.model.scale import contact_specs
+from closure_nlp.rho.rho_hat import Eligibility
 
 
 @pytest.mark.parametrize(
@@ -134,7 +136,7 @@ BOX_FILE = json.loads(
 
 def _box_from_one_buffer():
     """The box's contacts built the way a loop reuses one buffer for every position."""
-    from closure_nlp.quality import rho
+    from closure_nlp.rho.support_minimum import rho
 
     buffer, normal = np.empty(3), np.empty(3)
     contacts = []
@@ -184,7 +186,7 @@ def test_validated_arrays_are_read_only_copies():
 
 @pytest.mark.parametrize("value", ["fpc\u00a0", "fpc ", " fpc", "fpc\n", "\uff46pc", "fpc\u200b"])
 def test_contact_types_compared_exactly(value):
-    from closure_nlp.contacts import ContactType
+    from closure_nlp.contact.contact_set import ContactType
 
     with pytest.raises(ValueError, match="unknown contact type"):
         ContactType.parse(value)
@@ -196,7 +198,7 @@ def test_contact_types_compared_exactly(value):
 
 @pytest.mark.parametrize("units", ["km", "mm ", "MM", "\u00b5m", 3])
 def test_units_from_a_closed_list(units):
-    from closure_nlp.elements import model_from_dict
+    from closure_nlp.model.elements import model_from_dict
 
     from .shapes import box_model
 
@@ -211,7 +213,7 @@ def test_units_from_a_closed_list(units):
 
 
 def test_duplicate_keys_refused_in_model_files(tmp_path):
-    from closure_nlp.elements import load_model
+    from closure_nlp.model.elements import load_model
 
     from .shapes import box_model
 
@@ -241,8 +243,8 @@ def test_duplicate_keys_refused_in_model_files(tmp_path):
 def test_cli_reads_ascii_digits_only(tmp_path, capsys, argv):
     import os
 
-    import closure_nlp.cli as cli
-    from closure_nlp.elements import save_model
+    import closure_nlp.cli.main as cli
+    from closure_nlp.model.elements import save_model
 
     from .shapes import box_model
 
@@ -259,8 +261,8 @@ def test_cli_reads_ascii_digits_only(tmp_path, capsys, argv):
 
 
 def test_a_set_of_element_ids_is_refused():
-    from closure_nlp.placement import Placer
-    from closure_nlp.selection import heuristic
+    from closure_nlp.placement.place import Placer
+    from closure_nlp.selection.algorithms import heuristic
 
     from .shapes import box_model
 
@@ -279,9 +281,9 @@ def test_a_set_of_element_ids_is_refused():
 
 
 def test_numpy_booleans_and_integers_accepted_where_python_ones_are():
-    from closure_nlp.placement import PlacementOptions
-    from closure_nlp.quality import rho
-    from closure_nlp.selection import SelectionOptions
+    from closure_nlp.placement.placer import PlacementOptions
+    from closure_nlp.rho.support_minimum import rho
+    from closure_nlp.selection.algorithms import SelectionOptions
 
     from .shapes import box_model
 

@@ -5,13 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from closure_nlp.contacts import contact_specs, grasp_matrices
-from closure_nlp.eligibility import Eligibility
-from closure_nlp.placement import PlacementOptions, Placer
-from closure_nlp.placement_bound import BoundOptions, _solve_lp, capacity_bound
-from closure_nlp.quality import rho
-from closure_nlp.random_sets import random_contact_set
-from closure_nlp.zonotope import climb, facet_rows, frictionless_capacity
+from closure_nlp.contact.contact_set import grasp_matrices
+from closure_nlp.contact.random_sets import random_contact_set
+from closure_nlp.model.scale import contact_specs
+from closure_nlp.placement.ceiling import BoundOptions, _solve_lp, capacity_bound
+from closure_nlp.placement.place import Placer
+from closure_nlp.placement.placer import PlacementOptions
+from closure_nlp.rho.frictionless import climb, facet_rows, frictionless_capacity
+from closure_nlp.rho.rho_hat import Eligibility
+from closure_nlp.rho.support_minimum import rho
 from tests.reference import zonotope_capacity
 from tests.shapes import box_model
 
@@ -112,7 +114,7 @@ def test_climb_keeps_to_the_pieces_and_only_climbs():
 def _single(model, element, x, rows=None):
     """A one-contact set at ``x`` on ``element`` (or, with ``rows``, on the element whose
     vertex wrenches those are: the normal is their force part)."""
-    from closure_nlp.contacts import Contact, ContactSet
+    from closure_nlp.contact.contact_set import Contact, ContactSet
 
     normal = model.elements[element].inward_normal if rows is None else rows[0, :3]
     return ContactSet((Contact(np.asarray(x, float), normal, "fpc"),), 1.0)

@@ -18,8 +18,9 @@ algorithms::
 Keys: ``models`` (required; a path or a list), ``contacts`` (required; number of contacts m),
 ``type`` (default ``"pcwf"``), ``mu`` (0.2), ``mu_s`` (0.2), ``f_max`` (1), ``torque_scale`` (1),
 ``seeds`` (1: seed 0), ``name`` (default: the file name), ``description``, and the tables
-``[selection]`` (fields of :class:`~closure_nlp.selection.SelectionOptions`) and ``[placement]``
-(fields of :class:`~closure_nlp.placement.PlacementOptions`). Every value-or-list key is one
+``[selection]`` (fields of :class:`~closure_nlp.selection.algorithms.SelectionOptions`) and
+``[placement]``
+(fields of :class:`~closure_nlp.placement.placer.PlacementOptions`). Every value-or-list key is one
 axis of the grid; an unknown key or option, a missing model or a bad value is a ``ValueError``
 (or ``TypeError``) that names the key and the value.
 
@@ -55,7 +56,7 @@ The package has one module per concept: :mod:`.grid` (the study file, its grid, 
 :mod:`.running` (the driver, on Dask or serially), :mod:`.summary` (tables) and :mod:`.plots`.
 """
 
-from .grid import (
+from closure_nlp.study.grid import (
     MODEL_SUFFIX,
     REQUIRED_KEYS,
     STUDY_KEYS,
@@ -66,17 +67,25 @@ from .grid import (
     study_from_dict,
     task_groups,
 )
-from .plots import plot_study
-from .running import (
+from closure_nlp.study.plots import plot_study
+from closure_nlp.study.running import (
     StudyProgress,
     StudyRun,
     check_scheduler_address,
     local_cluster,
     run_study,
 )
-from .store import ROW_COLUMNS, read_results, write_row
-from .summary import SUMMARY_COLUMNS, summarize, summary_markdown, write_outputs
-from .tasks import TASK_VERSION, Runner, Task, clear_cache, error_row, run_task, task_row
+from closure_nlp.study.store import ROW_COLUMNS, read_results, write_row
+from closure_nlp.study.summary import SUMMARY_COLUMNS, summarize, summary_markdown, write_outputs
+from closure_nlp.study.tasks import (
+    TASK_VERSION,
+    Runner,
+    Task,
+    clear_cache,
+    error_row,
+    run_task,
+    task_row,
+)
 
 __all__ = [
     "MODEL_SUFFIX",

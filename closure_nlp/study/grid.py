@@ -12,13 +12,8 @@ try:
 except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib
 
-from ..contact_count import closure_count_problem
-from ..contacts import DEFAULT_F_MAX, DEFAULT_MU, DEFAULT_MU_S, ContactType, contact_specs
-from ..elements import load_model
-from ..files import read_input
-from ..placement import PlacementOptions
-from ..selection import SelectionOptions
-from ..validation import (
+from closure_nlp.base.files import read_input
+from closure_nlp.base.validation import (
     MAX_SEED,
     MAX_STUDY_TASKS,
     as_f_max,
@@ -28,7 +23,13 @@ from ..validation import (
     check_keys,
     is_whole,
 )
-from .tasks import Task
+from closure_nlp.contact.contact_set import DEFAULT_F_MAX, DEFAULT_MU, DEFAULT_MU_S, ContactType
+from closure_nlp.contact.count import closure_count_problem
+from closure_nlp.model.elements import load_model
+from closure_nlp.model.scale import contact_specs
+from closure_nlp.placement.placer import PlacementOptions
+from closure_nlp.selection.algorithms import SelectionOptions
+from closure_nlp.study.tasks import Task
 
 STUDY_KEYS = {
     "name",

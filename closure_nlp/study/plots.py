@@ -6,12 +6,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .grid import Study, task_groups
+from closure_nlp.study.grid import Study, task_groups
 
 
 def plot_study(study: Study, frame, out) -> dict:
     """``rho.png``: rho over seeds per group; ``seconds.png``: seconds per task per group."""
-    from ..drawing import pyplot, save_figure
+    from closure_nlp.report.drawing import pyplot, save_figure
 
     plt = pyplot()
     groups = [

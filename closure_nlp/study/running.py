@@ -14,11 +14,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..files import escape, write_json
-from .grid import Study, _integer
-from .store import read_results, write_row
-from .summary import summarize, write_outputs
-from .tasks import Runner, Task, error_row, run_task
+from closure_nlp.base.files import escape, write_json
+from closure_nlp.study.grid import Study, _integer
+from closure_nlp.study.store import read_results, write_row
+from closure_nlp.study.summary import summarize, write_outputs
+from closure_nlp.study.tasks import Runner, Task, error_row, run_task
 
 # progress(done, total, row): called in the driver before the first task (row None) and after
 # every finished task (its row already written); an exception raised there stops the study.

@@ -6,7 +6,7 @@ import io
 import logging
 from pathlib import Path
 
-from ..files import write_atomic
+from closure_nlp.base.files import write_atomic
 
 log = logging.getLogger(__name__)
 

@@ -7,10 +7,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..files import write_atomic
-from ..seeds import DEFAULT_SEEDS, choose
-from .grid import Study, group_keys, task_groups
-from .plots import plot_study
+from closure_nlp.base.files import write_atomic
+from closure_nlp.planning.seeds import DEFAULT_SEEDS, choose
+from closure_nlp.study.grid import Study, group_keys, task_groups
+from closure_nlp.study.plots import plot_study
 
 
 def summarize(study: Study, frame):
@@ -54,7 +54,8 @@ def summarize(study: Study, frame):
 
 def best_of_seeds(ok, seeds) -> dict:
     """``best_of_8_rho`` and ``best_of_8_seed``: the task among the group's first seeds that
-    ``plan --seeds 8`` with the tasks' options returns (:func:`closure_nlp.seeds.choose`, by
+    ``plan --seeds 8`` with the tasks' options returns (:func:`closure_nlp.planning.seeds.choose`,
+    by
     the rows' ``rho_unit``), over the tasks of those seeds done without error."""
     rows = ok[ok.seed.isin(list(seeds))].to_dict("records")
     if not rows:

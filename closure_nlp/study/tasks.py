@@ -17,18 +17,19 @@ from datetime import datetime, timezone
 from functools import cached_property
 from pathlib import Path
 
-from .. import __version__
-from ..contacts import contact_specs
-from ..elements import model_from_dict
-from ..eligibility import Eligibility
-from ..files import parse_json, read_input
-from ..placement import PlacementOptions, Placer
-from ..planning import plan
-from ..quality import SupportMinimizer
-from ..seeds import wrench_unit
-from ..selection import SelectionOptions
-from ..solver_cache import PerThread
-from .store import ROW_COLUMNS
+from closure_nlp._version import __version__
+from closure_nlp.base.files import parse_json, read_input
+from closure_nlp.base.solver_cache import PerThread
+from closure_nlp.model.elements import model_from_dict
+from closure_nlp.model.scale import contact_specs
+from closure_nlp.placement.place import Placer
+from closure_nlp.placement.placer import PlacementOptions
+from closure_nlp.planning.plan import plan
+from closure_nlp.planning.seeds import wrench_unit
+from closure_nlp.rho.rho_hat import Eligibility
+from closure_nlp.rho.support_minimum import SupportMinimizer
+from closure_nlp.selection.algorithms import SelectionOptions
+from closure_nlp.study.store import ROW_COLUMNS
 
 TASK_VERSION = 2  # part of every task_id: bump when a task's meaning changes (2: alternatives)
 
@@ -132,7 +133,7 @@ _local = threading.local()
 
 def _solvers(task: Task, model_text: str | None) -> tuple[Eligibility, Placer, dict, bool]:
     """The :class:`Eligibility` and :class:`Placer` of ``task``, from this thread's cache, and
-    the memo of the plans on that eligibility (:func:`~closure_nlp.planning.plan`: seeds whose
+    the memo of the plans on that eligibility (:func:`~closure_nlp.planning.plan.plan`: seeds whose
     heuristic meets the same set reuse the iterative run and the placement).
 
     Returns them and whether a solver object was made now. One :class:`SupportMinimizer` serves

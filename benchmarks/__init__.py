@@ -1,0 +1,1 @@
+"""Benchmarks of closure_nlp: `python -m benchmarks.bench WHAT` prints JSON."""

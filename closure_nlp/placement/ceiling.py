@@ -1,0 +1,951 @@
+"""A certified ceiling on the best placement: no contacts on the given elements hold more.
+
+For contacts ``c`` (contact ``i`` at a point ``c_i`` of its element) the load capacity is
+``-rho(c) = min_{|u|=1} p(u; c)``. This module bounds ``max_c -rho(c)`` from above over every
+placement in a *domain*: for each contact, a list of convex pieces (facets, sub-triangles,
+segments, sub-segments, points), each with one inward normal.
+
+The bound (proof)
+-----------------
+Let ``P_i(u; c_i)`` be contact ``i``'s support value and ``p = sum_i max(P_i, 0) +
+min(max_i P_i, 0)`` (eq 26: the sum of the positive ``P_i`` if any is positive, otherwise the
+largest). Since ``min(max_i P_i, 0) <= 0``, in every case
+
+    (1)  p(u; c) <= s(u; c) := sum_i max(0, P_i(u; c_i)).
+
+On a piece the normal is fixed and the grasp matrix ``G(c_i)`` is affine in the position
+(force rows constant, torque rows ``torque_scale * r x frame`` linear in ``r``, spin column
+constant), so ``d = G(c_i)^T u`` is affine in ``c_i`` and ``P_i = f_max (d_n + phi(d))`` with
+``phi`` a norm or a max of norms (PCwF, SFCl, SFCe; ``phi = 0`` for FPC) is convex in ``c_i``;
+so is ``max(0, P_i)``. For ``c_i = sum_r lam_ir v_r`` (barycentric weights over the vertices
+``v_r`` of the piece holding ``c_i``) Jensen's inequality gives
+
+    (2)  max(0, P_i(u; c_i)) <= sum_r lam_ir a_ir(u),   a_ir(u) := max(0, P_i(u; v_r)).
+
+A point is a piece of one vertex (``lam = 1``, (2) an equality). Let ``lam_i`` range over the
+simplex of *all* vertex rows of contact ``i``'s pieces (a placement puts its weight on one piece;
+the others' weights zero): a relaxation, so still an upper bound. For any finite set ``U`` of
+unit directions, with ``g(u; lam) = sum_ir lam_ir a_ir(u)``,
+
+    -rho(c) = min_{|u|=1} p(u; c) <= min_{u in U} p(u; c) <= min_{u in U} g(u; lam(c))
+            <= T(U) := max_lam min_{u in U} g(u; lam),
+
+a linear programme (``max t`` s.t. ``t <= sum_ir lam_ir a_ir(u_k)``, ``lam_i`` in simplices).
+The value reported is not HiGHS's but its weak dual, recomputed here: for any ``y >= 0`` on
+``U`` with ``sum_k y_k = 1`` and any feasible ``lam``,
+``min_k g(u_k; lam) <= sum_k y_k g(u_k; lam) = sum_ir lam_ir (y^T A)_ir
+<= sum_i max_r (y^T A)_ir =: D(y)``. So ``D(y)`` of the solver's (clipped, normalised) dual bounds
+every placement whatever the solver's accuracy; a relative margin covers the round-off of the
+``a_ir`` (a few ulps). ``T(U) >= 0`` always: ``0`` proves that no placement in the domain is
+force closure.
+
+Tightening
+----------
+*Cuts*: at the LP's ``lam*`` the directions that minimise ``g(u; lam*)`` over the sphere (a
+convex, positively homogeneous function: the support function of ``sum_ir lam_ir conv(W_ir, 0)``,
+found by the batched descent of :mod:`closure_nlp.rho.sphere_search` on slots with ``f_max`` scaled
+by
+``lam_ir``) are added to ``U`` while they lie below the LP value. *Branching*: a contact with
+several pieces is split into its heaviest piece and the rest; a contact on one piece has it
+halved (longest edge of a triangle, longest diagonal of a polygon, midpoint of a segment); the
+interpolation error of (2) shrinks with the square of the piece's size. The contact split is the
+one whose piece is largest against its element: the bound depends on the whole piece, not on
+the LP's point in it (lamp, 2000 cells: ceiling 0.5404 against 0.5443 when splitting the contact
+of largest dual-weighted Jensen gap at the LP's point). Cells whose bound is at most
+the certified capacity of the best placement known are closed; the ceiling is the largest bound
+of all leaves (open or closed).
+
+*Facets*: with frictionless contacts only, a cell whose pieces are all small (at most
+:data:`FACET_SIZE` of their elements) is also bounded by the facets of its zonotope
+(:func:`closure_nlp.rho.frictionless.facet_rows`, proved there): affine rows in the same weights
+whose
+error is of second order in the pieces' sizes, with no kink at the contacts on a facet; the
+cell's bound is the least of the two LPs' weak duals (both certified).
+
+Incumbents come from the exchange method (:class:`~closure_nlp.placement.placer.Placer`) started at
+the
+LP's placement in the best cell, every value certified by
+:func:`closure_nlp.rho.support_minimum.rho`. With
+frictionless contacts only, a climb on the closed-form capacity of their zonotope
+(:mod:`closure_nlp.rho.frictionless`) first searches the root (random starts) and each such cell
+(the
+LP's placement and random starts), and the exchange method starts from its best placements: on
+the pistol's 7 FPC set its incumbent reaches -0.0837 where the exchange method alone stopped at
+-0.0680 and its runs from the LP's placements at -0.0774 (60 s).
+"""
+
+from __future__ import annotations
+
+import heapq
+import time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from closure_nlp.contact.contact_set import grasp_matrices, is_frictionless
+from closure_nlp.contact.wrenches import WrenchSlots
+from closure_nlp.model.elements import nearest_weights
+from closure_nlp.placement import max_min_lp as lp_solvers  # tests swap its solvers
+from closure_nlp.placement.max_min_lp import INF, OPTIMAL, dual_bound, max_min_model, thread_solver
+from closure_nlp.placement.placer import ExchangePlacer, PlacementOptions
+from closure_nlp.rho.certificate import tolerance_unit
+from closure_nlp.rho.frictionless import MAX_CONTACTS, climb, facet_rows
+from closure_nlp.rho.rho_hat import Eligibility
+from closure_nlp.rho.sphere_search import descend, sphere_samples
+
+# Directions kept in the shared working set of the cutting planes (the most recent ones).
+MAX_DIRECTIONS = 600
+# Row generation adds at most this many rows per solve, while the LP's weights fall below
+# (1 - ROW_TOLERANCE) times its value on them.
+ADDED_ROWS = 24
+ROW_TOLERANCE = 1e-6
+# The cut descent starts from the working set's directions lowest at the LP's weights, and at
+# the root from this many quasi-random directions besides (+-e_k always).
+CUT_LOWEST = 12
+ROOT_CUT_SAMPLES = 24
+CUT_ITERATIONS = 60
+# Frictionless contacts: the climb on their zonotope's closed-form capacity (members,
+# iterations) at the root and at a cell, and the root's placements polished by the exchange
+# method. Pistol 7 FPC (elements 24,12,3,5,20,31,43), seeds 0-2: (200, 100) climbs to
+# 0.078-0.080 in 1.6-2.8 s, (600, 200) to 0.080-0.081 in 12-14 s (load 6.5); the exchange
+# method alone placed -0.0680.
+CLIMB_ROOT = (200, 100)
+CLIMB_CELL = (100, 60)
+CLIMB_POLISHES = 2
+# The zonotope's facet bound is computed on cells whose pieces are all at most this size
+# against their elements: above it the signs it needs are seldom fixed (pistol 7 FPC around its
+# best placement: bound at pieces of 0.1 of their elements, none at 0.25), and it costs about
+# as much as a cell's LP.
+FACET_SIZE = 0.2
+
+
+@dataclass(frozen=True)
+class BoundOptions:
+    """Options of :func:`capacity_bound`.
+
+    Attributes
+    ----------
+    gap : float
+        Stop when ``(ceiling - capacity) / ceiling <= gap`` (relative, >= 0).
+    time_budget : float
+        Seconds the branch and bound may run (``inf``: no limit; the root LP is always solved);
+        when it ends first, the gap reached is reported as such.
+    root_cuts : int
+        Cutting-plane rounds at the root cell.
+    cell_cuts : int
+        Cutting-plane rounds at every other cell.
+    cut_tolerance : float
+        A round adds directions only while the descent finds ``g(u; lam*)`` below the LP value by
+        more than this fraction of it.
+    max_nodes : int
+        Cells bounded at most (a budget independent of the machine's speed).
+    polish_every : int
+        Every that many cells, the exchange method is started at the best open cell's LP
+        placement (0: never)...
+    polish_share : float
+        ... and, under a finite ``time_budget``, only while the exchange runs have taken at
+        most this share of the time spent (1: always). Without a time budget the cells alone
+        decide when they run: the same answer on any machine.
+    cut_samples : int
+        Quasi-random starts (besides ``+-e_k`` and the working set's lowest directions) of a
+        cell's cut descent; the root's always has 24. Fewer make cells cheaper and looser:
+        measured at 800 cells on the cup (4 SFCe), 0 starts gave a ceiling of 0.1524 against
+        0.148-0.149 with 12-48.
+    lp_rows : int
+        Rows (directions) a cell's LP starts with, the parent's active ones besides; the
+        working set's others join where the LP's weights fall below its value on them (row
+        generation, same bound). 0: every row from the start.
+    """
+
+    gap: float = 0.02
+    time_budget: float = 30.0
+    root_cuts: int = 30
+    cell_cuts: int = 4
+    cut_tolerance: float = 1e-3
+    max_nodes: int = 100_000
+    polish_every: int = 20
+    polish_share: float = 0.3
+    cut_samples: int = 24
+    lp_rows: int = 24
+
+    def __post_init__(self) -> None:
+        for name in ("gap", "time_budget", "cut_tolerance", "polish_share"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not value >= 0:
+                raise ValueError(f"{name}: expected a number >= 0, got {value!r}")
+            if not np.isfinite(value) and name != "time_budget":
+                raise ValueError(f"{name}: expected a finite number, got {value!r}")
+        names = ("root_cuts", "cell_cuts", "max_nodes", "polish_every", "cut_samples", "lp_rows")
+        for name in names:
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+                raise ValueError(f"{name}: expected an integer >= 0, got {value!r}")
+
+
+@dataclass(frozen=True, eq=False)
+class Piece:
+    """A convex part of one element: ``vertices`` (k, 3) (k = 1 point, 2 segment, >= 3 polygon,
+    in order around it), the element's ``inward_normal`` (3,) and its id ``element``."""
+
+    element: int
+    vertices: np.ndarray
+    inward_normal: np.ndarray
+
+    @property
+    def size(self) -> float:
+        v = self.vertices
+        return float(np.max(np.linalg.norm(v[:, None] - v[None], axis=2))) if len(v) > 1 else 0.0
+
+    def halves(self) -> tuple[Piece, Piece] | None:
+        """Two pieces covering this one (None for a point)."""
+        v, k = self.vertices, len(self.vertices)
+        if k == 1:
+            return None
+        if k == 2:
+            mid = v.mean(axis=0)
+            return self._with(np.array([v[0], mid])), self._with(np.array([mid, v[1]]))
+        if k == 3:  # bisect the longest edge
+            edges = [np.linalg.norm(v[(j + 1) % 3] - v[j]) for j in range(3)]
+            j = int(np.argmax(edges))
+            a, b, c = v[j], v[(j + 1) % 3], v[(j + 2) % 3]
+            mid = 0.5 * (a + b)
+            return self._with(np.array([a, mid, c])), self._with(np.array([mid, b, c]))
+        # a polygon: cut along its longest diagonal
+        best, cut = -1.0, (0, 2)
+        for a in range(k):
+            for b in range(a + 2, k if a else k - 1):
+                length = float(np.linalg.norm(v[a] - v[b]))
+                if length > best:
+                    best, cut = length, (a, b)
+        a, b = cut
+        return self._with(v[a : b + 1]), self._with(np.vstack([v[b:], v[: a + 1]]))
+
+    def _with(self, vertices: np.ndarray) -> Piece:
+        return Piece(self.element, vertices, self.inward_normal)
+
+
+@dataclass(frozen=True, eq=False)
+class CellBound:
+    """The LP bound of one cell (one list of pieces per contact).
+
+    Attributes
+    ----------
+    value : float
+        Certified: no placement in the cell has ``-rho`` above it.
+    lam : (R,) float
+        The LP's weights over the cell's vertex rows (contact by contact).
+    y : (N,) float
+        The dual weights over ``directions``.
+    directions : (N, 6) float
+    lp_value : float
+        HiGHS's optimum (for information; ``value`` is its recomputed dual).
+    """
+
+    value: float
+    lam: np.ndarray
+    y: np.ndarray
+    directions: np.ndarray
+    lp_value: float
+
+
+@dataclass(frozen=True, eq=False)
+class CapacityBound:
+    """Outcome of :func:`capacity_bound`.
+
+    Attributes
+    ----------
+    value : float
+        Certified ceiling: every placement in the domain has ``-rho <= value`` (``>= 0``; within
+        the certificate's accuracy of 0 (``1e-6`` of the set's wrench scale) it shows that none
+        is force closure, and the search ends there).
+    capacity : float
+        Certified capacity of the best placement known: ``-hi`` of its rho bracket (``-rho``
+        when it has no bracket), ``<= -rho`` of that placement.
+    gap : float or None
+        ``(value - capacity) / value`` when ``capacity > 0`` (the best placement is force
+        closure), else None: a relative gap to a ceiling means nothing below zero capacity.
+    placement : object or None
+        The best placement found (a :class:`~closure_nlp.placement.placer.PlacementResult`), or None
+        when none beat the one given.
+    nodes : int
+        Cells bounded (the root included).
+    open_cells : int
+        Cells left open when the search ended.
+    reached : bool
+        The gap target was reached (else the time budget or node limit ended the search).
+    domain : tuple of tuple of int
+        The element ids each contact may sit on.
+    seconds : float
+    """
+
+    value: float
+    capacity: float
+    gap: float | None
+    placement: object
+    nodes: int
+    open_cells: int
+    reached: bool
+    domain: tuple[tuple[int, ...], ...]
+    seconds: float
+    root_value: float = np.nan
+    cuts: int = 0
+    polishes: int = 0
+    history: tuple = field(default=(), repr=False)
+
+    def to_dict(self) -> dict:
+        return {
+            "capacity_bound": self.value,
+            "gap": self.gap,
+            "gap_reached": self.reached,
+            "nodes": self.nodes,
+            "open_cells": self.open_cells,
+            "root_bound": self.root_value,
+            "bound_elements": [list(d) for d in self.domain],
+            "bound_seconds": self.seconds,
+        }
+
+
+def relative_gap(ceiling: float, capacity: float) -> float | None:
+    """``(ceiling - capacity) / ceiling`` for a force-closure placement (``capacity > 0``), else
+    None."""
+    if not capacity > 0.0 or not ceiling > 0.0:
+        return None
+    return max(0.0, (ceiling - capacity) / ceiling)
+
+
+class CellLP:
+    """The LP bound and its cutting planes for cells of one eligibility (model and specs)."""
+
+    def __init__(self, eligibility: Eligibility):
+        self.eligibility = eligibility
+        model = eligibility.model
+        self.reference = model.reference_point
+        self.directions = np.asarray(sphere_samples(40, seed=3), float).copy()
+        self.cuts = 0
+        self.frictionless = _frictionless(eligibility)
+
+    def rows(self, cell) -> tuple[WrenchSlots, list[np.ndarray], list[int]]:
+        """The cell's vertex rows: slots (one per contact, one row per piece vertex), each
+        contact's vertex positions (R_i, 3) and its rows' count."""
+        ts = self.eligibility.torque_scale
+        slots, positions, counts = [], [], []
+        for spec, pieces in zip(self.eligibility.specs, cell):
+            G = np.concatenate(
+                [grasp_matrices(p.vertices - self.reference, p.inward_normal, ts) for p in pieces]
+            )
+            slots.append((G, spec.type, spec.mu, spec.mu_s, spec.f_max))
+            positions.append(np.concatenate([p.vertices for p in pieces]))
+            counts.append(len(G))
+        return WrenchSlots.build(slots), positions, counts
+
+    def bound(
+        self,
+        cell,
+        rounds: int,
+        tolerance: float,
+        deadline: float = np.inf,
+        hint=None,
+        rows: int = 0,
+        samples: int = ROOT_CUT_SAMPLES,
+        floor: float = -np.inf,
+    ) -> CellBound:
+        """The cell's certified LP bound after at most ``rounds`` cutting-plane rounds (none
+        begun after ``deadline``, a :func:`time.perf_counter` value). With ``rows`` > 0 the LP
+        starts on ``hint`` (optional (K, 6) directions, a parent cell's active ones) and the
+        ``rows`` directions of the working set lowest at uniform weights; the others join only
+        where the LP's weights fall below its value on them (:meth:`_solve_rows`). ``samples``:
+        quasi-random starts of the cut descent. For frictionless contacts each on one piece the
+        bound is the least of this LP's and the zonotope's facet bound (:meth:`facet_bound`),
+        and the LP is skipped when the facet bound is at most ``floor`` (the cell closes)."""
+        facet = self.facet_bound(cell)
+        if facet <= floor:
+            lam = np.concatenate([np.full(len(p.vertices), 1.0 / len(p.vertices)) for (p,) in cell])
+            return CellBound(facet, lam, np.zeros(0), np.zeros((0, 6)), facet)
+        slots, _, counts = self.rows(cell)
+        owner = np.repeat(np.arange(len(counts)), counts)
+        pool = self.directions if hint is None else np.vstack([hint, self.directions])
+        A = np.maximum(slots.row_values(pool), 0.0)
+        work = self._first_rows(A, owner, len(hint) if hint is not None else 0, rows)
+        # Frictionless contacts: the LP's weights start the climb to placements, and an LP kept
+        # warm ends at another point of its optimal face, from which the climbs ended worse (96
+        # fixture-study FPC tasks: 35 worse, 19 better, rho summed 1-3% weaker): solved afresh.
+        lp = _GrowingLP(owner, keep_basis=not self.frictionless)
+        for k in range(rounds + 1):
+            result = self._solve_rows(A, owner, pool, work, lp)
+            work = lp.rows
+            if k == rounds or time.perf_counter() > deadline:
+                break
+            new = self._cuts(slots, result, owner, samples)
+            lowest = g_values(slots, result.lam, new)
+            keep = new[lowest < result.lp_value * (1.0 - tolerance)]
+            if not len(keep):
+                break
+            self.cuts += len(keep)
+            work = np.concatenate([work, len(pool) + np.arange(len(keep))])
+            pool = np.vstack([pool, keep])
+            A = np.vstack([A, np.maximum(slots.row_values(keep), 0.0)])
+            self.directions = np.vstack([self.directions, keep])[-MAX_DIRECTIONS:]
+        if facet < result.value:
+            result = replace(result, value=facet)
+        return result
+
+    def facet_bound(self, cell) -> float:
+        """Frictionless contacts each on one piece: the certified bound of the zonotope's facets
+        (:func:`~closure_nlp.rho.frictionless.facet_rows`, second order in the pieces' sizes), the
+        weak
+        dual of its LP as in :func:`dual_bound` (``>= 0``); ``inf`` otherwise."""
+        if not self.frictionless or any(len(pieces) != 1 for pieces in cell):
+            return np.inf
+        elements = self.eligibility.model.elements
+        if max(p.size / elements[p.element].size for (p,) in cell) > FACET_SIZE:
+            return np.inf
+        ts = self.eligibility.torque_scale
+        vertex_wrenches = [
+            spec.f_max * grasp_matrices(p.vertices - self.reference, p.inward_normal, ts)[:, :, 0]
+            for spec, (p,) in zip(self.eligibility.specs, cell)
+        ]
+        A = facet_rows(vertex_wrenches)
+        if not len(A):
+            return np.inf
+        owner = np.repeat(np.arange(len(cell)), [len(w) for w in vertex_wrenches])
+        return max(0.0, _solve_lp(A, owner, np.zeros((len(A), 6))).value)
+
+    @staticmethod
+    def _first_rows(A: np.ndarray, owner: np.ndarray, hinted: int, rows: int) -> np.ndarray:
+        """The LP's first rows: the hinted ones and the ``rows`` lowest at uniform weights
+        (every row when ``rows`` is 0)."""
+        if rows <= 0:
+            return np.arange(len(A))
+        m = int(owner.max()) + 1
+        uniform = 1.0 / np.bincount(owner, minlength=m)[owner]
+        lowest = np.argsort(A @ uniform)[:rows]
+        return np.union1d(np.arange(hinted), lowest)
+
+    @staticmethod
+    def _solve_rows(A, owner, pool, work, lp: _GrowingLP | None = None) -> CellBound:
+        """The LP on the rows ``work`` of ``A``, rows of the rest added while the LP's weights
+        fall below its value on them (row generation). The dual bound of any subset of rows is
+        valid; the loop only makes it as tight as the LP over all of them, within
+        :data:`ROW_TOLERANCE`. ``lp`` (optional): the :class:`_GrowingLP` of earlier solves on
+        a prefix of ``work``, which keeps the rows added here (its ``rows``)."""
+        lp = _GrowingLP(owner) if lp is None else lp
+        while True:
+            result = lp.solve(A, pool, work)
+            values = A @ result.lam
+            below = values < result.lp_value * (1.0 - ROW_TOLERANCE)
+            below[work] = False
+            missing = np.flatnonzero(below)
+            if not len(missing):
+                return result
+            missing = missing[np.argsort(values[missing])[:ADDED_ROWS]]
+            work = np.concatenate([work, missing])
+
+    @staticmethod
+    def _cuts(slots: WrenchSlots, result: CellBound, owner: np.ndarray, samples: int) -> np.ndarray:
+        """Directions of low ``g(u; lam*)``: a descent from the working set's lowest ones."""
+        lam = result.lam
+        used = lam > 1e-12
+        g = WrenchSlots(
+            slots.G[used][:, None].reshape(-1, 6, 4),
+            np.arange(int(used.sum())),
+            slots.f_max[used] * lam[used],
+            slots.pieces[used],
+            tuple(slots.types[i] for i in owner[used]),
+            tuple(slots.n_pieces[i] for i in owner[used]),
+        )
+        U = result.directions
+        values = g.support(U)
+        lowest = U[np.argsort(values)[:CUT_LOWEST]]
+        starts = np.vstack([lowest, sphere_samples(samples, seed=len(U))])
+        ends, found = descend(g, starts, iterations=CUT_ITERATIONS)
+        order = np.argsort(found)
+        chosen: list[np.ndarray] = []
+        for j in order:
+            if all(np.linalg.norm(ends[j] - c) > 1e-3 for c in chosen):
+                chosen.append(ends[j])
+            if len(chosen) == 6:
+                break
+        out = np.array(chosen)
+        return out / np.linalg.norm(out, axis=1, keepdims=True)
+
+
+def g_values(slots: WrenchSlots, lam: np.ndarray, U: np.ndarray) -> np.ndarray:
+    """``g(u; lam) = sum_r lam_r max(0, P_r(u))`` over the rows of ``slots``: (N, 6) -> (N,)."""
+    return np.maximum(slots.row_values(U), 0.0) @ lam
+
+
+def _solve_lp(A: np.ndarray, owner: np.ndarray, U: np.ndarray) -> CellBound:
+    """``max_lam min_k (A lam)_k`` over one simplex per contact, and its certified dual bound."""
+    N, R = A.shape
+    m = int(owner.max()) + 1
+    # solved on A over its largest entry: the solver's absolute tolerances then mean the same
+    # for any wrench scale (the weights and duals do not change; the value scales back)
+    unit = float(A.max(initial=0.0))
+    unit = unit if unit > 0.0 else 1.0
+    try:
+        solvers = lp_solvers
+        solve = solvers.highs_solve if solvers.Highs is not None else solvers.linprog_solve
+        x, duals, value = solve(A / unit, owner, m)
+        value *= unit
+    except RuntimeError:
+        # every solver failed on it: uniform weights and duals, still a certified bound
+        x, duals, value = np.r_[np.ones(R), 0.0], -np.full(N, 1.0 / N), np.nan
+    return _cell_bound(A, owner, U, x, duals, value)
+
+
+def _cell_bound(A, owner, U, x, duals, value) -> CellBound:
+    """The LP's weights (from its primal ``x``) and the certified bound of its duals (their
+    weak dual, :func:`dual_bound`, whatever the solver's accuracy)."""
+    N, R = A.shape
+    m = int(owner.max()) + 1
+    lam = np.maximum(x[:R], 0.0)
+    totals = np.bincount(owner, lam, minlength=m)
+    lam /= totals[owner]
+    y = np.maximum(-duals, 0.0)
+    y = y / y.sum() if y.sum() > 0 else np.full(N, 1.0 / N)
+    bound = dual_bound(A, owner, y)
+    return CellBound(bound, lam, y, U, value if np.isfinite(value) else bound)
+
+
+class _GrowingLP:
+    """The LP of :func:`_solve_lp` on rows of ``A`` that only grow (cutting planes, row
+    generation): HiGHS keeps its basis between the solves, so each one after the first is a few
+    dual simplex iterations from the last optimum, not a solve from scratch. The bound is the
+    weak dual of its duals (:func:`_cell_bound`), as for a fresh solve; a solve that does not
+    end optimal is done afresh by :func:`_solve_lp` (and its fallbacks). ``keep_basis=False``:
+    every solve afresh (see :meth:`CellLP.bound`)."""
+
+    def __init__(self, owner: np.ndarray, keep_basis: bool = True):
+        self.owner, self.m, self.keep_basis = owner, int(owner.max()) + 1, keep_basis
+        self.rows = np.zeros(0, dtype=int)  # rows of A of the last solve
+        self._held = self.rows  # the rows the solver holds, in its order
+        self.unit, self.first = 0.0, 0  # A's scale, and the rows passed with the model
+
+    def solve(self, A: np.ndarray, pool: np.ndarray, rows: np.ndarray) -> CellBound:
+        """The LP on rows ``rows`` of ``A`` (directions ``pool``), from the last basis when
+        ``rows`` starts with the last call's."""
+        self.rows = rows = np.asarray(rows, dtype=int)
+        if lp_solvers.Highs is None or not self.keep_basis:
+            return _solve_lp(A[rows], self.owner, pool[rows])
+        solver = thread_solver("growing")
+        old = len(self._held)
+        if not np.array_equal(rows[:old], self._held):
+            old = 0
+        added = A[rows[old:]]
+        if not old:
+            unit = float(added.max(initial=0.0))  # as in _solve_lp: tolerances at unit scale
+            self.unit, self.first = (unit if unit > 0.0 else 1.0), len(added)
+            solver.passModel(max_min_model(added / self.unit, self.owner, self.m))
+        elif len(added):
+            n, width = added.shape[0], added.shape[1] + 1
+            values = np.hstack([-added / self.unit, np.ones((n, 1))]).ravel()
+            index = np.tile(np.arange(width, dtype=np.int32), n)
+            starts = np.arange(n, dtype=np.int32) * width
+            solver.addRows(n, np.full(n, -INF), np.zeros(n), n * width, starts, index, values)
+        self._held = rows
+        solver.run()
+        if solver.getModelStatus() != OPTIMAL:
+            self._held = np.zeros(0, dtype=int)  # the next solve starts afresh
+            return _solve_lp(A[rows], self.owner, pool[rows])
+        solution = solver.getSolution()
+        first = self.first  # the simplex rows follow them, the added ones come after
+        at = np.r_[np.arange(first), first + self.m + np.arange(len(rows) - first)]
+        duals = np.asarray(solution.row_dual, float)[at]
+        value = -solver.getInfo().objective_function_value * self.unit
+        x = np.asarray(solution.col_value, float)
+        return _cell_bound(A[rows], self.owner, pool[rows], x, duals, value)
+
+
+
+
+
+
+
+
+
+
+
+
+
+
+
+
+
+
+def element_pieces(eligibility: Eligibility, element: int) -> list[Piece]:
+    """An element as one piece (a facet as its polygon)."""
+    e = eligibility.model.elements[element]
+    return [Piece(element, np.array(e.vertices, float), np.array(e.inward_normal, float))]
+
+
+def domain_of(eligibility: Eligibility, elements, neighbours: bool, extra=()) -> tuple:
+    """Each contact's element ids: its own, its neighbours (``neighbours``) and ``extra[i]``."""
+    model = eligibility.model
+    out = []
+    for i, e in enumerate(elements):
+        ids = [e]
+        if neighbours:
+            ids += [n for n in model.neighbours(e) if n not in ids]
+        if i < len(extra) and extra[i] not in ids:
+            ids.append(extra[i])
+        out.append(tuple(ids))
+    return tuple(out)
+
+
+class _Cell:
+    __slots__ = ("pieces", "bound", "depth")
+
+    def __init__(self, pieces, bound: CellBound, depth: int):
+        self.pieces, self.bound, self.depth = pieces, bound, depth
+
+    def __lt__(self, other: _Cell) -> bool:  # a max-heap on the bound
+        return self.bound.value > other.bound.value
+
+
+def capacity_bound(
+    placer,
+    elements,
+    incumbent=None,
+    options: BoundOptions = BoundOptions(),
+    domain=None,
+    progress=None,
+) -> CapacityBound:
+    """Certified ceiling on ``-rho`` of every placement on ``elements`` (one per contact).
+
+    Parameters
+    ----------
+    placer : closure_nlp.placement.placer.Placer
+        Its eligibility gives the model, specs and torque scale; its exchange method polishes the
+        LP's placements into incumbents.
+    elements : sequence of int
+        The chosen elements, one per contact.
+    incumbent : PlacementResult, optional
+        A placement already found (certified): the search starts from its value.
+    options : BoundOptions
+    domain : sequence of sequence of int, optional
+        Each contact's element ids (default: its element, plus its neighbours when the placer
+        moves contacts to neighbours, plus the incumbent's element).
+    progress : callable, optional
+        Called as ``progress("capacity bound", nodes, ceiling)``.
+
+    Returns
+    -------
+    CapacityBound
+    """
+
+    if not isinstance(options, BoundOptions):
+        raise TypeError(f"options: expected BoundOptions, got {type(options).__name__}")
+    t0 = time.perf_counter()
+    eligibility = placer.eligibility
+    model = eligibility.model
+    elements = eligibility.check_elements(elements)
+    if domain is None:
+        extra = incumbent.elements if incumbent is not None else ()
+        domain = domain_of(eligibility, elements, placer.options.neighbour_moves > 0, extra)
+    domain = tuple(
+        tuple(model.check_id(e, f"domain[{i}]") for e in ids) for i, ids in enumerate(domain)
+    )
+    if len(domain) != eligibility.m or not all(domain):
+        raise ValueError(f"domain: expected {eligibility.m} non-empty lists of element ids")
+    lp = CellLP(eligibility)
+    # A ceiling this close to zero (the certificate's relative accuracy) shows that no
+    # placement in the domain is force closure beyond numerical accuracy.
+    zero = eligibility.minimizer.tolerances.certify * tolerance_unit(eligibility.slots(elements))
+    if incumbent is not None and getattr(incumbent, "direction", None) is not None:
+        lp.directions = np.vstack([lp.directions, incumbent.direction[None]])
+
+    best = incumbent
+    best_value = _capacity(incumbent)
+    root_cell = tuple(sum((element_pieces(eligibility, e) for e in ids), []) for ids in domain)
+    deadline = t0 + options.time_budget
+    root = lp.bound(root_cell, options.root_cuts, options.cut_tolerance, deadline)
+    heap = [_Cell(root_cell, root, 0)]
+    closed = -np.inf  # the largest bound of a closed cell
+    nodes, polishes, history = 1, 0, [(0.0, root.value, best_value)]
+    polish_seconds, polished_at = 0.0, -np.inf
+    polisher = ExchangePlacer(
+        eligibility,
+        PlacementOptions(
+            starts=1,
+            extra_starts=0,
+            neighbour_moves=0,
+            max_rounds=placer.options.max_rounds,
+            bound=False,
+        ),
+        placer._caches,
+    )
+
+    frictionless = _frictionless(eligibility)
+
+    def ceiling() -> float:
+        top = heap[0].bound.value if heap else -np.inf
+        return max(top, closed, 0.0)
+
+    def done() -> bool:
+        gap = relative_gap(ceiling(), best_value)
+        return ceiling() <= zero or (gap is not None and gap <= options.gap)
+
+    def polish(ids, positions):
+        nonlocal best, best_value, polishes
+        weights = [nearest_weights(model.elements[e].vertices, x) for e, x in zip(ids, positions)]
+        polishes += 1
+        found = polisher(list(ids), weights)
+        if _capacity(found) > best_value:
+            best, best_value = found, _capacity(found)
+
+    def try_placement(cell: _Cell):
+        nonlocal polish_seconds, polished_at
+        started, polished_at = time.perf_counter(), nodes
+        starts = []
+        if frictionless:  # the climb's best from the LP's placement and random ones
+            starts = _climbed(lp, cell, CLIMB_CELL, seed=nodes)[:1]
+        if not starts:  # (none of them force closure: the LP's placement, as for other types)
+            starts = [_lp_placement(lp, cell)]
+        for ids, positions in starts:
+            polish(ids, positions)
+        polish_seconds += time.perf_counter() - started
+
+    if frictionless:  # the root's climb: placements far from the exchange method's
+        started = time.perf_counter()
+        for ids, positions in _climbed(lp, heap[0], CLIMB_ROOT, seed=0)[:CLIMB_POLISHES]:
+            polish(ids, positions)
+        polish_seconds += time.perf_counter() - started
+
+    while heap and not done():
+        if time.perf_counter() - t0 > options.time_budget or nodes >= options.max_nodes:
+            break
+        # an exchange run takes seconds: none started in the last quarter of the budget
+        late = time.perf_counter() - t0 > 0.75 * options.time_budget
+        late |= nodes > 0.75 * options.max_nodes
+        # an exchange run every polish_every cells; under a time budget only while they take
+        # at most polish_share of the time (one costs seconds, as much as hundreds of cells).
+        # A budget of cells alone keeps its answer independent of the machine's speed.
+        due = options.polish_every and nodes - polished_at >= options.polish_every
+        if np.isfinite(options.time_budget):
+            due = due and polish_seconds <= options.polish_share * (time.perf_counter() - t0)
+        if due and not late:
+            try_placement(heap[0])
+            if done():
+                break
+        cell = heapq.heappop(heap)
+        if cell.bound.value <= best_value:
+            closed = max(closed, cell.bound.value)
+            continue
+        split = _split(lp, cell)
+        if split is None:  # every contact on one point: the bound is its placement's own
+            closed = max(closed, cell.bound.value)
+            continue
+        hint = cell.bound.directions[cell.bound.y > 0.0]
+        for pieces in split:
+            bound = lp.bound(
+                pieces,
+                options.cell_cuts,
+                options.cut_tolerance,
+                deadline,
+                hint,
+                options.lp_rows,
+                options.cut_samples,
+                best_value,
+            )
+            if bound.value > cell.bound.value:  # the parent's bound holds for its parts too
+                bound = replace(bound, value=cell.bound.value)
+            nodes += 1
+            child = _Cell(pieces, bound, cell.depth + 1)
+            if bound.value <= best_value:
+                closed = max(closed, bound.value)
+            else:
+                heapq.heappush(heap, child)
+        history.append((time.perf_counter() - t0, ceiling(), best_value))
+        if progress:
+            progress("capacity bound", nodes, ceiling())
+    value = ceiling()
+    gap = relative_gap(value, best_value)
+    reached = value <= zero or (gap is not None and gap <= options.gap)
+    improved = best if best is not incumbent else None
+    return CapacityBound(
+        value,
+        best_value,
+        gap,
+        improved,
+        nodes,
+        len(heap),
+        reached,
+        domain,
+        time.perf_counter() - t0,
+        root.value,
+        lp.cuts,
+        polishes,
+        tuple(history),
+    )
+
+
+def bounded(placer, elements, result, t0: float, progress=None):
+    """``result`` (the exchange method's placement on ``elements``, started at ``t0``) with the
+    certified ceiling of :func:`capacity_bound` under the placer's options, and replaced by a
+    better placement the bound's search found (certified; never a worse one)."""
+    options = placer.options
+    budget = np.inf if options.time_budget is None else float(options.time_budget)
+    found = capacity_bound(
+        placer,
+        elements,
+        result,
+        BoundOptions(gap=options.target_gap, time_budget=budget, max_nodes=options.bound_cells),
+        progress=progress,
+    )
+    chosen = result
+    if found.placement is not None and _capacity(found.placement) > _capacity(result):
+        better = found.placement
+        chosen = replace(
+            better,
+            start_rho=result.start_rho,
+            rounds=result.rounds + better.rounds,
+            moves=(),
+        )
+    return replace(
+        chosen,
+        capacity_bound=found.value,
+        gap=found.gap,
+        gap_reached=found.reached,
+        bound_elements=found.domain,
+        bound_nodes=found.nodes,
+        bound_seconds=found.seconds,
+        exchange_rho=result.rho,
+        seconds=time.perf_counter() - t0,
+    )
+
+
+def gap_text(result) -> str:
+    """The ceiling in words, e.g. ``within 1.3% of the best placement on these elements``."""
+    if result.capacity_bound is None:
+        return ""
+    where = "these elements"
+    if any(len(ids) > 1 for ids in result.bound_elements):
+        where += " and their neighbours"
+    cells = f"{result.bound_nodes} cell" + ("s" if result.bound_nodes != 1 else "")
+    ceiling = f"certified ceiling {result.capacity_bound:.6g}, {cells}"
+    if result.gap is None:
+        if result.gap_reached:
+            return f"no placement on {where} is force closure ({ceiling})"
+        return f"no placement on {where} holds more than {result.capacity_bound:.6g} ({ceiling})"
+    text = f"within {100 * result.gap:.3g}% of the best placement on {where} ({ceiling}"
+    if not result.gap_reached:
+        text += "; a budget (cells or seconds) ended before the gap target"
+    return text + ")"
+
+
+def _capacity(result) -> float:
+    """Certified capacity of a placement result: ``-hi`` of its bracket (-inf for None)."""
+    if result is None:
+        return -np.inf
+    if result.bounds is not None:
+        return -float(result.bounds[1])
+    return -float(result.rho)
+
+
+def _heaviest(cell: _Cell) -> tuple[list[Piece], list[np.ndarray]]:
+    """Each contact's piece of largest LP weight and the weights' barycentric point there."""
+    chosen, points = [], []
+    lam, at = cell.bound.lam, 0
+    for pieces in cell.pieces:
+        weights = []
+        for p in pieces:
+            weights.append(lam[at : at + len(p.vertices)])
+            at += len(p.vertices)
+        j = int(np.argmax([w.sum() for w in weights]))
+        k = len(pieces[j].vertices)
+        total = weights[j].sum()
+        chosen.append(pieces[j])
+        points.append(weights[j] / total if total > 0 else np.full(k, 1.0 / k))
+    return chosen, points
+
+
+def _lp_placement(lp: CellLP, cell: _Cell):
+    """The placement the cell's LP weights describe: each contact on its heaviest piece at the
+    weights' point there; (element ids, positions (m, 3))."""
+    pieces, points = _heaviest(cell)
+    return [p.element for p in pieces], np.array([w @ p.vertices for w, p in zip(points, pieces)])
+
+
+def _frictionless(eligibility: Eligibility) -> bool:
+    """Every contact frictionless, and few enough for
+    :func:`~closure_nlp.rho.frictionless.climb`."""
+    specs = eligibility.specs
+    frictionless = all(is_frictionless(s.type, s.mu, s.mu_s) for s in specs)
+    return frictionless and 7 <= len(specs) <= MAX_CONTACTS
+
+
+def _climbed(lp: CellLP, cell: _Cell, size: tuple[int, int], seed: int) -> list:
+    """Placements in ``cell`` (each contact on its heaviest piece) from a climb of
+    :func:`~closure_nlp.rho.frictionless.climb` with ``size = (members, iterations)``: the LP's
+    placement
+    and random ones (Dirichlet(1/2) weights) start it. Distinct placements, best first, as
+    (element ids, positions (m, 3)); not certified (the exchange method certifies them)."""
+    pieces, points = _heaviest(cell)
+    members, iterations = size
+    rng = np.random.default_rng(seed)
+    ts, ref = lp.eligibility.torque_scale, lp.reference
+    rows, starts = [], []
+    for spec, piece, point in zip(lp.eligibility.specs, pieces, points):
+        G = grasp_matrices(piece.vertices - ref, piece.inward_normal, ts)
+        rows.append(spec.f_max * G[:, :, 0])
+        k = len(piece.vertices)
+        starts.append(np.vstack([point, rng.dirichlet(np.full(k, 0.5), members - 1)]))
+    found, values = climb([p.vertices for p in pieces], rows, starts, iterations, seed=seed)
+    sizes = np.array([max(p.size, np.finfo(float).tiny) for p in pieces])
+    out, kept = [], []
+    for b in np.argsort(-values):
+        if not values[b] > 0.0:
+            break
+        positions = np.array([x[b] for x in found])
+        # distinct: some contact more than 1e-3 of its piece's size from the kept ones'
+        if any(np.all(np.linalg.norm(positions - k, axis=1) <= 1e-3 * sizes) for k in kept):
+            continue
+        kept.append(positions)
+        out.append(([p.element for p in pieces], positions))
+        if len(out) == CLIMB_POLISHES:
+            break
+    return out
+
+
+def _split(lp: CellLP, cell: _Cell):
+    """Two cells covering ``cell``: a contact on pieces of several elements has its heaviest
+    piece (by the LP's weights) split from the rest; otherwise the contact whose piece is
+    largest against its element is halved. None when every contact is on a point."""
+    sizes = []
+    for pieces in cell.pieces:
+        if len(pieces) > 1:
+            sizes.append(np.inf)  # pieces of several elements: separate them first
+        elif len(pieces[0].vertices) == 1:
+            sizes.append(-1.0)  # a point: nothing to split
+        else:
+            element = lp.eligibility.model.elements[pieces[0].element]
+            sizes.append(pieces[0].size / element.size)
+    i = int(np.argmax(sizes))
+    if sizes[i] < 0.0:
+        return None
+    pieces = cell.pieces[i]
+    if len(pieces) > 1:
+        counts = [sum(len(p.vertices) for p in ps) for ps in cell.pieces]
+        at, mass = sum(counts[:i]), []
+        for p in pieces:
+            mass.append(cell.bound.lam[at : at + len(p.vertices)].sum())
+            at += len(p.vertices)
+        j = int(np.argmax(mass))
+        parts = ([pieces[j]], [p for k, p in enumerate(pieces) if k != j])
+    else:
+        parts = tuple([half] for half in pieces[0].halves())
+    return tuple(cell.pieces[:i] + (part,) + cell.pieces[i + 1 :] for part in parts)
+
+
+__all__ = [
+    "BoundOptions",
+    "CapacityBound",
+    "CellLP",
+    "Piece",
+    "bounded",
+    "capacity_bound",
+    "domain_of",
+    "dual_bound",
+    "gap_text",
+    "relative_gap",
+]

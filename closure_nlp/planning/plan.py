@@ -1,0 +1,79 @@
+"""The whole method in one call: heuristic, iterative selection and placement, from one seed
+or the best of several (over processes)."""
+
+from __future__ import annotations
+
+from closure_nlp.base.progress import Progress
+from closure_nlp.placement.place import Placer
+from closure_nlp.placement.placer import PlacementOptions
+from closure_nlp.planning.seeds import plan_seeds
+from closure_nlp.planning.single import PlanResult, check_plan_arguments, plan_one
+from closure_nlp.rho.rho_hat import Eligibility
+from closure_nlp.selection.algorithms import SelectionOptions
+
+
+def plan(
+    eligibility: Eligibility,
+    *,
+    seed: int | None = 0,
+    start=None,
+    selection: SelectionOptions = SelectionOptions(),
+    placement: PlacementOptions = PlacementOptions(),
+    progress: Progress | None = None,
+    placer: Placer | None = None,
+    alternatives: int = 4,
+    memo: dict | None = None,
+    seeds: int | None = None,
+    workers: int | None = None,
+    budget: float | None = None,
+) -> PlanResult:
+    """Heuristic from ``seed`` (or ``start``), iterative from its result, then placement.
+
+    With ``seeds`` = N, the plans of seeds ``seed, ..., seed + N - 1``, over ``workers``
+    processes (default: one per core), no seed started after ``budget`` seconds: the best one,
+    its ``seeds`` field every seed's result and the spread
+    (:func:`closure_nlp.planning.seeds.plan_seeds`;
+    the same answer for any ``workers``).
+
+    When the placement on an eligible set is not force closure, up to ``alternatives`` further
+    element sets are placed, until one is: the next eligible sets the iterative run met (lowest
+    rho_hat first), alternating with the results of new heuristic and iterative runs (seeds
+    derived from ``seed``). ``placer`` (built on the same ``eligibility``) replaces
+    ``placement``: loops over many runs pass one, so that its NLPs are built once.
+
+    ``memo`` (optional, a dict a loop passes to every plan): the iterative run from a start set
+    and the placement on an element set are deterministic, so a plan whose heuristic meets a set
+    that an earlier plan on the same ``eligibility`` met takes their results from it instead of
+    computing them again (a study's seeds often do: 64 of the fixture study's 240 tasks).
+    :attr:`PlanResult.reused` names the steps taken from it, whose results keep the seconds
+    their computation took; :attr:`PlanResult.seconds` is this plan's own time.
+    """
+    alternatives = check_plan_arguments(alternatives, memo)
+    if seeds is not None:
+        return plan_seeds(
+            eligibility,
+            seed=seed,
+            seeds=seeds,
+            workers=workers,
+            budget=budget,
+            start=start,
+            selection=selection,
+            placement=placement,
+            progress=progress,
+            placer=placer,
+            alternatives=alternatives,
+            memo=memo,
+        )
+    if workers is not None or budget is not None:
+        raise ValueError("workers, budget: only with seeds (a plan of several seeds)")
+    return plan_one(
+        eligibility,
+        seed=seed,
+        start=start,
+        selection=selection,
+        placement=placement,
+        progress=progress,
+        placer=placer,
+        alternatives=alternatives,
+        memo=memo,
+    )

@@ -1,0 +1,427 @@
+"""The best of many seeds: plans from seeds ``S, S+1, ..., S+N-1``, over processes, with the spread.
+
+One plan is one seed of the heuristic, and seeds differ a lot (fixture study, 20 seeds per group:
+pistol 7 FPC median rho -0.2748, best -0.6494; stepped shaft 7 FPC median -0.2724, best -0.7125,
+5 seeds marginal). :func:`plan_seeds` runs N seeds and returns the best placement with every
+seed's outcome and their spread. Seeds run in worker processes when ``workers > 1``; each worker
+keeps one plan memo (:func:`~closure_nlp.planning.plan.plan`), and every seed's new entries are
+shipped to the seeds started after it, whichever worker runs them, so a seed that meets an
+element set an earlier seed met takes its iterative run and placement from it (with
+``workers=1`` one memo serves every seed). The memo returns what computing again gives, and
+each seed's plan is deterministic, so the answer does not depend on the workers: N seeds over K
+processes give what the N seeds give one by one (all but timings and ``reused``); the best is
+chosen from the values alone (:func:`choose`), never by the order in which seeds finish.
+"""
+
+from __future__ import annotations
+
+import math
+import multiprocessing
+import os
+import queue
+import threading
+import time
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from closure_nlp.base.interrupts import leave_to_parent
+from closure_nlp.base.progress import Progress
+from closure_nlp.base.tolerances import DEFAULT_TOLERANCES
+from closure_nlp.base.validation import MAX_SEED
+from closure_nlp.placement.place import Placer
+from closure_nlp.placement.placer import PlacementOptions
+from closure_nlp.planning import single
+from closure_nlp.planning.single import MEMO_SIZE, adopt_memo, memo_entries
+from closure_nlp.rho.certificate import tolerance_unit
+from closure_nlp.rho.rho_hat import Eligibility
+
+# The command line's defaults: 8 seeds of a few seconds each fit well within the budget on 2
+# cores (docs/benchmarks.md has the measured times); the budget stops starting seeds after a
+# minute on a slower machine or a larger part.
+DEFAULT_SEEDS = 8
+DEFAULT_BUDGET = 60.0
+MAX_PLAN_SEEDS = 10_000
+
+
+@dataclass(frozen=True)
+class SeedRun:
+    """One seed's plan, or why it failed (``error``; a failed seed does not stop the others)."""
+
+    seed: int
+    result: object | None  # PlanResult
+    error: str | None = None
+    seconds: float = 0.0
+    unit: float | None = None  # wrench_unit of the placement (choose's tie tolerance)
+
+    @property
+    def ok(self) -> bool:
+        return self.result is not None
+
+    def to_dict(self) -> dict:
+        if self.result is None:
+            return {"seed": self.seed, "error": self.error, "seconds": self.seconds}
+        r = self.result
+        p = r.placement
+        return {
+            "seed": self.seed,
+            "rho": p.rho,
+            "bounds": None if p.bounds is None else list(p.bounds),
+            "force_closure": p.force_closure,
+            "marginal": p.marginal,
+            "selected": list(r.iterative.elements),
+            "elements": list(p.elements),
+            "capacity_bound": p.capacity_bound,
+            "attempts": len(r.attempts),
+            "reused": list(r.reused),
+            "rho_unit": self.unit,
+            "seconds": self.seconds,
+        }
+
+
+@dataclass(frozen=True)
+class SeedSpread:
+    """Every seed's outcome, which one was chosen, and the spread of rho over them.
+
+    Attributes
+    ----------
+    runs : tuple of SeedRun
+        In seed order; only the seeds started before the budget was spent.
+    chosen : int
+        Index in ``runs`` of the returned plan (:func:`choose`: force closure first, then the
+        lowest rho, rhos within the certified accuracy tied and broken by the lowest seed).
+    requested : int
+        Seeds asked for; ``len(runs)`` is fewer when the budget stopped new ones.
+    workers : int
+        Processes the seeds ran on (1: in this process).
+    budget : float or None
+        Seconds after which no new seed was started.
+    """
+
+    runs: tuple[SeedRun, ...]
+    chosen: int
+    requested: int
+    workers: int
+    budget: float | None
+
+    @property
+    def rhos(self) -> np.ndarray:
+        """rho of every seed that ended with a placement, in seed order: (k,)."""
+        return np.array([run.result.placement.rho for run in self.runs if run.ok])
+
+    def element_sets(self) -> list[dict]:
+        """The element sets placed on (multisets, as sorted ids), how many seeds ended on each,
+        the best rho there and the certified ceiling on ``-rho`` of any placement on them (the
+        lowest of those seeds' ceilings, each of which covers the set; None without one); most
+        often met first."""
+        met: dict[tuple, list] = {}
+        for run in self.runs:
+            if run.ok:
+                placed = run.result.placement
+                key = tuple(sorted(placed.elements))
+                met.setdefault(key, []).append((placed.rho, placed.capacity_bound))
+        rows = []
+        for key, found in met.items():
+            ceilings = [c for _, c in found if c is not None]
+            rows.append(
+                {
+                    "elements": list(key),
+                    "seeds": len(found),
+                    "best_rho": min(rho for rho, _ in found),
+                    "ceiling": min(ceilings) if ceilings else None,
+                }
+            )
+        return sorted(rows, key=lambda row: (-row["seeds"], row["best_rho"], row["elements"]))
+
+    def to_dict(self) -> dict:
+        rhos = self.rhos
+        ok = [run for run in self.runs if run.ok]
+        return {
+            "requested": self.requested,
+            "run": len(self.runs),
+            "workers": self.workers,
+            "budget": self.budget,
+            "chosen_seed": self.runs[self.chosen].seed,
+            "best_rho": self.runs[self.chosen].result.placement.rho,
+            "median_rho": float(np.median(rhos)),
+            "worst_rho": float(rhos.max()),
+            "force_closure": sum(run.result.force_closure for run in ok),
+            "marginal": sum(run.result.placement.marginal for run in ok),
+            "failed": len(self.runs) - len(ok),
+            "element_sets": self.element_sets(),
+            "runs": [run.to_dict() for run in self.runs],
+        }
+
+    def line(self) -> str:
+        """One line of text: the spread, for the command line."""
+        d = self.to_dict()
+        cut = ""
+        if d["run"] < d["requested"]:
+            cut = f" of {d['requested']} (budget of {d['budget']:g} s spent)"
+        failed = f", {d['failed']} failed" if d["failed"] else ""
+        return (
+            f"seeds: {d['run']}{cut} on {d['workers']} process(es): best rho = "
+            f"{d['best_rho']:.6g} (seed {d['chosen_seed']}), median {d['median_rho']:.6g}, "
+            f"worst {d['worst_rho']:.6g}; {d['force_closure']} force closure, "
+            f"{d['marginal']} marginal{failed}; {len(d['element_sets'])} element set(s) placed on"
+        )
+
+
+def wrench_unit(eligibility: Eligibility, elements) -> float:
+    """The wrench scale rho is measured against for contacts on ``elements``
+    (:func:`~closure_nlp.rho.certificate.tolerance_unit` of their slots): it follows ``f_max``, the
+    length unit and the torque scale alike."""
+    return float(tolerance_unit(eligibility.slots(elements)))
+
+
+def choose(entries, tolerance: float = DEFAULT_TOLERANCES.certify) -> int:
+    """Index of the entry a plan of several seeds returns.
+
+    Force closure first; among those (or among all, when none is), every entry whose rho lies
+    within ``tolerance * max(|best rho|, unit)`` of the lowest ties (the certified rho is known
+    to that accuracy, relative to the wrench scale ``unit``, the largest of the entries'), and
+    the lowest seed among the tied wins. The choice depends on the entries' values alone, never
+    on their order or on round-off far below the certified accuracy (parallel and serial runs
+    of the same seeds return the same seed).
+
+    Parameters
+    ----------
+    entries : sequence of (seed, force_closure, rho, unit)
+        ``unit``: :func:`wrench_unit` of the entry's placement (None or NaN: not known; the
+        others' then, else 1).
+    tolerance : float
+        Relative accuracy of a certified rho (``Tolerances.certify``).
+
+    Raises
+    ------
+    ValueError
+        When ``entries`` is empty.
+    """
+    entries = [(int(s), bool(fc), float(r), u) for s, fc, r, u in entries]
+    if not entries:
+        raise ValueError("no seed ended with a placement")
+    pool = [i for i, e in enumerate(entries) if e[1]] or list(range(len(entries)))
+    units = [float(entries[i][3]) for i in pool if entries[i][3] is not None]
+    units = [u for u in units if math.isfinite(u) and u > 0]
+    lowest = min(entries[i][2] for i in pool)
+    tie = tolerance * max(abs(lowest), max(units, default=1.0))
+    tied = [i for i in pool if entries[i][2] <= lowest + tie]
+    return min(tied, key=lambda i: entries[i][0])
+
+
+def best_index(runs, tolerance: float = DEFAULT_TOLERANCES.certify) -> int:
+    """The run a multi-seed plan returns (:func:`choose`; runs without a result never)."""
+    ok = [i for i, run in enumerate(runs) if run.ok]
+    entries = [
+        (runs[i].seed, runs[i].result.force_closure, runs[i].result.placement.rho, runs[i].unit)
+        for i in ok
+    ]
+    return ok[choose(entries, tolerance)]
+
+
+def check_seed_options(seeds, workers, budget) -> tuple[int, int | None, float | None]:
+    """Validated ``(seeds, workers, budget)``; ``ValueError``/``TypeError`` name the field."""
+    if isinstance(seeds, bool) or not isinstance(seeds, int) or not 1 <= seeds <= MAX_PLAN_SEEDS:
+        raise ValueError(f"seeds: expected an integer in [1, {MAX_PLAN_SEEDS}], got {seeds!r}")
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)):
+        raise TypeError(f"workers: expected an integer or None, got {workers!r}")
+    if workers is not None and workers < 1:
+        raise ValueError(f"workers: expected an integer >= 1, got {workers!r}")
+    if budget is not None:
+        if isinstance(budget, bool) or not isinstance(budget, (int, float)):
+            raise TypeError(f"budget: expected a number of seconds or None, got {budget!r}")
+        if not (math.isfinite(budget) and budget > 0):
+            raise ValueError(f"budget: expected a positive number of seconds, got {budget!r}")
+        budget = float(budget)
+    return seeds, workers, budget
+
+
+def available_cores() -> int:
+    """The cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+def plan_seeds(
+    eligibility: Eligibility,
+    *,
+    seed: int = 0,
+    seeds: int = DEFAULT_SEEDS,
+    workers: int | None = None,
+    budget: float | None = None,
+    placement: PlacementOptions = PlacementOptions(),
+    progress: Progress | None = None,
+    placer: Placer | None = None,
+    memo: dict | None = None,
+    **plan_options,
+):
+    """The plans of seeds ``seed, seed + 1, ..., seed + seeds - 1``; the best, with the spread.
+
+    Called by :func:`closure_nlp.planning.plan.plan` when it is given ``seeds``; see there for the
+    other parameters. ``plan_options`` (``start``, ``selection``, ``alternatives``) go to every
+    seed's plan as they are.
+
+    Parameters
+    ----------
+    seeds : int
+        Number of seeds.
+    workers : int, optional
+        Processes to run them on; default: one per available core, at most ``seeds``. 1 runs
+        them one by one in this process (sharing ``memo`` and ``placer``).
+    budget : float, optional
+        Seconds after which no further seed is started (the seeds running finish).
+
+    Returns
+    -------
+    PlanResult
+        The chosen seed's plan (:func:`best_index`), its ``seconds`` the whole run's, and
+        ``seeds`` the :class:`SeedSpread`.
+
+    Raises
+    ------
+    Exception
+        The first seed's error, when no seed ended with a placement.
+    """
+    if isinstance(seed, bool) or not isinstance(seed, int):
+        raise TypeError(f"seed: expected an integer with seeds, got {seed!r}")
+    seeds, workers, budget = check_seed_options(seeds, workers, budget)
+    if not 0 <= seed <= MAX_SEED - seeds + 1:
+        raise ValueError(f"seed: seeds {seed}..{seed + seeds - 1} must lie in [0, {MAX_SEED}]")
+    workers = min(seeds, workers or available_cores())
+    if placer is not None and placer.eligibility is not eligibility:
+        raise ValueError("placer: must be built on the same Eligibility as the plan")
+    options = placement if placer is None else placer.options
+    t0 = time.perf_counter()
+    if workers == 1:
+        placer = placer or Placer(eligibility, options)
+        memo = {} if memo is None else memo
+        outcomes = []
+        for k in range(seeds):
+            if outcomes and budget is not None and time.perf_counter() - t0 >= budget:
+                break
+            outcomes.append(_run_one(eligibility, placer, memo, progress, plan_options, seed + k))
+            _report(progress, outcomes)
+    else:
+        outcomes = _in_processes(
+            eligibility, options, plan_options, seed, seeds, workers, budget, t0, progress
+        )
+    runs = tuple(run for run, _ in outcomes)
+    if not any(run.ok for run in runs):
+        raise outcomes[0][1]
+    chosen = best_index(runs, eligibility.minimizer.tolerances.certify)
+    spread = SeedSpread(runs, chosen, seeds, workers, budget)
+    return replace(runs[chosen].result, seconds=time.perf_counter() - t0, seeds=spread)
+
+
+def _run_one(eligibility, placer, memo, progress, kwargs, seed: int):
+    """``(SeedRun, error or None)`` of one seed's plan: an error ends that seed only."""
+    t = time.perf_counter()
+    try:
+        result = single.plan_one(
+            eligibility, seed=seed, placer=placer, memo=memo, progress=progress, **kwargs
+        )
+    except Exception as exc:  # noqa: BLE001 - recorded; raised when every seed fails
+        return SeedRun(seed, None, f"{type(exc).__name__}: {exc}", time.perf_counter() - t), exc
+    unit = wrench_unit(eligibility, result.placement.elements)
+    return SeedRun(seed, result, None, time.perf_counter() - t, unit), None
+
+
+def _report(progress, outcomes) -> None:
+    """``progress("seed", seeds done, best rho so far)``."""
+    if progress:
+        runs = [run for run, _ in outcomes]
+        best = runs[best_index(runs)].result.placement.rho if any(r.ok for r in runs) else math.nan
+        progress("seed", len(runs), best)
+
+
+# A worker process's solvers and memo, made once by _start_worker and used by every seed it runs.
+_WORKER: dict = {}
+
+
+def _start_worker(eligibility, options, kwargs) -> None:
+    leave_to_parent()  # Ctrl-C ends the parent's wait, which then ends the workers
+    _WORKER.update(
+        eligibility=eligibility, placer=Placer(eligibility, options), memo={}, kwargs=kwargs
+    )
+
+
+def _worker_seed(k: int, seed: int, shared: dict):
+    """Seed ``seed`` in this worker, its memo first given the steps the other workers shipped
+    (``shared``); returns the steps this seed added, for the others."""
+    w = _WORKER
+    adopt_memo(w["memo"], w["eligibility"], shared)
+    before = set(w["memo"])
+    outcome = _run_one(w["eligibility"], w["placer"], w["memo"], None, w["kwargs"], seed)
+    return k, outcome, memo_entries(w["memo"], w["eligibility"], skip=before)
+
+
+def _share(shared: dict, entries: dict) -> None:
+    """``shared`` with a seed's new memo entries; the oldest dropped beyond the memo's size."""
+    shared.update(entries)
+    while len(shared) > MEMO_SIZE:
+        del shared[next(iter(shared))]
+
+
+def _context():
+    """fork when this process runs one thread (the workers start at once, with the solvers
+    already built); forkserver otherwise (forking a threaded process is unsafe)."""
+    methods = multiprocessing.get_all_start_methods()
+    if "fork" in methods and threading.active_count() == 1:
+        return multiprocessing.get_context("fork")
+    return multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
+
+
+def _in_processes(eligibility, options, kwargs, seed, seeds, workers, budget, t0, progress):
+    """The seeds over ``workers`` processes, at most ``workers`` running at a time (so the
+    budget stops new ones), gathered in seed order. An interrupt or error ends the workers at
+    once."""
+    done: dict[int, tuple] = {}
+    shared: dict = {}  # the steps the seeds computed, shipped to every seed started after
+    finished: queue.SimpleQueue = queue.SimpleQueue()
+    pool = _context().Pool(workers, _start_worker, (eligibility, options, kwargs))
+    try:
+        k = running = 0
+        while k < seeds or running:
+            while k < seeds and running < workers:
+                # The first wave starts at once whatever the pool's start-up cost; after it,
+                # a spent budget starts no further seed.
+                if k >= workers and budget is not None and time.perf_counter() - t0 >= budget:
+                    seeds = k
+                    break
+                pool.apply_async(
+                    _worker_seed,
+                    (k, seed + k, dict(shared)),  # a copy: pickled later, in the pool's thread
+                    callback=finished.put,
+                    error_callback=finished.put,
+                )
+                k, running = k + 1, running + 1
+            if not running:
+                break
+            item = finished.get()
+            running -= 1
+            if isinstance(item, BaseException):  # the worker itself failed (not a seed's error)
+                raise item
+            done[item[0]] = item[1]
+            _share(shared, item[2])
+            _report(progress, [done[i] for i in sorted(done)])
+        pool.close()
+    finally:
+        pool.terminate()
+        pool.join()
+    return [done[i] for i in sorted(done)]
+
+
+__all__ = [
+    "DEFAULT_BUDGET",
+    "DEFAULT_SEEDS",
+    "SeedRun",
+    "SeedSpread",
+    "available_cores",
+    "best_index",
+    "check_seed_options",
+    "choose",
+    "plan_seeds",
+    "wrench_unit",
+]

@@ -1,0 +1,340 @@
+"""One seed's plan: heuristic, iterative selection, placement.
+
+:func:`plan_one` chains the three steps on one :class:`~closure_nlp.rho.rho_hat.Eligibility` (so
+every solver is built once), through a memo of the steps other plans on it have taken.
+"""
+
+from __future__ import annotations
+
+import itertools
+import time
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from closure_nlp.base.progress import Progress
+from closure_nlp.base.solver_cache import cached
+from closure_nlp.base.validation import is_whole
+from closure_nlp.placement import ceiling
+from closure_nlp.placement.place import Placer
+from closure_nlp.placement.placer import PlacementOptions, PlacementResult
+from closure_nlp.rho.rho_hat import Eligibility
+from closure_nlp.selection.algorithms import (
+    SelectionOptions,
+    SelectionResult,
+    _multiset,
+    heuristic,
+    iterative,
+    light_rho_hat,
+    lone_contact,
+)
+
+if TYPE_CHECKING:
+    from closure_nlp.planning.seeds import SeedSpread
+
+
+@dataclass(frozen=True)
+class Attempt:
+    """One element set the plan placed contacts on: where it came from and how it ended."""
+
+    elements: tuple[int, ...]
+    source: str
+    rho_hat: float
+    rho: float
+    force_closure: bool
+    seconds: float
+
+    def to_dict(self) -> dict:
+        return {
+            "elements": list(self.elements),
+            "source": self.source,
+            "rho_hat": self.rho_hat,
+            "rho": self.rho,
+            "force_closure": self.force_closure,
+            "seconds": self.seconds,
+        }
+
+
+@dataclass(frozen=True)
+class PlanResult:
+    """The three steps of one run.
+
+    ``heuristic`` and ``iterative`` are the first selection; ``placement`` is the best placement
+    over every element set tried (the first that reached force closure), and ``attempts`` lists
+    those sets in the order tried. A plan of several seeds is the chosen seed's, and ``seeds``
+    holds every seed's plan and their spread (:class:`~closure_nlp.planning.seeds.SeedSpread`).
+    """
+
+    heuristic: SelectionResult
+    iterative: SelectionResult
+    placement: PlacementResult
+    seconds: float
+    attempts: tuple[Attempt, ...] = ()
+    reused: tuple[str, ...] = ()
+    seeds: SeedSpread | None = None
+
+    @property
+    def force_closure(self) -> bool:
+        return self.placement.force_closure
+
+    def failure(self) -> str | None:
+        """Why no force closure was reached, or ``None``."""
+        if self.placement.force_closure:
+            return None
+        tried = len(self.attempts)
+        eligible = sum(a.rho_hat < 0 for a in self.attempts)
+        if not eligible:
+            return (
+                f"no eligible element set found (best rho_hat = {self.iterative.rho_hat:.6g}), "
+                "so no placement can be force closure"
+            )
+        return (
+            f"no force-closure placement found on {tried} element set(s) tried ({eligible} "
+            f"eligible); best rho = {self.placement.rho:.6g}"
+        )
+
+    def to_dict(self) -> dict:
+        return {
+            "heuristic": self.heuristic.to_dict(),
+            "iterative": self.iterative.to_dict(),
+            "placement": self.placement.to_dict(),
+            "attempts": [a.to_dict() for a in self.attempts],
+            "seconds": self.seconds,
+            "reused": list(self.reused),
+            **({} if self.seeds is None else {"seeds": self.seeds.to_dict()}),
+        }
+
+
+def check_plan_arguments(alternatives, memo) -> int:
+    """``alternatives`` as an int, after checking it and ``memo`` (the plan's arguments)."""
+    if not is_whole(alternatives) or alternatives < 0:
+        raise ValueError(f"alternatives: expected an integer >= 0, got {alternatives!r}")
+    if not (memo is None or isinstance(memo, dict)):
+        raise TypeError(f"memo: expected a dict or None, got {type(memo).__name__}")
+    return int(alternatives)
+
+
+def plan_one(
+    eligibility: Eligibility,
+    *,
+    seed: int | None = 0,
+    start=None,
+    selection: SelectionOptions = SelectionOptions(),
+    placement: PlacementOptions = PlacementOptions(),
+    progress: Progress | None = None,
+    placer: Placer | None = None,
+    alternatives: int = 4,
+    memo: dict | None = None,
+) -> PlanResult:
+    """One seed's plan: heuristic from ``seed`` (or ``start``), iterative from its result, then
+    placement (see :func:`closure_nlp.planning.plan.plan`)."""
+    alternatives = check_plan_arguments(alternatives, memo)
+    t0 = time.perf_counter()
+    if placer is None:
+        placer = Placer(eligibility, placement)
+    elif placer.eligibility is not eligibility:
+        raise ValueError("placer: must be built on the same Eligibility as the plan")
+    recall = _Recall(memo, eligibility, selection, placer, progress)
+    first = heuristic(eligibility, start=start, seed=seed, options=selection, progress=progress)
+    second = recall.iterative(first.elements, "iterative")
+    best = recall.placement(second.elements, "placement")
+    best_start = second.elements
+    attempts = [_attempt(second.elements, "iterative", second.rho_hat, best)]
+    if not _held(best) and alternatives and second.eligible:  # else 50 rounds failed
+        candidates = _alternatives(eligibility, seed, selection, second, recall)
+        for elements, source, value in itertools.islice(candidates, alternatives):
+            found = recall.placement(elements, f"placement {len(attempts)}")
+            attempts.append(_attempt(elements, source, value, found))
+            if progress:
+                progress("alternative", len(attempts) - 1, found.rho)
+            if _robust_value(found) < _robust_value(best):
+                best, best_start = found, elements
+            if _held(found):
+                break
+    best = recall.ceiling(best_start, best)
+    return PlanResult(
+        first, second, best, time.perf_counter() - t0, tuple(attempts), tuple(recall.reused)
+    )
+
+
+def _held(result: PlacementResult) -> bool:
+    """Force closure, and robust within the model's tolerance when it has one."""
+    return bool(result.force_closure) and result.robust is not False
+
+
+def _robust_value(result: PlacementResult) -> float:
+    """rho plus the support shift within the model's tolerance (rho without one): what the
+    plan steers by, so that a robust placement wins over a merely force-closure one."""
+    return result.rho + result.shift
+
+
+# Results one memo keeps (least recently used dropped first): a few KB each (pickled, 3.6 KB
+# for the iterative run and the placement of a pistol 7-PCwF plan).
+MEMO_SIZE = 256
+
+
+class _Recall:
+    """The plan's iterative runs and placements, through its ``memo`` when it has one; the
+    names of the steps it took from the memo are in ``reused``.
+
+    Placements are the exchange method's alone; the certified ceiling (when the placer's
+    options ask for one) is computed once, for the placement the plan returns
+    (:meth:`ceiling`): the placements on the other element sets tried are dropped, and with
+    them their ceilings (a marginal set's cost as much as the placement itself)."""
+
+    def __init__(self, memo, eligibility, selection, placer, progress):
+        self.memo, self.eligibility, self.selection = memo, eligibility, selection
+        self.placer, self.progress = placer, progress
+        self.reused: list[str] = []
+
+    def iterative(self, start, name: str) -> SelectionResult:
+        return self._recall(
+            ("iterative", self.eligibility, tuple(start), self.selection),
+            lambda: iterative(
+                self.eligibility, start, options=self.selection, progress=self.progress
+            ),
+            name,
+        )
+
+    def placement(self, elements, name: str) -> PlacementResult:
+        return self._recall(
+            ("placement", self.eligibility, tuple(elements), self.placer.options),
+            lambda: self.placer(elements, progress=self.progress, ceiling=False),
+            name,
+        )
+
+    def ceiling(self, elements, placed: PlacementResult) -> PlacementResult:
+        """``placed`` (the exchange method's placement from ``elements``) with the placer's
+        certified ceiling, and the better placement its search found, if any; ``seconds``
+        counts both."""
+        if not self.placer.options.bound:
+            return placed
+        return self._recall(
+            ("ceiling", self.eligibility, tuple(elements), self.placer.options),
+            lambda: ceiling.bounded(
+                self.placer,
+                list(elements),
+                placed,
+                time.perf_counter() - placed.seconds,
+                self.progress,
+            ),
+            "ceiling",
+        )
+
+    def _recall(self, key, compute, name: str):
+        # The key holds the eligibility itself (its identity): another model, specs or torque
+        # scale is other work, and a held object's identity cannot be reused.
+        if self.memo is None:
+            return compute()
+        if key in self.memo:
+            self.reused.append(name)
+        return cached(self.memo, key, compute, MEMO_SIZE)
+
+
+def memo_entries(memo: dict, eligibility: Eligibility, skip=frozenset()) -> dict:
+    """The entries of a plan memo on ``eligibility`` (keys not in ``skip``), keyed without it:
+    what another process's memo on a copy of that eligibility can take (:func:`adopt_memo`).
+
+    A memo key holds the eligibility itself (:class:`_Recall`), whose identity does not cross
+    processes; the step, the element ids and the options do."""
+    return {
+        (key[0], *key[2:]): value
+        for key, value in list(memo.items())
+        if key not in skip and key[1] is eligibility
+    }
+
+
+def adopt_memo(memo: dict, eligibility: Eligibility, entries: dict) -> None:
+    """Add :func:`memo_entries` (from a copy of ``eligibility``) to ``memo``, keeping its own
+    entries and its size limit."""
+    for (step, *rest), value in entries.items():
+        key = (step, eligibility, *rest)
+        if key not in memo:
+            cached(memo, key, lambda value=value: value, MEMO_SIZE)
+
+
+def _attempt(elements, source: str, rho_hat: float, placed: PlacementResult) -> Attempt:
+    return Attempt(
+        tuple(elements), source, rho_hat, placed.rho, placed.force_closure, placed.seconds
+    )
+
+
+FRESH_RUNS = 8  # new heuristic + iterative runs at most, when placements keep failing
+
+
+def _alternatives(eligibility, seed, selection, second, recall: _Recall):
+    """Further eligible element sets to place, each multiset once and none that no placement
+    can make force closure (:func:`~closure_nlp.selection.algorithms.lone_contact`, unless
+    ``selection.placeable`` is off): the next set of the pool
+    (sets the iterative runs met, lowest rho_hat first; those only screened by a light search
+    are evaluated first and skipped unless eligible), then the result of a new heuristic +
+    iterative run (seed derived from ``seed``), and so on alternately."""
+    tried = {_multiset(eligibility, second.elements)}
+    pool = _pool([], second, eligibility)
+
+    def hopeless(elements) -> bool:
+        """No placement on these elements is force closure (:func:`lone_contact`)."""
+        return selection.placeable and lone_contact(eligibility, elements) is not None
+
+    runs = 0
+    while pool or runs < FRESH_RUNS:
+        while pool:
+            elements, value, proven = pool.pop(0)
+            key = _multiset(eligibility, elements)
+            if key in tried:
+                continue
+            tried.add(key)
+            if hopeless(elements):
+                continue
+            if not proven:
+                found = eligibility(elements, certify=False)
+                if not found.eligible:
+                    continue
+                value = found.rho_hat
+            yield elements, "iterative history", value
+            break
+        if runs == FRESH_RUNS:
+            continue
+        runs += 1
+        derived = (
+            None if seed is None else int(np.random.SeedSequence([seed, runs]).generate_state(1)[0])
+        )
+        found = heuristic(eligibility, seed=derived, options=selection, progress=recall.progress)
+        fresh = recall.iterative(found.elements, f"iterative {runs}")
+        pool = _pool(pool, fresh, eligibility)
+        key = _multiset(eligibility, fresh.elements)
+        if fresh.eligible and key not in tried and not hopeless(fresh.elements):
+            tried.add(key)
+            yield fresh.elements, f"new selection {runs} (heuristic + iterative)", fresh.rho_hat
+
+
+def _pool(pool, run: SelectionResult, eligibility: Eligibility) -> list:
+    """``pool`` with ``run``'s evaluated and screened sets, (elements, value, proven), lowest
+    value first; its unfinished sets (full searches stopped once they could not win) get their
+    full value now, from the same start, so they rank as if never stopped; its unranked sets
+    (screens stopped once they could not win) get their light value now, from the screen's
+    start: the value it would have given, so they rank as before."""
+    finished = []
+    for elements, warm in run.unfinished_sets:
+        found = eligibility(elements, warm, certify=False)
+        if found.eligible:
+            finished.append((found.rho_hat, tuple(elements)))
+    evaluated = sorted([(v, tuple(e)) for e, v in run.eligible_sets] + finished)
+    pool = pool + [(e, v, True) for v, e in evaluated]
+    unproven = [(v, tuple(e)) for e, v in run.candidate_sets]
+    for elements, warm in run.unranked_sets:
+        value, _ = light_rho_hat(eligibility, elements, warm)
+        if value < 0:
+            unproven.append((value, tuple(elements)))
+    # equal values (symmetric parts have many) in the order of the elements
+    pool += [(e, v, False) for v, e in sorted(unproven)]
+    return sorted(pool, key=lambda item: item[1])
+
+
+__all__ = [
+    "Attempt",
+    "PlanResult",
+    "adopt_memo",
+    "memo_entries",
+]

@@ -1,0 +1,302 @@
+"""Certified ``min_{|u| = 1} p(u)`` by branch and bound over the sphere.
+
+``p`` is the support function of a compact convex set ``W`` (:class:`WrenchSlots`): convex and
+positively homogeneous, so every wrench ``w`` of ``W`` gives the linear lower bound
+``p(x) >= w . x`` everywhere, and so does every convex combination ``wbar`` of such wrenches.
+
+Cells. The sphere is the image of the 12 faces of the cube ``[-1, 1]^6`` (``x_k = +-1``); a cell
+is a box of the other five coordinates. Its directions lie in the cap of centre ``c`` (the box
+centre, normalised) and angular radius ``delta`` = the largest angle from ``c`` to a box corner
+(``c . x / |x|`` is quasi-concave, so its minimum over a box is at a corner).
+
+Bound of a cell. On a cap, ``min wbar . u = |wbar| cos(theta + delta)`` exactly, with ``theta`` the
+angle between ``wbar`` and ``c``, that is ``cos(delta) wbar . c - sin(delta) |wbar_perp|``. The
+support points of eleven directions of the cell (centre and the five axes' ends) are combined with
+convex weights that maximise this concave expression (a few Frank-Wolfe steps with exact line
+search; any weights give a valid bound). A single support point gives only a first-order bound
+where ``p`` has a kink (a contact switching on, a cone's apex), and minima sit on such kinks; the
+best combination of the support points from both sides of the kink is second-order accurate
+there as on smooth minima, so few cells survive per level.
+
+Support points. Besides the cell's own eleven, every cell may combine the point of ``W`` whose
+bound its parent kept (a halved cell is first bounded by that point alone, and dropped before
+its samples are taken when that suffices), the support points of a tiny cloud around the
+incumbent (they hold every piece of ``p`` that meets at the minimum), and a cell that survives
+near the minimum (any cell, in a set of few slots) gets those of a cloud around its lowest
+sample, with a longer search of the weights (a matrix game over the cloud's points and those
+the first weights hold). When these do not suffice, a set of few slots
+gives each slot its own weights (:func:`closure_nlp.kernels.branch_bound.slot_bound`):
+``p = sum_i max(P_i, 0)`` wherever some slot value is positive, so any slot-wise combination
+of the slots' support points whose bound is positive over the cell bounds ``p`` there. A
+contact seen nearly along its cone's axis has a sharply curved support over a cell; with
+weights of its own, its points no longer share those of
+the other slots. Larger sets add the support points of the cell's corners instead.
+
+Incumbent. Every evaluated direction gives an upper bound ``p(u) >= min p``; the lowest is the
+incumbent. When a cell's samples lower it, an optional local solver (``polish``) runs from there:
+samples approach a minimum only to first order in the cell size, and with an incumbent that far
+above the minimum whole neighbourhoods of it survive (an optimised lamp placement whose seed
+search missed the global basin by 0.26%: 18.3 s and unconverged without, 0.9 s with). Cells
+whose bound reaches the incumbent minus the allowed gap are dropped; the others are halved along
+their widest coordinate, until none is left or the budget is spent, except a small cell holding
+the incumbent: it is cut into nested shells round it, down to an inner box small enough that the
+sphere's curvature costs it less than the gap (at a sharp minimum the shells drop at once, in
+place of a chain of halvings). The minimum over the sphere
+then lies in ``[min over dropped and live cells of their bounds, incumbent]``.
+
+Symmetry. When turns about an axis map the set onto itself (:mod:`closure_nlp.rho.symmetry`: ``n``
+contacts equally spaced round a cylinder, coaxial round cones), ``p`` is constant on their
+orbits and the search covers only boxes that meet every orbit, mapped onto that part of the
+sphere by an invertible ``frame`` in place of the diagonal metric: ``n`` equal minima become
+one, and a circle of equal minima (which no cell bound drops: its cells multiply at every
+level) becomes a point. The detection's residuals give a ``slack``, subtracted from the lower
+bound, so the bracket holds for inexact data too.
+
+The rounds run compiled (:func:`closure_nlp.kernels.branch_bound.advance`), in one call until
+the search ends or wants its incumbent polished; this module sets the budget and runs the
+local solver.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from closure_nlp.base.validation import as_shaped, is_whole
+from closure_nlp.contact.wrenches import WrenchSlots
+from closure_nlp.kernels import branch_bound as kernels
+from closure_nlp.rho.cube_cells import face_cells
+from closure_nlp.rho.symmetry import find_symmetry
+
+MAX_POLISH = 8  # local solves per branch and bound: each cheap; the first ones do the work
+# Per unit of wrench scale: covers the float64 roundoff of support values and support points
+# (a few ulps of sums of m terms), far below any tolerance of the package.
+ROUNDOFF = 1e-13
+CELLS_PER_ROUND = 128  # children per round while few cells live: fewer rounds
+# A symmetry is used when its slack (its detection's residuals) is at most this share of the gap.
+SLACK_SHARE = 0.1
+# Cells refined (:attr:`BranchBoundOptions.refine_below`) when smaller than this angular radius
+# (0.05 -> 0.4: eligible lamp sets 2.3x faster, CPU; others 0.9-1.15x); in sets of at most
+# FEW_CONTACTS slots, every cell: their games drop most coarse cells (13 force-closure 4-PCwF
+# sets: 302 sampled cells against 701 at the median, 1.2x less CPU; the 9 eligible sets of 4
+# lamp facets: 2.0x fewer cells, 1.2x less CPU). Not for many contacts, where a cloud costs m
+# support values: 200 and 2,000 PCwF 0.88x and 0.81x.
+REFINE_BELOW = 0.4
+FEW_CONTACTS = kernels.SLOT_GAME_SLOTS
+
+
+@dataclass(frozen=True)
+class BranchBoundOptions:
+    """Budget and shape of the search.
+
+    Attributes
+    ----------
+    initial_splits : int
+        Halvings of every free coordinate of each cube face before the first bound (1: 32 cells
+        per face, 384 in all).
+    max_cells : int
+        Cells bounded in all, beyond which the search stops with ``converged=False``, unless
+        it may go on to ``extended_cells``.
+    extended_cells, extension_alive : int
+        Past ``max_cells``, the search goes on, up to ``extended_cells`` cells in all, while
+        the cells alive after a round are at most ``extension_alive`` or twice as many as when
+        it reached ``max_cells``. Measured: isolated but flat minima converge there (the round
+        placements of the test suite, a pistol and a stepped-shaft placement: 100k-150k cells;
+        a box's one-plane bound loses ``1 - cos(delta)`` of ``p``, so the cells alive are those
+        within ``delta sqrt(p / curvature)`` of the minimum). Some keep 1,500-4,000 alive
+        throughout; a shaft fixture's (7 PCwF, torque scale 1) rose from 1,900 at 40k cells to
+        about 5,000, then fell to under 100 and converged at 84k. A continuum of minima (two
+        opposite soft fingers, searched over the whole sphere) grows level after level and may
+        need all of ``extended_cells``. ``max_cells`` or less: no extension.
+    max_rounds : int
+        Rounds of splitting (each halves every live cell once).
+    fw_steps : int
+        Frank-Wolfe steps that choose the convex weights of a cell's support points.
+    refine_below : float, optional
+        Angular radius under which a cell that survives its first bound gets more support
+        points (a cloud around its lowest sample, then its corners) and a longer search of
+        their weights: near the minimum, where the kinks of ``p`` meet. None: every cell of a
+        set of few slots (:data:`FEW_CONTACTS`), :data:`REFINE_BELOW` otherwise.
+        Not a cell whose lowest sample lies within ``|target| delta^2`` of the drop threshold
+        (:data:`closure_nlp.kernels.branch_bound.HOPELESS`): linear bounds lose about that
+        much there, and its children are cheaper.
+    stop_below_zero : bool
+        Stop, unconverged, at the first direction with ``p < 0``: the origin is then outside the
+        set, where :mod:`closure_nlp.rho.hull_distance` is exact and much faster.
+    symmetry : bool
+        Search only a fundamental domain of the turns that map the set onto itself
+        (:mod:`closure_nlp.rho.symmetry`), when there are: a circle of equal minima becomes a
+        point, ``n`` equal minima one.
+    """
+
+    initial_splits: int = 1
+    max_cells: int = 40_000
+    extended_cells: int = 400_000
+    extension_alive: int = 20_000
+    max_rounds: int = 200
+    fw_steps: int = 12
+    refine_below: float | None = None
+    stop_below_zero: bool = True
+    symmetry: bool = True
+
+    def __post_init__(self) -> None:
+        names = ("initial_splits", "max_cells", "extended_cells", "extension_alive", "max_rounds")
+        for name in (*names, "fw_steps"):
+            value = getattr(self, name)
+            least = 0 if name == "initial_splits" else 1
+            if not is_whole(value) or value < least:
+                raise ValueError(f"options.{name}: must be an integer >= {least}, got {value!r}")
+            object.__setattr__(self, name, int(value))
+
+
+@dataclass(frozen=True, eq=False)
+class SphereBounds:
+    """``lower <= min_{|u|=1} p(u) <= upper = p(direction)``.
+
+    Attributes
+    ----------
+    lower, upper : float
+    direction : (6,) float
+        Unit direction of the incumbent.
+    converged : bool
+        Every cell was dropped: ``upper - lower`` is within the gap asked for.
+    cells : int
+        Cells sampled and bounded (not those a halved cell's inherited point dropped first).
+    evaluations : int
+        Directions at which ``p`` and a support point were evaluated.
+    rounds : int
+    seconds : float
+    """
+
+    lower: float
+    upper: float
+    direction: np.ndarray = field(repr=False)
+    converged: bool
+    cells: int
+    evaluations: int
+    rounds: int
+    seconds: float
+
+
+def sphere_minimum(
+    slots: WrenchSlots,
+    incumbent: np.ndarray | None = None,
+    *,
+    gap: float,
+    metric=None,
+    options: BranchBoundOptions = BranchBoundOptions(),
+    polish=None,
+) -> SphereBounds:
+    """Certified bounds on ``min_{|u|=1} p(u)`` with ``upper - lower <= gap`` when converged.
+
+    Parameters
+    ----------
+    slots : WrenchSlots
+    incumbent : (6,) float, optional
+        A good direction (e.g. a local solver's): its value starts the incumbent.
+    gap : float
+        Absolute gap to reach (callers make it relative to the wrench scale).
+    metric : (6,) float, optional
+        Positive diagonal ``D``: the cells are boxes of the cube's faces mapped by ``D``, so a
+        set whose torque rows are ``k`` times its force rows is partitioned as evenly as an
+        isotropic one with ``D = (1, 1, 1, 1/k, 1/k, 1/k)`` (``p_W(D v / |D v|) = p_{DW}(v) /
+        |D v|``). Any positive ``D`` covers the sphere: only the work changes.
+    options : BranchBoundOptions
+        With ``symmetry``, the search covers a fundamental domain of the set's turns when it
+        has any and their slack is at most :data:`SLACK_SHARE` of ``gap``; the whole sphere
+        otherwise.
+    polish : callable, optional
+        ``polish(u) -> (6,)``: a local minimiser of ``p`` started at ``u``, run (at most
+        :data:`MAX_POLISH` times) from the incumbent whenever samples lowered it by more than
+        the gap. Its direction only enters as an evaluated sample, so any answer is safe.
+
+    The search stops early, unconverged, when it finds ``p(u) < 0`` while ``stop_below_zero``:
+    the origin is then outside the set, where :mod:`closure_nlp.rho.hull_distance` is exact.
+    """
+    start = time.perf_counter()
+    metric = np.ones(6) if metric is None else as_shaped(metric, "metric", (6,)).astype(float)
+    if not np.all(metric > 0) or not np.all(np.isfinite(metric)):
+        raise ValueError(f"metric: expected six positive finite numbers, got {metric.tolist()}")
+    margin = ROUNDOFF * max(slots.row_scales()) * max(1, slots.m)
+    symmetry = find_symmetry(slots) if options.symmetry else None
+    if symmetry is not None and symmetry.slack <= SLACK_SHARE * gap:
+        # min over the domain - slack <= min over the sphere <= min over the domain
+        frame, *cells = symmetry.domain(metric, incumbent, options.initial_splits)
+        slack = symmetry.slack
+        floor = np.linalg.svd(frame, compute_uv=False).min()
+    else:
+        frame, cells, slack = np.diag(metric), face_cells(options.initial_splits), 0.0
+        floor = metric.min()  # the least singular value of a positive diagonal, exactly
+    packed = slots.packed
+    best, best_u = np.array([np.inf, 0.0]), np.zeros(6)
+    anchor, anchor_at = np.empty((kernels.ANCHORS, 6)), np.zeros(7)
+
+    def consider(u, name: str) -> None:
+        u = np.asarray(as_shaped(u, name, (6,)), dtype=float)
+        U = (u / np.linalg.norm(u))[None]
+        kernels.consider(*packed, U, np.empty((1, 6)), best, best_u)
+
+    if incumbent is not None:
+        consider(incumbent, "incumbent")
+    tally = np.array([np.inf, 0, 0, -1, best[0], 0], dtype=float)
+    settings = np.array(
+        [
+            gap - slack,
+            margin,
+            options.fw_steps,
+            _refine_below(slots, options.refine_below),
+            options.max_cells,
+            options.extended_cells,
+            options.extension_alive,
+            options.max_rounds,
+            options.stop_below_zero,
+            CELLS_PER_ROUND,
+            0 if polish is None else MAX_POLISH,
+            floor,
+        ],
+        dtype=float,
+    )
+    cells = (*cells, *kernels.no_samples())
+    evaluated = False
+    while True:
+        status, *cells = kernels.advance(
+            *packed, *cells, evaluated, frame, best, best_u, anchor, anchor_at, tally, settings
+        )
+        if status != kernels.POLISH:
+            break
+        consider(polish(best_u.copy()), "polish(u)")
+        tally[kernels.POLISHES] += 1
+        tally[kernels.POLISHED_AT] = best[0]
+        evaluated = True  # the same cells, already evaluated: on to their bounds
+    lower = tally[kernels.LOWER] - slack
+    return SphereBounds(
+        float(min(lower, best[0])),
+        float(best[0]),
+        best_u.copy(),
+        status == kernels.CONVERGED,
+        int(tally[kernels.CELLS]),
+        int(best[1]),
+        int(tally[kernels.ROUNDS]),
+        time.perf_counter() - start,
+    )
+
+
+def _refine_below(slots: WrenchSlots, refine_below: float | None) -> float:
+    """The angular radius under which cells are refined
+    (:attr:`BranchBoundOptions.refine_below`)."""
+    if refine_below is not None:
+        return float(refine_below)
+    return np.pi if slots.m <= FEW_CONTACTS else REFINE_BELOW
+
+
+
+
+
+
+
+
+def _initial_cells(splits: int):
+    """Every cube face cut into ``2^(5 splits)`` boxes: axis, sign, lo, hi."""
+    return face_cells(splits)
