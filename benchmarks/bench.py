@@ -589,12 +589,13 @@ FIXTURE_TARGETS = {
 _PLANS_RUNNER = """
 import json, sys, time
 from closure_nlp.cli import main as cli
+from closure_nlp.cli import setup
 from closure_nlp.placement.place import Placer
 from closure_nlp.planning.plan import plan
 argv = json.loads(sys.argv[1])
 args = cli.build_parser().parse_args(argv)
-eligibility = cli._eligibility(args, args.contacts, closure=True)
-placer = Placer(eligibility, cli._placement_options(args, False))
+eligibility = setup.model_eligibility(args, args.contacts, closure=True)
+placer = Placer(eligibility, setup.placement_options(args, False))
 plan(eligibility, seed=1000, placer=placer)
 print("ready", flush=True)
 for line in sys.stdin:

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 import closure_nlp.cli.main as cli
+from closure_nlp.cli import rho_command
 from closure_nlp.rho.support_minimum import rho as real_rho
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -37,7 +38,7 @@ def test_internal_error_is_not_bad_input(monkeypatch, capsys):
     def broken(*args, **kwargs):
         return None - 1.0  # the kind of bug the issue saw printed as "error: ..." with exit 2
 
-    monkeypatch.setattr(cli, "rho", broken)
+    monkeypatch.setattr(rho_command, "rho", broken)
     code, out, err = run(capsys, "rho", BOX)
     assert code == 3 and out == ""
     line = one_line(err)
@@ -50,7 +51,7 @@ def test_non_finite_result_is_a_method_failure_and_never_printed(monkeypatch, ca
         object.__setattr__(result, "rho", float("nan"))
         return result
 
-    monkeypatch.setattr(cli, "rho", nan_rho)
+    monkeypatch.setattr(rho_command, "rho", nan_rho)
     for extra in ([], ["--json"]):
         code, out, err = run(capsys, "rho", BOX, *extra)
         assert code == 1 and out == ""
@@ -62,7 +63,7 @@ def test_ctrl_c_in_process_is_one_line_130(monkeypatch, capsys):
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(cli, "rho", interrupted)
+    monkeypatch.setattr(rho_command, "rho", interrupted)
     code, out, err = run(capsys, "rho", BOX)
     assert code == 130 and one_line(err).startswith("interrupted:")
 
@@ -71,7 +72,7 @@ def test_memory_error_is_a_method_failure(monkeypatch, capsys):
     def huge(*args, **kwargs):
         raise MemoryError
 
-    monkeypatch.setattr(cli, "rho", huge)
+    monkeypatch.setattr(rho_command, "rho", huge)
     code, _, err = run(capsys, "rho", BOX)
     assert code == 1 and "out of memory" in one_line(err)
 

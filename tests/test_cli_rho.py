@@ -108,15 +108,15 @@ def test_timing_search_is_the_search_alone(capsys, monkeypatch):
     """``timing.search`` is the result's own search time, not the search and certificate."""
     import dataclasses
 
-    import closure_nlp.cli.main as cli
+    from closure_nlp.cli import rho_command
 
-    real = cli.rho
+    real = rho_command.rho
 
     def timed(*args, **kwargs):
         result = real(*args, **kwargs)
         return dataclasses.replace(result, timing=(1e-6, 5.0))
 
-    monkeypatch.setattr(cli, "rho", timed)
+    monkeypatch.setattr(rho_command, "rho", timed)
     code, out, _ = run(["rho", str(EXAMPLE), "--json"], capsys)
     parts = json.loads(out)["timing"]
     assert code == 0 and parts["search"] == 1e-6

@@ -207,11 +207,13 @@ def test_the_capacity_compiles_for_commands_that_may_place_frictionless_contacts
     command, kind, mu, compiled
 ):
     # the zonotope's capacity runs only in placements whose contacts are all frictionless
+    import importlib
     from argparse import Namespace
 
     from closure_nlp.cli import main as cli
 
-    args = Namespace(run=getattr(cli, f"_cmd_{command}"), type=kind, mu=mu)
+    module = importlib.import_module(f"closure_nlp.cli.{command}_command")
+    args = Namespace(run=getattr(module, f"cmd_{command}"), type=kind, mu=mu)
     assert cli._frictionless_placements(args) is compiled
 
 

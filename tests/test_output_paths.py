@@ -11,7 +11,9 @@ import pytest
 
 import closure_nlp.cli.main as cli
 from closure_nlp.base.files import staged_folder
+from closure_nlp.cli import place_command, plan_command
 from closure_nlp.model.elements import save_model
+from closure_nlp.report import drawing
 
 from .shapes import box_model
 
@@ -38,9 +40,9 @@ def no_work(monkeypatch):
     def forbidden(*args, **kwargs):
         raise AssertionError("work started before the output path was checked")
 
-    monkeypatch.setattr(cli, "plan", forbidden)
-    monkeypatch.setattr(cli, "Placer", forbidden)
-    monkeypatch.setattr(cli, "save_view", forbidden, raising=False)
+    monkeypatch.setattr(plan_command, "plan", forbidden)
+    monkeypatch.setattr(place_command, "Placer", forbidden)
+    monkeypatch.setattr(drawing, "save_view", forbidden)
 
 
 @pytest.mark.parametrize(

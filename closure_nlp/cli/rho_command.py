@@ -1,0 +1,38 @@
+"""``closure-nlp rho FILE...``: certified rho of contact-set files."""
+
+from __future__ import annotations
+
+import time
+
+from closure_nlp.base.formatting import certain
+from closure_nlp.cli.arguments import model_tolerance
+from closure_nlp.cli.output import bounds_text, emit, load_each, shown, verdict_text, whole_cost
+from closure_nlp.report.plan_report import load_contacts
+from closure_nlp.rho.support_minimum import rho
+
+
+def add_rho(sub, common) -> None:
+    p = sub.add_parser("rho", parents=[common], help="rho(0, W_c^M) of contact-set files")
+    p.add_argument(
+        "files", nargs="+", metavar="FILE", help="*.contacts.json (or a plan's report.json)"
+    )
+    p.add_argument(
+        "--certify",
+        action="store_true",
+        help="accepted for compatibility: certified bounds lo <= rho <= hi are always given",
+    )
+    p.set_defaults(run=cmd_rho)
+
+def cmd_rho(args) -> None:
+    for path, contact_set in load_each(args.files, load_contacts):
+        t0 = time.perf_counter()
+        result = rho(contact_set, tolerance=model_tolerance(args, contact_set.tolerance))
+        payload = {"file": path, **result.to_dict(), **whole_cost(result, t0)}
+        direction = " ".join(f"{x:+.4f}" for x in result.direction)
+        emit(
+            args,
+            payload,
+            f"{shown(path)}: rho = {certain(result.rho, result.bounds)} "
+            f"({verdict_text(result, result.force_closure)}); "
+            f"weakest direction u* = [{direction}]" + bounds_text(result, "rho"),
+        )
