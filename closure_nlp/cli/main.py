@@ -2,12 +2,13 @@
 
 Each command is a ``cmd_<name>(args)`` function in a module of its own (``<name>_command``),
 which prints one JSON-able dict per input and a human-readable line for it. Exit status
-(README, "Exit status"): 2 for bad input, which the commands check before any work and
-raise as :class:`InputError` naming the file and the field; 1 when the method cannot answer (:class:`MethodError`, out of memory, a non-finite result) or the
-system refuses (:class:`OutputFault`, any ``OSError``: a full disk, stdout full or closed);
-3 for an internal error (a bug: any other exception once the work has started, printed as
-``internal error:``, never as bad input); 130 for Ctrl-C. No traceback reaches the user
-(``CLOSURE_NLP_TRACEBACK=1`` prints it, for bug reports).
+(README, "Exit status"): 2 for bad input, which the commands check before any work and raise
+as :class:`InputError` naming the file and the field; 1 when the method cannot answer
+(:class:`MethodError`, out of memory, a non-finite result) or the system refuses
+(:class:`OutputFault`, any ``OSError``: a full disk, stdout full or closed); 3 for an internal
+error (a bug: any other exception once the work has started, printed as ``internal error:``,
+never as bad input); 130 for Ctrl-C. No traceback reaches the user (``CLOSURE_NLP_TRACEBACK=1``
+prints it, for bug reports).
 """
 
 from __future__ import annotations
