@@ -26,8 +26,8 @@ from closure_nlp.contact.random_sets import BENCH_CASES, random_contact_set
 from closure_nlp.contact.wrenches import WrenchSlots
 from closure_nlp.model.elements import load_model
 from closure_nlp.model.scale import contact_specs
+from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.placement.place import Placer
-from closure_nlp.placement.placer import PlacementOptions
 from closure_nlp.planning.plan import plan
 from closure_nlp.rho.rho_hat import Eligibility
 from closure_nlp.rho.support_minimum import SearchOptions, SupportMinimizer, certified_rho
@@ -1082,7 +1082,7 @@ def bench_units(
     Each pair's certified capacities must differ by at most the larger gap times the smaller
     ceiling (``agree``); ``work`` compares the exchange rounds, cells and seconds of the two
     units (mm over m); ``lp_centre``: placed with
-    :attr:`~closure_nlp.placement.placer.PlacementOptions.lp_centre`. Needs pybullet's data
+    :attr:`~closure_nlp.placement.options.PlacementOptions.lp_centre`. Needs pybullet's data
     (``pybullet_data``)."""
     import trimesh
 

@@ -51,8 +51,8 @@ _PUBLIC = {
     "SelectionResult": "closure_nlp.selection.algorithms",
     "place": "closure_nlp.placement.place",
     "Placer": "closure_nlp.placement.place",
-    "PlacementOptions": "closure_nlp.placement.placer",
-    "PlacementResult": "closure_nlp.placement.placer",
+    "PlacementOptions": "closure_nlp.placement.options",
+    "PlacementResult": "closure_nlp.placement.result",
     "plan": "closure_nlp.planning.plan",
     "PlanResult": "closure_nlp.planning.single",
     "write_report": "closure_nlp.report.plan_report",
@@ -132,8 +132,9 @@ if TYPE_CHECKING:  # what static tools see; at run time the names load on first 
     from closure_nlp.model.characterize import CharacterizeOptions, characterize
     from closure_nlp.model.elements import Element, ElementKind, Model, load_model, save_model
     from closure_nlp.model.scale import contact_specs
+    from closure_nlp.placement.options import PlacementOptions
     from closure_nlp.placement.place import Placer, place
-    from closure_nlp.placement.placer import PlacementOptions, PlacementResult
+    from closure_nlp.placement.result import PlacementResult
     from closure_nlp.planning.plan import plan
     from closure_nlp.planning.single import PlanResult
     from closure_nlp.report.plan_report import write_report

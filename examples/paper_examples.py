@@ -21,7 +21,7 @@ import numpy as np
 from closure_nlp.base.files import write_atomic
 from closure_nlp.model.elements import load_model
 from closure_nlp.model.scale import contact_specs
-from closure_nlp.placement.placer import PlacementOptions
+from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.planning.plan import plan
 from closure_nlp.rho.rho_hat import Eligibility
 

@@ -913,7 +913,7 @@ def _api_cases() -> list[Case]:
     from closure_nlp.base.files import write_json
     from closure_nlp.model.characterize import characterize
     from closure_nlp.model.elements import save_model, simplex_weights
-    from closure_nlp.placement.placer import PlacementOptions
+    from closure_nlp.placement.options import PlacementOptions
     from closure_nlp.selection.algorithms import SelectionOptions, heuristic
 
     for label, kwargs in [
@@ -1429,7 +1429,7 @@ def _strict_cases() -> list[Case]:
     from closure_nlp.contact.contact_set import Contact, ContactSet, contact_set_from_dict
     from closure_nlp.model.elements import model_from_dict
     from closure_nlp.model.scale import contact_specs
-    from closure_nlp.placement.placer import PlacementOptions
+    from closure_nlp.placement.options import PlacementOptions
     from closure_nlp.rho.rho_hat import Eligibility
     from closure_nlp.rho.support_minimum import rho
     from closure_nlp.selection.algorithms import heuristic

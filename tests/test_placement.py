@@ -14,8 +14,10 @@ from closure_nlp.contact.contact_set import ContactSet, load_contact_set
 from closure_nlp.contact.wrenches import WrenchSlots
 from closure_nlp.model.elements import Element, Model, load_model, nearest_weights, save_model
 from closure_nlp.model.scale import contact_specs
+from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.placement.place import Placer
-from closure_nlp.placement.placer import ElementFrame, ExchangeLP, ExchangeProblem, PlacementOptions
+from closure_nlp.placement.placer import ElementFrame
+from closure_nlp.placement.restricted import ExchangeLP, ExchangeProblem
 from closure_nlp.rho.certificate import certified_bounds
 from closure_nlp.rho.rho_hat import Eligibility
 from closure_nlp.rho.support_minimum import rho, search_rho
@@ -238,7 +240,7 @@ def test_affine_position_form_matches_the_weights_form(monkeypatch):
     (``AFFINE_ROWS``): the same NLP, so a solve gives the same optimum as the weights form. (Not
     the same weights: on a 24-vertex facet many weights give one position, so whole placements
     part ways after a few rounds, as any change of IPOPT's path makes them.)"""
-    from closure_nlp.placement import placer as placement
+    from closure_nlp.placement import restricted as placement
 
     placer, frames, rows, rng = _pistol_exchange(2, type="pcwf", mu=0.3)
     elements, model = PISTOL_SET, placer.eligibility.model
@@ -288,7 +290,7 @@ def test_friction_components_leave_the_exchange_nlp_unchanged(kind):
 def test_exchange_nlp_built_without_the_parameters_gradient_takes_the_same_iterates(monkeypatch):
     """Built without CasADi's gradient for the parameters' multipliers (``NLPSOL_OPTIONS``),
     the exchange NLP takes the same iterations to the same weights and ``r``, to the bit."""
-    from closure_nlp.placement import placer as placement
+    from closure_nlp.placement import restricted as placement
 
     placer, frames, rows, rng = _pistol_exchange(6, type="pcwf", mu=0.2)
     elements = PISTOL_SET

@@ -16,8 +16,8 @@ from closure_nlp.placement.ceiling import (
     element_pieces,
     relative_gap,
 )
+from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.placement.place import Placer
-from closure_nlp.placement.placer import PlacementOptions
 from closure_nlp.rho.rho_hat import Eligibility
 from closure_nlp.rho.support_minimum import rho
 from tests.shapes import box_model

@@ -11,8 +11,8 @@ from dataclasses import replace
 import pytest
 
 from closure_nlp.model.scale import contact_specs
+from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.placement.place import Placer
-from closure_nlp.placement.placer import PlacementOptions
 from closure_nlp.planning.plan import plan
 from closure_nlp.rho.rho_hat import Eligibility
 from closure_nlp.selection.algorithms import SelectionOptions, _multiset

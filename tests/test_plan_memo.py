@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from closure_nlp.model.scale import contact_specs
+from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.placement.place import Placer
-from closure_nlp.placement.placer import PlacementOptions
 from closure_nlp.planning import single as planning
 from closure_nlp.planning.plan import plan
 from closure_nlp.rho.rho_hat import Eligibility

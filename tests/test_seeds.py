@@ -15,7 +15,7 @@ import pytest
 from closure_nlp.cli import main as cli
 from closure_nlp.model.elements import save_model
 from closure_nlp.model.scale import contact_specs
-from closure_nlp.placement.placer import PlacementOptions
+from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.planning import seeds, single
 from closure_nlp.planning.plan import plan
 from closure_nlp.planning.single import PlanResult

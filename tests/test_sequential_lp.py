@@ -13,14 +13,10 @@ from closure_nlp.contact.contact_set import ContactType
 from closure_nlp.contact.wrenches import WrenchSlots
 from closure_nlp.model.elements import load_model
 from closure_nlp.model.scale import contact_specs
+from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.placement.place import Placer
-from closure_nlp.placement.placer import (
-    ElementFrame,
-    ExchangeProblem,
-    ExchangeSLP,
-    PlacementOptions,
-    _unpadded,
-)
+from closure_nlp.placement.placer import ElementFrame, ExchangeSLP, _unpadded
+from closure_nlp.placement.restricted import ExchangeProblem
 from closure_nlp.placement.sequential_lp import (
     ModelSLP,
     linearised_support,

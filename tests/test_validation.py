@@ -281,7 +281,7 @@ def test_a_set_of_element_ids_is_refused():
 
 
 def test_numpy_booleans_and_integers_accepted_where_python_ones_are():
-    from closure_nlp.placement.placer import PlacementOptions
+    from closure_nlp.placement.options import PlacementOptions
     from closure_nlp.rho.support_minimum import rho
     from closure_nlp.selection.algorithms import SelectionOptions
 

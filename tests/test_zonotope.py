@@ -9,8 +9,8 @@ from closure_nlp.contact.contact_set import grasp_matrices
 from closure_nlp.contact.random_sets import random_contact_set
 from closure_nlp.model.scale import contact_specs
 from closure_nlp.placement.ceiling import BoundOptions, _solve_lp, capacity_bound
+from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.placement.place import Placer
-from closure_nlp.placement.placer import PlacementOptions
 from closure_nlp.rho.frictionless import climb, facet_rows, frictionless_capacity
 from closure_nlp.rho.rho_hat import Eligibility
 from closure_nlp.rho.support_minimum import rho

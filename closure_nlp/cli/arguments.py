@@ -10,7 +10,7 @@ from closure_nlp.base.validation import (
     ascii_number,
 )
 from closure_nlp.cli.output import InputError
-from closure_nlp.placement.placer import PlacementOptions
+from closure_nlp.placement.options import PlacementOptions
 
 MAX_STARTS = 100  # placement start weights per run: each is a full exchange method
 

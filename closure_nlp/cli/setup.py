@@ -28,7 +28,7 @@ from closure_nlp.model.elements import load_model
 from closure_nlp.model.scale import contact_specs, is_auto, scale_warnings
 from closure_nlp.model.scale import resolve as resolve_scale
 from closure_nlp.placement.ceiling import gap_text
-from closure_nlp.placement.placer import PlacementOptions
+from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.rho.rho_hat import Eligibility
 
 

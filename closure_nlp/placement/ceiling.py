@@ -87,7 +87,8 @@ from closure_nlp.contact.wrenches import WrenchSlots
 from closure_nlp.model.elements import nearest_weights
 from closure_nlp.placement import max_min_lp as lp_solvers  # tests swap its solvers
 from closure_nlp.placement.max_min_lp import INF, OPTIMAL, dual_bound, max_min_model, thread_solver
-from closure_nlp.placement.placer import ExchangePlacer, PlacementOptions
+from closure_nlp.placement.options import PlacementOptions
+from closure_nlp.placement.placer import ExchangePlacer
 from closure_nlp.rho.certificate import tolerance_unit
 from closure_nlp.rho.frictionless import MAX_CONTACTS, climb, facet_rows
 from closure_nlp.rho.rho_hat import Eligibility
@@ -265,7 +266,7 @@ class CapacityBound:
         ``(value - capacity) / value`` when ``capacity > 0`` (the best placement is force
         closure), else None: a relative gap to a ceiling means nothing below zero capacity.
     placement : object or None
-        The best placement found (a :class:`~closure_nlp.placement.placer.PlacementResult`), or None
+        The best placement found (a :class:`~closure_nlp.placement.result.PlacementResult`), or None
         when none beat the one given.
     nodes : int
         Cells bounded (the root included).

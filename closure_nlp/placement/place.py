@@ -7,7 +7,9 @@ import time
 
 from closure_nlp.base.progress import Progress
 from closure_nlp.placement.ceiling import bounded
-from closure_nlp.placement.placer import ExchangePlacer, PlacementOptions, PlacementResult
+from closure_nlp.placement.options import PlacementOptions
+from closure_nlp.placement.placer import ExchangePlacer
+from closure_nlp.placement.result import PlacementResult
 from closure_nlp.rho.rho_hat import Eligibility
 
 

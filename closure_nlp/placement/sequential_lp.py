@@ -18,9 +18,10 @@ ends at a point no linearisation can improve. A local maximum of a minimum of co
 sits where enough of them (or the simplex and trust-region bounds) are active, as in a linear
 programme, so the steps are few (median 4, at most 11, on the lamp's 125 restricted problems).
 
-Against IPOPT on the smooth restriction of :class:`~closure_nlp.placement.placer.ExchangeProblem`:
-the true support function is modelled (every subset and friction piece re-chosen at each step,
-no smoothing), nothing is built per problem size, and a step is one small LP.
+Against IPOPT on the smooth restriction of
+:class:`~closure_nlp.placement.restricted.ExchangeProblem`: the true support function is
+modelled (every subset and friction piece re-chosen at each step, no smoothing), nothing is
+built per problem size, and a step is one small LP.
 """
 
 from __future__ import annotations
@@ -117,7 +118,7 @@ def linearised_support(local, c, slots: WrenchSlots):
 
 def restricted_model(slots_at_c: WrenchSlots, f_max, U, margin: float):
     """The exchange method's restricted model of ``p(u_k; .)`` chosen at the weights of
-    ``slots_at_c`` (:class:`~closure_nlp.placement.placer.ExchangeProblem`): each direction's
+    ``slots_at_c`` (:class:`~closure_nlp.placement.restricted.ExchangeProblem`): each direction's
     subset of
     contacts with ``P_ik > -margin f_i`` (the largest alone if none) and each contact's largest
     friction piece there.
@@ -269,7 +270,7 @@ class ExchangeSLP:
 
 
 class ModelSLP(ExchangeSLP):
-    """The restricted problem of :class:`~closure_nlp.placement.placer.ExchangeProblem` itself
+    """The restricted problem of :class:`~closure_nlp.placement.restricted.ExchangeProblem` itself
     (IPOPT's
     model: each direction's subset of contacts and each contact's friction piece fixed at the
     start weights, :func:`restricted_model`) by sequential linear programming. Each term is

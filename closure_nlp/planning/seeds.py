@@ -29,8 +29,8 @@ from closure_nlp.base.interrupts import leave_to_parent
 from closure_nlp.base.progress import Progress
 from closure_nlp.base.tolerances import DEFAULT_TOLERANCES
 from closure_nlp.base.validation import MAX_SEED
+from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.placement.place import Placer
-from closure_nlp.placement.placer import PlacementOptions
 from closure_nlp.planning import single
 from closure_nlp.planning.single import MEMO_SIZE, adopt_memo, memo_entries
 from closure_nlp.rho.certificate import tolerance_unit

@@ -17,8 +17,9 @@ from closure_nlp.base.progress import Progress
 from closure_nlp.base.solver_cache import cached
 from closure_nlp.base.validation import is_whole
 from closure_nlp.placement import ceiling
+from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.placement.place import Placer
-from closure_nlp.placement.placer import PlacementOptions, PlacementResult
+from closure_nlp.placement.result import PlacementResult
 from closure_nlp.rho.rho_hat import Eligibility
 from closure_nlp.selection.algorithms import (
     SelectionOptions,

@@ -20,7 +20,7 @@ Keys: ``models`` (required; a path or a list), ``contacts`` (required; number of
 ``seeds`` (1: seed 0), ``name`` (default: the file name), ``description``, and the tables
 ``[selection]`` (fields of :class:`~closure_nlp.selection.algorithms.SelectionOptions`) and
 ``[placement]``
-(fields of :class:`~closure_nlp.placement.placer.PlacementOptions`). Every value-or-list key is one
+(fields of :class:`~closure_nlp.placement.options.PlacementOptions`). Every value-or-list key is one
 axis of the grid; an unknown key or option, a missing model or a bad value is a ``ValueError``
 (or ``TypeError``) that names the key and the value.
 

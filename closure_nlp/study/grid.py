@@ -27,7 +27,7 @@ from closure_nlp.contact.contact_set import DEFAULT_F_MAX, DEFAULT_MU, DEFAULT_M
 from closure_nlp.contact.count import closure_count_problem
 from closure_nlp.model.elements import load_model
 from closure_nlp.model.scale import contact_specs
-from closure_nlp.placement.placer import PlacementOptions
+from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.selection.algorithms import SelectionOptions
 from closure_nlp.study.tasks import Task
 

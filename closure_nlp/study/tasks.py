@@ -22,8 +22,8 @@ from closure_nlp.base.files import parse_json, read_input
 from closure_nlp.base.solver_cache import PerThread
 from closure_nlp.model.elements import model_from_dict
 from closure_nlp.model.scale import contact_specs
+from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.placement.place import Placer
-from closure_nlp.placement.placer import PlacementOptions
 from closure_nlp.planning.plan import plan
 from closure_nlp.planning.seeds import wrench_unit
 from closure_nlp.rho.rho_hat import Eligibility
