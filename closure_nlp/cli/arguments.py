@@ -14,7 +14,7 @@ from closure_nlp.placement.options import PlacementOptions
 
 MAX_STARTS = 100  # placement start weights per run: each is a full exchange method
 
-MAX_WORKERS = 256  # local Dask worker processes
+MAX_WORKERS = 256  # a command's workers: threads, processes or local Dask workers
 
 
 def model_tolerance(args, given):

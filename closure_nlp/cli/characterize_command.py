@@ -73,6 +73,7 @@ CHARACTERIZE_FLAGS = (
     "merge_bodies",
 )
 
+
 def cmd_characterize(args) -> None:
     from pathlib import Path
 

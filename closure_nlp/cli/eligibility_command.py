@@ -25,6 +25,7 @@ def add_eligibility(sub, common) -> None:
     add_contact_options(p)
     p.set_defaults(run=cmd_eligibility)
 
+
 def cmd_eligibility(args) -> None:
     ids = id_list(args.elements, "--elements")
     eligibility = model_eligibility(args, len(ids), "--elements")

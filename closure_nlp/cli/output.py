@@ -22,12 +22,14 @@ class InputError(ValueError):
     def __init__(self, source: str, message: str):
         super().__init__(f"{source}: {message}")
 
+
 class OutputFault(RuntimeError):
     """The system refused the output (a full disk, a closed or full stdout, an encoding that
     cannot show a name): exit 1, like any fault of the environment, never a bug."""
 
     def __init__(self, source: str, message: str):
         super().__init__(f"{source}: {message}")
+
 
 def print_line(line: str) -> None:
     """``line`` on stdout; a failure of stdout is an :class:`OutputFault` (exit 1)."""
@@ -45,6 +47,7 @@ def print_line(line: str) -> None:
     except OSError as exc:  # a full device (/dev/full), an I/O error
         raise OutputFault("stdout", f"cannot write: {exc.strerror or exc}") from None
 
+
 def flush_stdout() -> None:
     """Push out what is buffered: a full device fails here, after the last line."""
     try:
@@ -54,9 +57,11 @@ def flush_stdout() -> None:
     except OSError as exc:
         raise OutputFault("stdout", f"cannot write: {exc.strerror or exc}") from None
 
+
 def shown(name) -> str:
     """A name (a path) as messages show it: control characters escaped, one line."""
     return escape(str(name))
+
 
 @contextlib.contextmanager
 def reading(source: str):
@@ -69,11 +74,13 @@ def reading(source: str):
     except (ValueError, TypeError) as exc:
         raise InputError(source, str(exc)) from None
 
+
 def check_finite(payload: dict, source: str) -> None:
     """Every number printed or written is finite: a NaN is the method's failure, not an answer."""
     key = non_finite_key(payload)
     if key is not None:
         raise MethodError(f"{source}: the method produced a non-finite {key}; nothing reported")
+
 
 def emit(args, payload: dict, text: str) -> None:
     scale = getattr(args, "scale", None)
@@ -82,6 +89,7 @@ def emit(args, payload: dict, text: str) -> None:
         text = f"{shown(args.model)}: {scale.text(getattr(args, 'soft_fingers', True))}\n{text}"
     check_finite(payload, str(payload.get("file", getattr(args, "model", ""))))
     print_line(json.dumps(payload, allow_nan=False) if args.json else text)
+
 
 def load_each(paths, loader):
     """Load and validate every input before any work, so bad input prints no partial output."""
@@ -93,6 +101,7 @@ def load_each(paths, loader):
             raise InputError(path, str(exc)) from None
     return loaded
 
+
 def whole_cost(result, t0: float) -> dict:
     """``seconds``: the whole cost of an answer since ``t0`` (search and certificate), with its
     parts under ``timing``: the search as the result timed it, the rest (certificate, robustness)
@@ -100,6 +109,7 @@ def whole_cost(result, t0: float) -> dict:
     whole = time.perf_counter() - t0
     search = result.timing[0] if result.timing is not None else result.stats.seconds
     return {"seconds": whole, "timing": {"search": search, "certificate": max(whole - search, 0.0)}}
+
 
 def verdict_text(result, positive: bool, yes="force closure", no="not force closure") -> str:
     """The certified verdict in words; a bracket that reaches zero is marginal, never closure."""
@@ -113,6 +123,7 @@ def verdict_text(result, positive: bool, yes="force closure", no="not force clos
         return f"{yes} by the file, NOT robust within the model's tolerance ({shift})"
     return yes if positive else no
 
+
 def bounds_text(result, name: str) -> str:
     """``; certified lo <= name <= hi`` (one digit more than the value, numbers.bracket), and
     the width when the bracket did not converge."""
@@ -124,8 +135,10 @@ def bounds_text(result, name: str) -> str:
         text += f" (not converged: width {hi - lo:.2g})"
     return text
 
+
 def joined_ids(ids) -> str:
     return ",".join(str(i) for i in ids)
+
 
 def progress_bar(args, starts: int | None = None):
     """``(callback, close)``: a progress line on stderr, only on a terminal and without

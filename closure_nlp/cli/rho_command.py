@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import time
+from concurrent.futures import ThreadPoolExecutor
 
 from closure_nlp.base.formatting import certain
-from closure_nlp.cli.arguments import model_tolerance
+from closure_nlp.cli.arguments import MAX_WORKERS, bounded_int, model_tolerance
 from closure_nlp.cli.output import bounds_text, emit, load_each, shown, verdict_text, whole_cost
 from closure_nlp.report.plan_report import load_contacts
 from closure_nlp.rho.support_minimum import rho
@@ -21,18 +22,38 @@ def add_rho(sub, common) -> None:
         action="store_true",
         help="accepted for compatibility: certified bounds lo <= rho <= hi are always given",
     )
+    p.add_argument(
+        "--workers",
+        type=bounded_int(1, MAX_WORKERS, "the number of workers"),
+        default=1,
+        metavar="K",
+        help="files certified at once, in threads (default 1); the answers and their order "
+        "do not depend on it",
+    )
     p.set_defaults(run=cmd_rho)
 
+
 def cmd_rho(args) -> None:
-    for path, contact_set in load_each(args.files, load_contacts):
-        t0 = time.perf_counter()
-        result = rho(contact_set, tolerance=model_tolerance(args, contact_set.tolerance))
-        payload = {"file": path, **result.to_dict(), **whole_cost(result, t0)}
-        direction = " ".join(f"{x:+.4f}" for x in result.direction)
-        emit(
-            args,
-            payload,
-            f"{shown(path)}: rho = {certain(result.rho, result.bounds)} "
-            f"({verdict_text(result, result.force_closure)}); "
-            f"weakest direction u* = [{direction}]" + bounds_text(result, "rho"),
-        )
+    loaded = load_each(args.files, load_contacts)
+    if args.workers == 1:
+        answers = (_answer(args, path, contact_set) for path, contact_set in loaded)
+        for payload, text in answers:
+            emit(args, payload, text)
+        return
+    with ThreadPoolExecutor(min(args.workers, len(loaded))) as pool:
+        for payload, text in pool.map(lambda item: _answer(args, *item), loaded):
+            emit(args, payload, text)
+
+
+def _answer(args, path, contact_set) -> tuple[dict, str]:
+    """One file's JSON answer and its line of text."""
+    t0 = time.perf_counter()
+    result = rho(contact_set, tolerance=model_tolerance(args, contact_set.tolerance))
+    payload = {"file": path, **result.to_dict(), **whole_cost(result, t0)}
+    direction = " ".join(f"{x:+.4f}" for x in result.direction)
+    text = (
+        f"{shown(path)}: rho = {certain(result.rho, result.bounds)} "
+        f"({verdict_text(result, result.force_closure)}); "
+        f"weakest direction u* = [{direction}]" + bounds_text(result, "rho")
+    )
+    return payload, text

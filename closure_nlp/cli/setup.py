@@ -49,6 +49,7 @@ def model_eligibility(args, m: int, field: str = "--contacts", closure: bool = F
             require_closure_count(specs, field)
     return Eligibility(model, specs, scale.torque_scale)
 
+
 def read_model(args, marked: list | None = None):
     """``args.model`` with its mesh checked: inside the model's folder (unless
     ``--allow-outside-mesh``), facet and segment normals pointing into it; a missing or broken
@@ -80,6 +81,7 @@ def read_model(args, marked: list | None = None):
         )
     return model
 
+
 def model_specs(args, m: int, model):
     """The ``m`` contact specs of the contact options, and the scale (torque scale, mu_s)."""
     torque_scale = args.torque_scale
@@ -102,6 +104,7 @@ def model_specs(args, m: int, model):
         raise ValueError(f"contact options: {exc}") from None
     return specs, scale
 
+
 def with_margin(args, eligibility: Eligibility, ids=()) -> Eligibility:
     """``eligibility`` on the model shrunk by ``--margin`` (itself when the margin is 0);
     ``ids``: elements the command names, refused when too small for the margin."""
@@ -122,6 +125,7 @@ def with_margin(args, eligibility: Eligibility, ids=()) -> Eligibility:
     specs, scale = eligibility.specs, eligibility.torque_scale
     return Eligibility(model, specs, scale, tolerance=eligibility.tolerance)
 
+
 def margin_text(args, model) -> str:
     """The margin's line of a command's text (empty without a margin)."""
     if not args.margin:
@@ -132,6 +136,7 @@ def margin_text(args, model) -> str:
         listed = joined_ids(left) if len(left) <= 12 else f"{joined_ids(left[:12])},..."
         text += f"; {len(left)} element(s) too small for it left out ({listed})"
     return text
+
 
 def placement_options(args, seeded: bool) -> PlacementOptions:
     """``--starts`` (and ``--seed`` when it seeds the placement, as in ``place``; in ``plan`` it
@@ -149,6 +154,7 @@ def placement_options(args, seeded: bool) -> PlacementOptions:
     except ValueError as exc:
         raise ValueError(f"--{exc}") from None
 
+
 def placement_setup(args, seeded: bool, check_out):
     """``(options, progress, close)`` of a command that places contacts, its ``--out`` checked
     by ``check_out`` before any work."""
@@ -159,6 +165,7 @@ def placement_setup(args, seeded: bool, check_out):
             check_out(args.out)
     progress, close = progress_bar(args, options.starts)
     return options, progress, close
+
 
 def placement_text(result, model) -> str:
     verdict = verdict_text(result, result.force_closure)

@@ -48,6 +48,7 @@ def add_show(sub, common) -> None:
     )
     p.set_defaults(run=cmd_show)
 
+
 def contact_elements(path: str) -> list[int]:
     """The ``element`` ids named by the contacts of a contact-set file (for highlighting)."""
     from closure_nlp.base.files import load_json
@@ -59,6 +60,7 @@ def contact_elements(path: str) -> list[int]:
     ids = [e.get("element") for e in entries if isinstance(e, dict)]
     return [i for i in ids if isinstance(i, int) and not isinstance(i, bool)]
 
+
 def show_title(model, contacts) -> str | None:
     """``name: N contacts, rho = ... (verdict)`` when contacts are drawn (their certified rho,
     as ``closure-nlp rho`` gives it); None: the model's name and counts."""
@@ -69,6 +71,7 @@ def show_title(model, contacts) -> str | None:
         f"{model.name}: {len(contacts.contacts)} contacts, rho = "
         f"{certain(result.rho, result.bounds)} ({verdict_text(result, result.force_closure)})"
     )
+
 
 def cmd_show(args) -> None:
     from pathlib import Path

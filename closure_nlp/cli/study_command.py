@@ -39,6 +39,7 @@ def add_study(sub, common) -> None:
     p.add_argument("--retry-failed", action="store_true", help="run failed tasks again")
     p.set_defaults(run=cmd_study)
 
+
 def cmd_study(args) -> None:
     from closure_nlp.study import load_study, run_study
 
