@@ -24,13 +24,13 @@ from scipy.optimize import minimize
 from closure_nlp.contact.contact_set import Contact, ContactSet, ContactType
 from closure_nlp.contact.random_sets import BENCH_CASES, random_contact_set
 from closure_nlp.contact.wrenches import WrenchSlots
+from closure_nlp.criterion.rho_hat import Eligibility
+from closure_nlp.criterion.support_minimum import SearchOptions, SupportMinimizer, certified_rho
 from closure_nlp.model.elements import load_model
 from closure_nlp.model.scale import contact_specs
 from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.placement.place import Placer
 from closure_nlp.planning.plan import plan
-from closure_nlp.rho.rho_hat import Eligibility
-from closure_nlp.rho.support_minimum import SearchOptions, SupportMinimizer, certified_rho
 from closure_nlp.selection.algorithms import SelectionOptions, heuristic, iterative
 
 
@@ -115,7 +115,7 @@ def bench_certify(cases: int = 20, seed: int = 0, models_dir=None) -> dict:
     both), against SLSQP from ``+-e_k`` (uncertified, the paper's approach); the
     bracket widths relative to ``max(|rho|, unit)``; how many brackets converged to 1e-6.
     """
-    from closure_nlp.rho.certificate import tolerance_unit
+    from closure_nlp.criterion.certificate import tolerance_unit
 
     minimizer = SupportMinimizer()
     families = {name: types for name, types in BENCH_CASES.items()}
@@ -227,9 +227,9 @@ def engine_families(cases: int, seed: int = 0) -> dict:
 _ENGINE_RUNNER = """
 import json, sys, time
 import numpy as np
-from closure_nlp.rho.certificate import tolerance_unit
+from closure_nlp.criterion.certificate import tolerance_unit
 from closure_nlp.contact.contact_set import contact_set_from_dict
-from closure_nlp.rho.support_minimum import SupportMinimizer, certified_rho, certified_search
+from closure_nlp.criterion.support_minimum import SupportMinimizer, certified_rho, certified_search
 from closure_nlp.contact.wrenches import WrenchSlots
 spec = json.loads(sys.stdin.read())
 minimizer = SupportMinimizer(**spec.get("minimizer", {}))
@@ -1221,7 +1221,7 @@ def main(argv=None) -> int:
         json.dump(report, sys.stdout, indent=2)
         sys.stdout.write("\n")
         return 0
-    from closure_nlp.rho.warm_up import warm_up
+    from closure_nlp.criterion.warm_up import warm_up
 
     warm_up()  # a kernel compiled inside a timed call would count its compile as its cost
     if args.what == "seeds":

@@ -34,15 +34,15 @@ _PUBLIC = {
     "characterize": "closure_nlp.model.characterize",
     "CharacterizeOptions": "closure_nlp.model.characterize",
     # rho and rho_hat
-    "rho": "closure_nlp.rho.support_minimum",
-    "RhoResult": "closure_nlp.rho.support_minimum",
-    "SearchOptions": "closure_nlp.rho.support_minimum",
-    "Eligibility": "closure_nlp.rho.rho_hat",
-    "EligibilityResult": "closure_nlp.rho.rho_hat",
-    "eligibility": "closure_nlp.rho.rho_hat",
-    "force_closure_cvxpy": "closure_nlp.rho.crosscheck",
-    "distance_cvxpy": "closure_nlp.rho.crosscheck",
-    "warm_up": "closure_nlp.rho.warm_up",
+    "rho": "closure_nlp.criterion.support_minimum",
+    "RhoResult": "closure_nlp.criterion.support_minimum",
+    "SearchOptions": "closure_nlp.criterion.support_minimum",
+    "Eligibility": "closure_nlp.criterion.rho_hat",
+    "EligibilityResult": "closure_nlp.criterion.rho_hat",
+    "eligibility": "closure_nlp.criterion.rho_hat",
+    "force_closure_cvxpy": "closure_nlp.criterion.crosscheck",
+    "distance_cvxpy": "closure_nlp.criterion.crosscheck",
+    "warm_up": "closure_nlp.criterion.warm_up",
     # selection, placement, planning, reports
     "select": "closure_nlp.selection.algorithms",
     "heuristic": "closure_nlp.selection.algorithms",
@@ -129,6 +129,10 @@ if TYPE_CHECKING:  # what static tools see; at run time the names load on first 
         ContactType,
         load_contact_set,
     )
+    from closure_nlp.criterion.crosscheck import distance_cvxpy, force_closure_cvxpy
+    from closure_nlp.criterion.rho_hat import Eligibility, EligibilityResult, eligibility
+    from closure_nlp.criterion.support_minimum import RhoResult, SearchOptions, rho
+    from closure_nlp.criterion.warm_up import warm_up
     from closure_nlp.model.characterize import CharacterizeOptions, characterize
     from closure_nlp.model.elements import Element, ElementKind, Model, load_model, save_model
     from closure_nlp.model.scale import contact_specs
@@ -138,10 +142,6 @@ if TYPE_CHECKING:  # what static tools see; at run time the names load on first 
     from closure_nlp.planning.plan import plan
     from closure_nlp.planning.single import PlanResult
     from closure_nlp.report.plan_report import write_report
-    from closure_nlp.rho.crosscheck import distance_cvxpy, force_closure_cvxpy
-    from closure_nlp.rho.rho_hat import Eligibility, EligibilityResult, eligibility
-    from closure_nlp.rho.support_minimum import RhoResult, SearchOptions, rho
-    from closure_nlp.rho.warm_up import warm_up
     from closure_nlp.selection.algorithms import (
         SelectionOptions,
         SelectionResult,

@@ -5,11 +5,13 @@
 The suite: random contact sets (``closure_nlp.contact.random_sets``) of every contact type and
 mixed,
 m = 2..7, force closure and not. For each set the certified bounds ``lo <= rho <= hi``
-(``closure_nlp.rho.certificate``, started at IPOPT's direction) are the yardstick; a method's error
+(``closure_nlp.criterion.certificate``, started at IPOPT's direction) are the yardstick; a method's
+error
 is
 how far its rho falls outside ``[lo, hi]`` (0 inside). Methods:
 
-* IPOPT: ``closure_nlp.rho.support_minimum.search_rho`` with ``solver="ipopt"`` (our search alone,
+* IPOPT: ``closure_nlp.criterion.support_minimum.search_rho`` with ``solver="ipopt"`` (our search
+alone,
 with
   the CasADi support-minimum NLP), solver built and warmed up first.
 * SLSQP from +-e_k: the paper's multi-start SQP (``benchmarks.bench.paper_baseline``).
@@ -19,7 +21,7 @@ with
   interior). This is the hull of the *union* of the contacts' wrenches (an L1 grasp wrench
   space with polyhedral cones), a smaller set than the paper's ``W_c^M`` (union of all
   Minkowski sums): its error says how much that choice changes the number, not a solver error.
-* cvxpy SOCP: ``closure_nlp.rho.crosscheck.distance_cvxpy``, exact for sets that are not force
+* cvxpy SOCP: ``closure_nlp.criterion.crosscheck.distance_cvxpy``, exact for sets that are not force
   closure (and only there: it returns 0 for the others).
 * cvxpy force-closure check: the verdict only (rank + SOCP margin).
 
@@ -55,12 +57,12 @@ from closure_nlp.base.files import write_atomic
 from closure_nlp.contact.contact_set import ContactSet, ContactType, load_contact_set
 from closure_nlp.contact.random_sets import random_contact_set
 from closure_nlp.contact.wrenches import WrenchSlots
+from closure_nlp.criterion.certificate import certified_bounds
+from closure_nlp.criterion.crosscheck import ball_minimum, force_closure_check
+from closure_nlp.criterion.rho_hat import Eligibility
+from closure_nlp.criterion.support_minimum import SupportMinimizer, rho, search_rho
 from closure_nlp.model.elements import load_model
 from closure_nlp.model.scale import contact_specs
-from closure_nlp.rho.certificate import certified_bounds
-from closure_nlp.rho.crosscheck import ball_minimum, force_closure_check
-from closure_nlp.rho.rho_hat import Eligibility
-from closure_nlp.rho.support_minimum import SupportMinimizer, rho, search_rho
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402  (after the backend is chosen)

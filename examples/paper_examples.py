@@ -19,11 +19,11 @@ from pathlib import Path
 import numpy as np
 
 from closure_nlp.base.files import write_atomic
+from closure_nlp.criterion.rho_hat import Eligibility
 from closure_nlp.model.elements import load_model
 from closure_nlp.model.scale import contact_specs
 from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.planning.plan import plan
-from closure_nlp.rho.rho_hat import Eligibility
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -28,10 +28,10 @@ import trimesh
 
 from closure_nlp.base.errors import MethodError
 from closure_nlp.base.files import write_atomic
+from closure_nlp.criterion.rho_hat import Eligibility
 from closure_nlp.model.characterize import characterize_mesh, drop_outward_as_read
 from closure_nlp.model.scale import contact_specs, resolve
 from closure_nlp.planning.plan import plan
-from closure_nlp.rho.rho_hat import Eligibility
 
 OUT = Path(__file__).parent / "out"
 MESHES = {

@@ -790,11 +790,11 @@ def _flag_cases() -> list[Case]:
 def _api_cases() -> list[Case]:
     from closure_nlp.base.files import load_json
     from closure_nlp.contact.contact_set import Contact, ContactSet, contact_set_from_dict
+    from closure_nlp.criterion.rho_hat import Eligibility
+    from closure_nlp.criterion.support_minimum import rho
     from closure_nlp.model.elements import Element, Model, model_from_dict
     from closure_nlp.model.meshes import read_mesh
     from closure_nlp.model.scale import contact_specs
-    from closure_nlp.rho.rho_hat import Eligibility
-    from closure_nlp.rho.support_minimum import rho
 
     cases = []
 
@@ -926,7 +926,7 @@ def _api_cases() -> list[Case]:
         ("round_search=str", {"round_search": "light"}),
     ]:
         api(f"PlacementOptions({label})", lambda kw=kwargs: PlacementOptions(**kw).starts, ERROR)
-    from closure_nlp.rho.support_minimum import SupportMinimizer
+    from closure_nlp.criterion.support_minimum import SupportMinimizer
 
     for label, kwargs in [
         ("search=dict", {"search": {"samples": 8}}),
@@ -1427,11 +1427,11 @@ def _strict_cases() -> list[Case]:
     )
 
     from closure_nlp.contact.contact_set import Contact, ContactSet, contact_set_from_dict
+    from closure_nlp.criterion.rho_hat import Eligibility
+    from closure_nlp.criterion.support_minimum import rho
     from closure_nlp.model.elements import model_from_dict
     from closure_nlp.model.scale import contact_specs
     from closure_nlp.placement.options import PlacementOptions
-    from closure_nlp.rho.rho_hat import Eligibility
-    from closure_nlp.rho.support_minimum import rho
     from closure_nlp.selection.algorithms import heuristic
 
     model = model_from_dict(box)

@@ -1,7 +1,7 @@
 """An independent reference for tests: bounds on rho from an inner polytope (qhull) and an SOCP.
 
 This was the package's certificate before the branch and bound of
-:mod:`closure_nlp.rho.certificate`;
+:mod:`closure_nlp.criterion.certificate`;
 it is kept, for the tests only, because it reaches the same numbers by other mathematics (the
 facets of a hull of support points instead of a partition of the sphere), so each checks the
 other. It is slow at closure sets (hundreds of ms) and wide at symmetric minima.
@@ -21,7 +21,7 @@ support points of ``W`` (wrenches of the set, :meth:`WrenchSlots.support_points`
 * Origin not inside ``Q``: ``rho <= dist(0, W) <= dist(0, Q) = |x|`` for any point ``x`` of
   ``Q``; the nearest one comes from a small QP over convex weights (any feasible weights give a
   valid bound, so the solver's accuracy does not matter). When the origin is outside ``W`` (the
-  SOCP of :mod:`closure_nlp.rho.crosscheck` says how far), the refinement walks like Gilbert's
+  SOCP of :mod:`closure_nlp.criterion.crosscheck` says how far), the refinement walks like Gilbert's
   algorithm: support points at ``-x / |x|`` and around it.
 
 The bounds are exact up to floating-point evaluation of ``p`` and qhull's roundoff, which
@@ -43,7 +43,7 @@ from scipy.spatial import ConvexHull, QhullError
 from closure_nlp.base.tolerances import DEFAULT_TOLERANCES, Tolerances
 from closure_nlp.base.validation import as_vector
 from closure_nlp.contact.wrenches import WrenchSlots
-from closure_nlp.rho.crosscheck import SOLVER, as_slots, ball_minimum
+from closure_nlp.criterion.crosscheck import SOLVER, as_slots, ball_minimum
 
 # Taken off the nearest facet's distance (relative to the wrench scale): covers qhull's
 # roundoff (its facets may be off by ~1e-11 relative after merges), far below any tolerance.

@@ -13,11 +13,15 @@ from scipy.optimize import linprog
 from closure_nlp.contact.contact_set import Contact, ContactSet, ContactType, contact_set_from_dict
 from closure_nlp.contact.random_sets import random_contact_set
 from closure_nlp.contact.wrenches import WrenchSlots
+from closure_nlp.criterion.certificate import certified_bounds
+from closure_nlp.criterion.sphere_branch_bound import (
+    BranchBoundOptions,
+    _initial_cells,
+    sphere_minimum,
+)
+from closure_nlp.criterion.sphere_search import sphere_samples
+from closure_nlp.criterion.support_minimum import SupportMinimizer
 from closure_nlp.kernels import branch_bound as kernels
-from closure_nlp.rho.certificate import certified_bounds
-from closure_nlp.rho.sphere_branch_bound import BranchBoundOptions, _initial_cells, sphere_minimum
-from closure_nlp.rho.sphere_search import sphere_samples
-from closure_nlp.rho.support_minimum import SupportMinimizer
 
 from . import reference
 from .test_certify import symmetric_sets

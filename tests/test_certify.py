@@ -23,10 +23,10 @@ from closure_nlp.contact.contact_set import (
 )
 from closure_nlp.contact.random_sets import random_contact_set
 from closure_nlp.contact.wrenches import WrenchSlots
+from closure_nlp.criterion.certificate import certified_bounds, tolerance_unit
+from closure_nlp.criterion.crosscheck import ball_minimum
+from closure_nlp.criterion.support_minimum import SEED_SEARCH, SupportMinimizer, rho
 from closure_nlp.kernels import branch_bound as kernels
-from closure_nlp.rho.certificate import certified_bounds, tolerance_unit
-from closure_nlp.rho.crosscheck import ball_minimum
-from closure_nlp.rho.support_minimum import SEED_SEARCH, SupportMinimizer, rho
 
 from . import reference
 

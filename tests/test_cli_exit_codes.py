@@ -14,7 +14,7 @@ import pytest
 
 import closure_nlp.cli.main as cli
 from closure_nlp.cli import rho_command
-from closure_nlp.rho.support_minimum import rho as real_rho
+from closure_nlp.criterion.support_minimum import rho as real_rho
 
 ROOT = Path(__file__).resolve().parents[1]
 BOX = str(ROOT / "examples" / "box_7fpc.contacts.json")
@@ -218,7 +218,7 @@ API_LOOP = """
 import os, signal, sys, threading, time
 import numpy as np
 from benchmarks.bench import random_contact_set
-from closure_nlp.rho.support_minimum import SupportMinimizer
+from closure_nlp.criterion.support_minimum import SupportMinimizer
 from closure_nlp.contact.wrenches import WrenchSlots
 
 slots = WrenchSlots.from_contacts(random_contact_set(np.random.default_rng(0), ["pcwf"] * 120))

@@ -42,12 +42,12 @@ from closure_nlp.contact.count import (
     wrench_dimensions,
 )
 from closure_nlp.contact.random_sets import random_contact_set
+from closure_nlp.criterion.crosscheck import force_closure_cvxpy
+from closure_nlp.criterion.rho_hat import Eligibility
 from closure_nlp.model.elements import save_model
 from closure_nlp.model.scale import contact_specs
 from closure_nlp.placement.place import Placer
 from closure_nlp.planning.plan import plan
-from closure_nlp.rho.crosscheck import force_closure_cvxpy
-from closure_nlp.rho.rho_hat import Eligibility
 from closure_nlp.selection.algorithms import heuristic, iterative
 from tests.shapes import box_model
 

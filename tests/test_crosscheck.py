@@ -14,16 +14,16 @@ from closure_nlp.cli.main import main
 from closure_nlp.contact.contact_set import Contact, ContactSet, ContactType, grasp_matrices
 from closure_nlp.contact.random_sets import random_contact_set
 from closure_nlp.contact.wrenches import WrenchSlots
-from closure_nlp.rho.certificate import CertifiedBounds, CertifyOptions, certified_bounds
-from closure_nlp.rho.crosscheck import (
+from closure_nlp.criterion.certificate import CertifiedBounds, CertifyOptions, certified_bounds
+from closure_nlp.criterion.crosscheck import (
     ball_minimum,
     distance_cvxpy,
     force_closure_check,
     force_closure_cvxpy,
 )
-from closure_nlp.rho.hull_distance import min_norm_point
-from closure_nlp.rho.sphere_branch_bound import BranchBoundOptions
-from closure_nlp.rho.support_minimum import SearchOptions, SupportMinimizer, rho, search_rho
+from closure_nlp.criterion.hull_distance import min_norm_point
+from closure_nlp.criterion.sphere_branch_bound import BranchBoundOptions
+from closure_nlp.criterion.support_minimum import SearchOptions, SupportMinimizer, rho, search_rho
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "box_7fpc.contacts.json"

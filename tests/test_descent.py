@@ -8,8 +8,8 @@ import pytest
 from closure_nlp.contact.contact_set import ContactType
 from closure_nlp.contact.random_sets import random_contact_set
 from closure_nlp.contact.wrenches import WrenchSlots
+from closure_nlp.criterion.sphere_search import _smoothed_descend_numpy, descend, sphere_samples
 from closure_nlp.kernels import descent as kernels
-from closure_nlp.rho.sphere_search import _smoothed_descend_numpy, descend, sphere_samples
 
 TYPES = [t.value for t in ContactType]
 

@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 
 from closure_nlp.contact.contact_set import ContactSet
+from closure_nlp.criterion.certificate import certified_bounds
+from closure_nlp.criterion.crosscheck import force_closure_cvxpy
+from closure_nlp.criterion.rho_hat import Eligibility, padded_rows, rho_hat
+from closure_nlp.criterion.support_minimum import SupportMinProblem, rho
 from closure_nlp.model.elements import load_model
 from closure_nlp.model.scale import contact_specs
-from closure_nlp.rho.certificate import certified_bounds
-from closure_nlp.rho.crosscheck import force_closure_cvxpy
-from closure_nlp.rho.rho_hat import Eligibility, padded_rows, rho_hat
-from closure_nlp.rho.support_minimum import SupportMinProblem, rho
 from tests import reference
 from tests.shapes import box_model, random_model
 

@@ -118,7 +118,7 @@ def test_a_read_only_package_compiles_into_the_user_cache_and_loads_from_it(tmp_
 @pytest.mark.slow  # a cold compile of every kernel
 def test_a_cold_cache_compiles_once_and_says_so(tmp_path):
     code = (
-        "from closure_nlp.rho.warm_up import warm_up\n"
+        "from closure_nlp.criterion.warm_up import warm_up\n"
         "lines = []\n"
         "first = warm_up(lines.append)\n"
         "print(first is not None and first > 0, len(lines))\n"
@@ -128,7 +128,7 @@ def test_a_cold_cache_compiles_once_and_says_so(tmp_path):
     env = _env(PYTHONPATH=str(ROOT), NUMBA_CACHE_DIR=str(tmp_path / "numba"))
     assert _run(code, env, tmp_path) == ["True 2", "True True", "True 2"]
     # a new process finds everything in the disk cache: nothing to say
-    again = "from closure_nlp.rho.warm_up import warm_up\nlines = []\n"
+    again = "from closure_nlp.criterion.warm_up import warm_up\nlines = []\n"
     again += "print(warm_up(lines.append) is None, len(lines))\n"
     assert _run(again, env, tmp_path) == ["True 0"]
 
@@ -138,7 +138,7 @@ def test_the_rho_command_loads_only_the_kernels_of_rho(tmp_path):
 
     code = (
         "from closure_nlp.kernels import nearest_point, support\n"
-        "from closure_nlp.rho.warm_up import warm_up\n"
+        "from closure_nlp.criterion.warm_up import warm_up\n"
         "print(warm_up(rho_only=True) is None, bool(support.rows_many.overloads),\n"
         "      bool(support.slots_many.overloads), bool(nearest_point.min_norm_point.overloads),\n"
         "      bool(support.evaluate_many.overloads))\n"
@@ -162,7 +162,7 @@ def test_a_cold_rho_compiles_the_kernels_of_rho_and_a_later_command_the_others(t
     code = (
         "import sys\n"
         "from closure_nlp import kernels\n"
-        "from closure_nlp.rho import warm_up\n"
+        "from closure_nlp.criterion import warm_up\n"
         "lines = []\n"
         "rho_only, capacity = sys.argv[1] == 'rho', sys.argv[1] == 'all'\n"
         "first = warm_up.warm_up(lines.append, rho_only=rho_only, capacity=capacity)\n"
@@ -223,7 +223,7 @@ def test_the_declared_signatures_are_those_the_library_calls():
     import importlib
 
     from closure_nlp import kernels
-    from closure_nlp.rho import warm_up
+    from closure_nlp.criterion import warm_up
 
     warm_up.warm_up()  # rho, slot values, row terms, Wolfe's nearest point: every entry point
     declared = kernels.signatures()
@@ -294,10 +294,10 @@ def test_read_only_and_strided_inputs_reuse_the_compiled_kernels():
 
     from closure_nlp.contact.contact_set import Contact, ContactSet
     from closure_nlp.contact.wrenches import WrenchSlots
+    from closure_nlp.criterion.hull_distance import _start_directions, min_norm_point
+    from closure_nlp.criterion.support_minimum import _local_minimum
     from closure_nlp.kernels import descent
     from closure_nlp.kernels import nearest_point as kernel
-    from closure_nlp.rho.hull_distance import _start_directions, min_norm_point
-    from closure_nlp.rho.support_minimum import _local_minimum
 
     normals = np.vstack([np.eye(3), -np.eye(3)])
     slots = WrenchSlots.from_contacts(ContactSet(tuple(Contact(-n, n) for n in normals[:4])))

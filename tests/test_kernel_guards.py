@@ -7,10 +7,10 @@ import pytest
 
 from closure_nlp.contact.contact_set import Contact, ContactSet
 from closure_nlp.contact.wrenches import WrenchSlots
-from closure_nlp.rho.frictionless import frictionless_capacity
-from closure_nlp.rho.hull_distance import min_norm_point, nearest_point_bounds
-from closure_nlp.rho.sphere_branch_bound import sphere_minimum
-from closure_nlp.rho.sphere_search import descend
+from closure_nlp.criterion.frictionless import frictionless_capacity
+from closure_nlp.criterion.hull_distance import min_norm_point, nearest_point_bounds
+from closure_nlp.criterion.sphere_branch_bound import sphere_minimum
+from closure_nlp.criterion.sphere_search import descend
 
 NORMALS = np.vstack([np.eye(3), -np.eye(3)])
 SHAPE = "expected real numbers of shape"

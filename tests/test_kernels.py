@@ -137,8 +137,8 @@ def test_local_minimum_converges_on_soft_fingers():
     start, and ends at a local minimum of the reference support function: no direction of a
     small circle around its end is lower (to the wrench scale's round-off)."""
     from closure_nlp.contact.random_sets import random_contact_set
-    from closure_nlp.rho.sphere_search import sphere_samples
-    from closure_nlp.rho.support_minimum import _local_minimum
+    from closure_nlp.criterion.sphere_search import sphere_samples
+    from closure_nlp.criterion.support_minimum import _local_minimum
 
     rng = np.random.default_rng(3)
     for _ in range(6):

@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 
 import closure_nlp.cli.main as cli
+from closure_nlp.criterion.rho_hat import Eligibility
 from closure_nlp.model.elements import Element, Model, save_model
 from closure_nlp.model.scale import contact_specs
 from closure_nlp.placement.margin import shrunk, with_margin
 from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.planning.plan import plan
-from closure_nlp.rho.rho_hat import Eligibility
 from closure_nlp.selection.algorithms import heuristic
 from tests.shapes import box_model
 

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from closure_nlp.contact.contact_set import Contact, ContactSet, load_contact_set
-from closure_nlp.rho.support_minimum import rho
+from closure_nlp.criterion.support_minimum import rho
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "examples"))

@@ -12,15 +12,15 @@ import pytest
 from closure_nlp.cli import main as cli
 from closure_nlp.contact.contact_set import ContactSet, load_contact_set
 from closure_nlp.contact.wrenches import WrenchSlots
+from closure_nlp.criterion.certificate import certified_bounds
+from closure_nlp.criterion.rho_hat import Eligibility
+from closure_nlp.criterion.support_minimum import rho, search_rho
 from closure_nlp.model.elements import Element, Model, load_model, nearest_weights, save_model
 from closure_nlp.model.scale import contact_specs
 from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.placement.place import Placer
 from closure_nlp.placement.placer import ElementFrame
 from closure_nlp.placement.restricted import ExchangeLP, ExchangeProblem
-from closure_nlp.rho.certificate import certified_bounds
-from closure_nlp.rho.rho_hat import Eligibility
-from closure_nlp.rho.support_minimum import rho, search_rho
 from tests import reference
 from tests.shapes import box_model
 
@@ -340,7 +340,7 @@ def test_exchange_nlp_padding_leaves_ipopt_the_restricted_problem():
 
 def test_screened_rounds_are_not_certified(monkeypatch):
     """Only the start (when needed) and the final rho are certified, screening or not."""
-    from closure_nlp.rho import support_minimum as quality
+    from closure_nlp.criterion import support_minimum as quality
 
     calls = []
     certified = quality.certified_rho  # the start's rho and the final one both go through it

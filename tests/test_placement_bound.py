@@ -6,6 +6,8 @@ import numpy as np
 import pytest
 
 from closure_nlp.contact.contact_set import ContactSet
+from closure_nlp.criterion.rho_hat import Eligibility
+from closure_nlp.criterion.support_minimum import rho
 from closure_nlp.model.scale import contact_specs
 from closure_nlp.placement import ceiling as placement_bound
 from closure_nlp.placement import max_min_lp as lp_solvers
@@ -18,8 +20,6 @@ from closure_nlp.placement.ceiling import (
 )
 from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.placement.place import Placer
-from closure_nlp.rho.rho_hat import Eligibility
-from closure_nlp.rho.support_minimum import rho
 from tests.shapes import box_model
 
 

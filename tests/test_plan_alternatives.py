@@ -10,11 +10,11 @@ from dataclasses import replace
 
 import pytest
 
+from closure_nlp.criterion.rho_hat import Eligibility
 from closure_nlp.model.scale import contact_specs
 from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.placement.place import Placer
 from closure_nlp.planning.plan import plan
-from closure_nlp.rho.rho_hat import Eligibility
 from closure_nlp.selection.algorithms import SelectionOptions, _multiset
 from tests.shapes import box_model, corner_model
 
@@ -86,8 +86,8 @@ def test_the_pool_ranks_unranked_sets_by_their_light_value(hand):
     """Screens that stopped once a set could not win leave it without a light value; the plan's
     pool of further sets gives it one (the light search the screen would have run), keeps the
     eligible ones and ranks them with the rest, lowest first."""
+    from closure_nlp.criterion.support_minimum import signed_distance
     from closure_nlp.planning.single import _pool
-    from closure_nlp.rho.support_minimum import signed_distance
     from closure_nlp.selection.algorithms import SCREEN_SEARCH, heuristic, iterative
 
     run = iterative(hand, heuristic(hand, seed=1).elements)

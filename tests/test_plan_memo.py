@@ -6,12 +6,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from closure_nlp.criterion.rho_hat import Eligibility
 from closure_nlp.model.scale import contact_specs
 from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.placement.place import Placer
 from closure_nlp.planning import single as planning
 from closure_nlp.planning.plan import plan
-from closure_nlp.rho.rho_hat import Eligibility
 from closure_nlp.selection.algorithms import SelectionOptions
 from tests.shapes import box_model
 

@@ -11,11 +11,11 @@ import tqdm
 
 from closure_nlp.base.progress import STAGES, ProgressLine
 from closure_nlp.cli import main as cli
+from closure_nlp.criterion.rho_hat import Eligibility
 from closure_nlp.model.elements import save_model
 from closure_nlp.model.scale import contact_specs
 from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.planning.plan import plan
-from closure_nlp.rho.rho_hat import Eligibility
 from tests.shapes import box_model
 
 

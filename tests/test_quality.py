@@ -5,7 +5,7 @@ import pytest
 
 from closure_nlp.contact.contact_set import Contact, ContactSet, contact_set_from_dict
 from closure_nlp.contact.random_sets import random_contact_set
-from closure_nlp.rho.support_minimum import rho
+from closure_nlp.criterion.support_minimum import rho
 from tests import reference
 
 
@@ -220,7 +220,7 @@ def test_defaults_and_overrides():
 
 def test_nlp_cache_keeps_the_most_recent_shapes(monkeypatch):
     """Shapes beyond MAX_PROBLEMS evict the least recently used one; answers do not change."""
-    import closure_nlp.rho.support_minimum as quality
+    import closure_nlp.criterion.support_minimum as quality
     from closure_nlp.contact.wrenches import WrenchSlots
 
     monkeypatch.setattr(quality, "MAX_PROBLEMS", 2)
@@ -239,7 +239,7 @@ def test_nlp_cache_keeps_the_most_recent_shapes(monkeypatch):
 
 
 def test_several_warm_starts_and_errors_that_name_the_row():
-    from closure_nlp.rho.support_minimum import _warm_starts, search_rho
+    from closure_nlp.criterion.support_minimum import _warm_starts, search_rho
 
     starts = _warm_starts([[3, 0, 0, 0, 0, 4], [0, 0, 0, 0, 0, 1e-200]])  # tiny: no underflow
     np.testing.assert_allclose(starts, [[0.6, 0, 0, 0, 0, 0.8], [0, 0, 0, 0, 0, 1]], atol=1e-15)
@@ -260,7 +260,7 @@ def test_a_search_asked_for_a_threshold_stops_once_it_is_shown():
     returns before IPOPT with a true support value at or below the bar (in any units); below the
     minimum it is the full search, unchanged."""
     from closure_nlp.contact.wrenches import WrenchSlots
-    from closure_nlp.rho.support_minimum import SupportMinimizer
+    from closure_nlp.criterion.support_minimum import SupportMinimizer
 
     minimizer = SupportMinimizer(solver="ipopt")
     for seed, kinds in ((3, ["pcwf"] * 4), (4, ["sfce", "sfcl", "pcwf"])):
@@ -288,8 +288,8 @@ def test_a_run_into_a_minimum_already_found_does_not_use_up_the_budget():
     import json
     from pathlib import Path
 
+    from closure_nlp.criterion import support_minimum as quality
     from closure_nlp.placement.placer import ROUND_SEARCH
-    from closure_nlp.rho import support_minimum as quality
 
     data = json.loads((Path(__file__).parent / "data" / "l_bracket_round_miss.json").read_text())
     contact_set = contact_set_from_dict(data["contact_set"])
@@ -310,7 +310,7 @@ def test_support_min_nlp_constraints_are_the_slots_epigraph(kinds):
     friction weights, so a row reading another row's parameters is seen; padded slots repeat
     their last row."""
     from closure_nlp.contact.wrenches import WrenchSlots
-    from closure_nlp.rho.support_minimum import SupportMinProblem
+    from closure_nlp.criterion.support_minimum import SupportMinProblem
 
     rng = np.random.default_rng(7)
     counts = [3, 1, 5][: len(kinds)]  # vertex rows per slot: 3 and 5 are padded
@@ -355,7 +355,7 @@ def test_support_min_nlp_built_without_the_parameters_gradient_takes_the_same_it
     """Built without CasADi's gradient for the parameters' multipliers (``NLPSOL_OPTIONS``),
     the support-minimum NLP takes the same iterations to the same direction, to the bit."""
     from closure_nlp.contact.wrenches import WrenchSlots
-    from closure_nlp.rho import support_minimum as quality
+    from closure_nlp.criterion import support_minimum as quality
 
     cs = random_contact_set(np.random.default_rng(3), ["pcwf", "sfce", "sfcl", "fpc"], mu=0.4)
     slots = WrenchSlots.from_contacts(cs)
@@ -384,9 +384,9 @@ def test_outside_the_set_one_ipopt_run_finds_the_distance(kinds, solver):
     of the wrench scale (s**2 >= q within IPOPT's 1e-12 leaves s short by up to 1e-6 at a cone's
     apex; all six runs of that rule agreed with the first to that accuracy)."""
     from closure_nlp.contact.wrenches import WrenchSlots
-    from closure_nlp.rho.certificate import tolerance_unit
-    from closure_nlp.rho.crosscheck import distance_cvxpy
-    from closure_nlp.rho.support_minimum import SupportMinimizer
+    from closure_nlp.criterion.certificate import tolerance_unit
+    from closure_nlp.criterion.crosscheck import distance_cvxpy
+    from closure_nlp.criterion.support_minimum import SupportMinimizer
 
     minimizer = SupportMinimizer(solver=solver)
     checked = 0
@@ -411,7 +411,7 @@ def test_a_search_alone_ends_with_one_ipopt_run_from_the_compiled_runs_best():
     import dataclasses
 
     from closure_nlp.contact.wrenches import WrenchSlots
-    from closure_nlp.rho.support_minimum import SearchOptions, SupportMinimizer
+    from closure_nlp.criterion.support_minimum import SearchOptions, SupportMinimizer
 
     polished = SupportMinimizer(search=SearchOptions(ipopt_starts=2))
     alone = polished.with_search(SearchOptions(ipopt_starts=2, ipopt_polish=False))

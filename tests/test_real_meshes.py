@@ -12,10 +12,10 @@ import pytest
 import trimesh
 
 from closure_nlp.cli.main import main
+from closure_nlp.criterion.rho_hat import Eligibility
 from closure_nlp.model.characterize import SPACING_FRACTION, characterize_mesh, winding_number
 from closure_nlp.model.elements import load_model, save_model
 from closure_nlp.model.scale import MU_S_FRACTION, contact_specs, resolve, scale_warnings
-from closure_nlp.rho.rho_hat import Eligibility
 
 DOMINO = (0.025, 0.006, 0.051)  # metres, like pybullet's domino
 

@@ -12,9 +12,9 @@ import closure_nlp.cli.main as cli
 from closure_nlp.contact.accuracy import ModelTolerance
 from closure_nlp.contact.contact_set import load_contact_set
 from closure_nlp.contact.random_sets import random_contact_set
+from closure_nlp.criterion.support_minimum import rho
 from closure_nlp.model.characterize import characterize_mesh
 from closure_nlp.model.elements import load_model, save_model
-from closure_nlp.rho.support_minimum import rho
 
 
 def _held_set(tmp_path, tolerance=None):

@@ -9,9 +9,14 @@ from closure_nlp.base.tolerances import DEFAULT_TOLERANCES
 from closure_nlp.contact.contact_set import Contact, ContactSet
 from closure_nlp.contact.random_sets import random_contact_set
 from closure_nlp.contact.wrenches import WrenchSlots
-from closure_nlp.rho.certificate import tolerance_unit
-from closure_nlp.rho.robustness import ModelTolerance, is_robust, support_shift, tolerance_from_dict
-from closure_nlp.rho.support_minimum import rho
+from closure_nlp.criterion.certificate import tolerance_unit
+from closure_nlp.criterion.robustness import (
+    ModelTolerance,
+    is_robust,
+    support_shift,
+    tolerance_from_dict,
+)
+from closure_nlp.criterion.support_minimum import rho
 
 
 def _tilted(n, angle, rng):

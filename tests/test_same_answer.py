@@ -12,12 +12,12 @@ import json
 import pytest
 
 from closure_nlp.cli import main as cli
+from closure_nlp.criterion.rho_hat import Eligibility
 from closure_nlp.model.elements import load_model, save_model
 from closure_nlp.model.scale import contact_specs
 from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.placement.place import Placer
 from closure_nlp.planning.plan import plan
-from closure_nlp.rho.rho_hat import Eligibility
 from closure_nlp.selection.algorithms import run_selection
 from tests.shapes import box_model
 

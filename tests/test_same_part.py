@@ -9,11 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from closure_nlp.criterion.rho_hat import Eligibility
 from closure_nlp.model.elements import model_from_dict, nearest_weights
 from closure_nlp.model.scale import contact_specs, resolve
 from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.placement.place import Placer
-from closure_nlp.rho.rho_hat import Eligibility
 from tests.shapes import box_facets
 
 MODELS = Path(__file__).resolve().parents[1] / "models"

@@ -14,9 +14,9 @@ from hypothesis import strategies as st
 from closure_nlp.base.validation import SCALE_RANGE, TORQUE_SCALE_RANGE
 from closure_nlp.contact.contact_set import Contact, ContactSet
 from closure_nlp.contact.random_sets import random_contact_set
+from closure_nlp.criterion.rho_hat import Eligibility
+from closure_nlp.criterion.support_minimum import rho
 from closure_nlp.model.scale import contact_specs
-from closure_nlp.rho.rho_hat import Eligibility
-from closure_nlp.rho.support_minimum import rho
 
 from .shapes import box_model
 

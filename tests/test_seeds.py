@@ -13,13 +13,13 @@ import numpy as np
 import pytest
 
 from closure_nlp.cli import main as cli
+from closure_nlp.criterion.rho_hat import Eligibility
 from closure_nlp.model.elements import save_model
 from closure_nlp.model.scale import contact_specs
 from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.planning import seeds, single
 from closure_nlp.planning.plan import plan
 from closure_nlp.planning.single import PlanResult
-from closure_nlp.rho.rho_hat import Eligibility
 from closure_nlp.selection.algorithms import SelectionOptions
 from tests.shapes import box_model
 from tests.test_threads import without_time

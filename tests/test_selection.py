@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from closure_nlp.cli import main as cli
+from closure_nlp.criterion.rho_hat import Eligibility
 from closure_nlp.model.elements import Element, Model, load_model, save_model
 from closure_nlp.model.scale import contact_specs
-from closure_nlp.rho.rho_hat import Eligibility
 from closure_nlp.selection.algorithms import SelectionOptions, heuristic, iterative, run_selection
 from tests.shapes import corner_model
 
@@ -223,8 +223,8 @@ def test_cli_select_failure_is_exit_1(capsys, tmp_path):
 def test_screens_that_stop_early_change_no_decision(ring, monkeypatch):
     """The iterative run's screens stop once a set is shown unable to win: the run takes the
     same steps to the same set as with screens that search to the end."""
-    from closure_nlp.rho import support_minimum as quality
-    from closure_nlp.rho.support_minimum import SupportMinimizer, SupportMinProblem
+    from closure_nlp.criterion import support_minimum as quality
+    from closure_nlp.criterion.support_minimum import SupportMinimizer, SupportMinProblem
 
     runs = []  # local solver runs, IPOPT's or the compiled minimiser's
     solve = SupportMinProblem.solve

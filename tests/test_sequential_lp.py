@@ -11,6 +11,7 @@ import pytest
 
 from closure_nlp.contact.contact_set import ContactType
 from closure_nlp.contact.wrenches import WrenchSlots
+from closure_nlp.criterion.rho_hat import Eligibility
 from closure_nlp.model.elements import load_model
 from closure_nlp.model.scale import contact_specs
 from closure_nlp.placement.options import PlacementOptions
@@ -23,7 +24,6 @@ from closure_nlp.placement.sequential_lp import (
     model_linearisation,
     restricted_model,
 )
-from closure_nlp.rho.rho_hat import Eligibility
 
 MODELS = Path(__file__).resolve().parents[1] / "models"
 TYPES = [ContactType.FPC, ContactType.PCWF, ContactType.SFCL, ContactType.SFCE]

@@ -9,10 +9,10 @@ from scipy.optimize import linprog
 
 from closure_nlp.contact.random_sets import random_contact_set
 from closure_nlp.contact.wrenches import WrenchSlots
+from closure_nlp.criterion.sphere_branch_bound import _initial_cells
 from closure_nlp.kernels import branch_bound as kernels
 from closure_nlp.kernels import slot_game
 from closure_nlp.kernels.slot_game import block_game_weights
-from closure_nlp.rho.sphere_branch_bound import _initial_cells
 
 from . import reference
 from .test_certify import element_sets

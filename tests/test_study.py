@@ -283,9 +283,9 @@ def test_a_worker_keeps_to_one_group_of_tasks_until_every_group_is_started(tmp_p
 def plan_of(task):
     """What ``plan`` gives for a study task's model, contacts, seed and options, in this
     process."""
+    from closure_nlp.criterion.rho_hat import Eligibility
     from closure_nlp.model.elements import load_model
     from closure_nlp.planning.plan import plan
-    from closure_nlp.rho.rho_hat import Eligibility
 
     eligibility = Eligibility(load_model(task.model_file), task.specs(), task.torque_scale)
     return plan(

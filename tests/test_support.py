@@ -14,7 +14,7 @@ from closure_nlp.contact.contact_set import (
 )
 from closure_nlp.contact.random_sets import random_contact_set
 from closure_nlp.contact.wrenches import WrenchSlots
-from closure_nlp.rho.sphere_search import smoothed_support
+from closure_nlp.criterion.sphere_search import smoothed_support
 from tests import reference
 
 TYPES = [t.value for t in ContactType]

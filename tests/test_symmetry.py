@@ -11,8 +11,8 @@ from benchmarks.bench import cylinder_set, opposite_pair
 from closure_nlp.contact.contact_set import Contact, ContactSet
 from closure_nlp.contact.random_sets import random_contact_set
 from closure_nlp.contact.wrenches import WrenchSlots
-from closure_nlp.rho.sphere_branch_bound import BranchBoundOptions, sphere_minimum
-from closure_nlp.rho.symmetry import axis_frame, find_symmetry
+from closure_nlp.criterion.sphere_branch_bound import BranchBoundOptions, sphere_minimum
+from closure_nlp.criterion.symmetry import axis_frame, find_symmetry
 
 from . import reference
 from .test_certify import symmetric_sets

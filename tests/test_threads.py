@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from closure_nlp.contact.random_sets import random_contact_set
+from closure_nlp.criterion.rho_hat import Eligibility
+from closure_nlp.criterion.support_minimum import rho
 from closure_nlp.model.scale import contact_specs
 from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.planning.plan import plan
-from closure_nlp.rho.rho_hat import Eligibility
-from closure_nlp.rho.support_minimum import rho
 from closure_nlp.selection.algorithms import SelectionOptions
 from tests.shapes import box_model, random_model
 

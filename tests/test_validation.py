@@ -15,10 +15,10 @@ from closure_nlp.base.validation import (
     as_vector,
 )
 from closure_nlp.contact.contact_set import Contact, ContactSet, contact_set_from_dict
+from closure_nlp.criterion.rho_hat import Eligibility
 from closure_nlp.model.elements import Element, Model
 from closure_nlp.model.meshes import read_mesh
 from closure_nlp.model.scale import contact_specs
-from closure_nlp.rho.rho_hat import Eligibility
 
 
 @pytest.mark.parametrize(
@@ -136,7 +136,7 @@ BOX_FILE = json.loads(
 
 def _box_from_one_buffer():
     """The box's contacts built the way a loop reuses one buffer for every position."""
-    from closure_nlp.rho.support_minimum import rho
+    from closure_nlp.criterion.support_minimum import rho
 
     buffer, normal = np.empty(3), np.empty(3)
     contacts = []
@@ -281,8 +281,8 @@ def test_a_set_of_element_ids_is_refused():
 
 
 def test_numpy_booleans_and_integers_accepted_where_python_ones_are():
+    from closure_nlp.criterion.support_minimum import rho
     from closure_nlp.placement.options import PlacementOptions
-    from closure_nlp.rho.support_minimum import rho
     from closure_nlp.selection.algorithms import SelectionOptions
 
     from .shapes import box_model

@@ -7,13 +7,13 @@ import pytest
 
 from closure_nlp.contact.contact_set import grasp_matrices
 from closure_nlp.contact.random_sets import random_contact_set
+from closure_nlp.criterion.frictionless import climb, facet_rows, frictionless_capacity
+from closure_nlp.criterion.rho_hat import Eligibility
+from closure_nlp.criterion.support_minimum import rho
 from closure_nlp.model.scale import contact_specs
 from closure_nlp.placement.ceiling import BoundOptions, _solve_lp, capacity_bound
 from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.placement.place import Placer
-from closure_nlp.rho.frictionless import climb, facet_rows, frictionless_capacity
-from closure_nlp.rho.rho_hat import Eligibility
-from closure_nlp.rho.support_minimum import rho
 from tests.reference import zonotope_capacity
 from tests.shapes import box_model
 

@@ -156,7 +156,7 @@ def _compile_kernels(args) -> None:
     ``--quiet``."""
     if args.run not in (cmd_rho, cmd_eligibility, cmd_select, cmd_place, cmd_plan, cmd_study):
         return
-    from closure_nlp.rho.warm_up import warm_up
+    from closure_nlp.criterion.warm_up import warm_up
 
     shown = not args.quiet and sys.stderr.isatty()
     notify = (lambda text: sys.stderr.write(f"{text}\n")) if shown else None

@@ -8,8 +8,8 @@ from concurrent.futures import ThreadPoolExecutor
 from closure_nlp.base.formatting import certain
 from closure_nlp.cli.arguments import MAX_WORKERS, bounded_int, model_tolerance
 from closure_nlp.cli.output import bounds_text, emit, load_each, shown, verdict_text, whole_cost
+from closure_nlp.criterion.support_minimum import rho
 from closure_nlp.report.plan_report import load_contacts
-from closure_nlp.rho.support_minimum import rho
 
 
 def add_rho(sub, common) -> None:

@@ -24,12 +24,12 @@ from closure_nlp.cli.output import (
 )
 from closure_nlp.contact.contact_set import SOFT_FINGERS
 from closure_nlp.contact.count import require_closure_count
+from closure_nlp.criterion.rho_hat import Eligibility
 from closure_nlp.model.elements import load_model
 from closure_nlp.model.scale import contact_specs, is_auto, scale_warnings
 from closure_nlp.model.scale import resolve as resolve_scale
 from closure_nlp.placement.ceiling import gap_text
 from closure_nlp.placement.options import PlacementOptions
-from closure_nlp.rho.rho_hat import Eligibility
 
 
 def model_eligibility(args, m: int, field: str = "--contacts", closure: bool = False):

@@ -17,8 +17,8 @@ from closure_nlp.cli.output import (
     verdict_text,
 )
 from closure_nlp.cli.setup import read_model
+from closure_nlp.criterion.support_minimum import rho
 from closure_nlp.report.plan_report import load_contacts
-from closure_nlp.rho.support_minimum import rho
 
 
 def add_show(sub, common) -> None:

@@ -1,6 +1,6 @@
 """The model's accuracy: how far the real part's contact points and normals may lie from the
 file's (``"tolerance": {"position": LENGTH, "normal_deg": DEGREES}`` in model and contact-set
-files; :mod:`closure_nlp.rho.robustness` turns it into robust verdicts)."""
+files; :mod:`closure_nlp.criterion.robustness` turns it into robust verdicts)."""
 
 from __future__ import annotations
 

@@ -228,7 +228,8 @@ class ContactSet:
     contacts: tuple[Contact, ...]
     torque_scale: float = 1.0
     reference_point: np.ndarray | None = None  # torques are taken about it; None: the origin
-    # how far the real contacts may lie from these (robust verdicts, closure_nlp.rho.robustness)
+    # how far the real contacts may lie from these (robust verdicts,
+    # closure_nlp.criterion.robustness)
     tolerance: ModelTolerance = NO_TOLERANCE
 
     def __post_init__(self) -> None:

@@ -43,7 +43,8 @@ Tightening
 ----------
 *Cuts*: at the LP's ``lam*`` the directions that minimise ``g(u; lam*)`` over the sphere (a
 convex, positively homogeneous function: the support function of ``sum_ir lam_ir conv(W_ir, 0)``,
-found by the batched descent of :mod:`closure_nlp.rho.sphere_search` on slots with ``f_max`` scaled
+found by the batched descent of :mod:`closure_nlp.criterion.sphere_search` on slots with ``f_max``
+scaled
 by
 ``lam_ir``) are added to ``U`` while they lie below the LP value. *Branching*: a contact with
 several pieces is split into its heaviest piece and the rest; a contact on one piece has it
@@ -57,7 +58,8 @@ of all leaves (open or closed).
 
 *Facets*: with frictionless contacts only, a cell whose pieces are all small (at most
 :data:`FACET_SIZE` of their elements) is also bounded by the facets of its zonotope
-(:func:`closure_nlp.rho.frictionless.facet_rows`, proved there): affine rows in the same weights
+(:func:`closure_nlp.criterion.frictionless.facet_rows`, proved there): affine rows in the same
+weights
 whose
 error is of second order in the pieces' sizes, with no kink at the contacts on a facet; the
 cell's bound is the least of the two LPs' weak duals (both certified).
@@ -65,9 +67,10 @@ cell's bound is the least of the two LPs' weak duals (both certified).
 Incumbents come from the exchange method (:class:`~closure_nlp.placement.placer.Placer`) started at
 the
 LP's placement in the best cell, every value certified by
-:func:`closure_nlp.rho.support_minimum.rho`. With
+:func:`closure_nlp.criterion.support_minimum.rho`. With
 frictionless contacts only, a climb on the closed-form capacity of their zonotope
-(:mod:`closure_nlp.rho.frictionless`) first searches the root (random starts) and each such cell
+(:mod:`closure_nlp.criterion.frictionless`) first searches the root (random starts) and each such
+cell
 (the
 LP's placement and random starts), and the exchange method starts from its best placements: on
 the pistol's 7 FPC set its incumbent reaches -0.0837 where the exchange method alone stopped at
@@ -84,15 +87,15 @@ import numpy as np
 
 from closure_nlp.contact.contact_set import grasp_matrices, is_frictionless
 from closure_nlp.contact.wrenches import WrenchSlots
+from closure_nlp.criterion.certificate import tolerance_unit
+from closure_nlp.criterion.frictionless import MAX_CONTACTS, climb, facet_rows
+from closure_nlp.criterion.rho_hat import Eligibility
+from closure_nlp.criterion.sphere_search import descend, sphere_samples
 from closure_nlp.model.elements import nearest_weights
 from closure_nlp.placement import max_min_lp as lp_solvers  # tests swap its solvers
 from closure_nlp.placement.max_min_lp import INF, OPTIMAL, dual_bound, max_min_model, thread_solver
 from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.placement.placer import ExchangePlacer
-from closure_nlp.rho.certificate import tolerance_unit
-from closure_nlp.rho.frictionless import MAX_CONTACTS, climb, facet_rows
-from closure_nlp.rho.rho_hat import Eligibility
-from closure_nlp.rho.sphere_search import descend, sphere_samples
 
 # Directions kept in the shared working set of the cutting planes (the most recent ones).
 MAX_DIRECTIONS = 600
@@ -392,7 +395,8 @@ class CellLP:
 
     def facet_bound(self, cell) -> float:
         """Frictionless contacts each on one piece: the certified bound of the zonotope's facets
-        (:func:`~closure_nlp.rho.frictionless.facet_rows`, second order in the pieces' sizes), the
+        (:func:`~closure_nlp.criterion.frictionless.facet_rows`, second order in the pieces'
+        sizes), the
         weak
         dual of its LP as in :func:`dual_bound` (``>= 0``); ``inf`` otherwise."""
         if not self.frictionless or any(len(pieces) != 1 for pieces in cell):
@@ -869,7 +873,7 @@ def _lp_placement(lp: CellLP, cell: _Cell):
 
 def _frictionless(eligibility: Eligibility) -> bool:
     """Every contact frictionless, and few enough for
-    :func:`~closure_nlp.rho.frictionless.climb`."""
+    :func:`~closure_nlp.criterion.frictionless.climb`."""
     specs = eligibility.specs
     frictionless = all(is_frictionless(s.type, s.mu, s.mu_s) for s in specs)
     return frictionless and 7 <= len(specs) <= MAX_CONTACTS
@@ -877,7 +881,8 @@ def _frictionless(eligibility: Eligibility) -> bool:
 
 def _climbed(lp: CellLP, cell: _Cell, size: tuple[int, int], seed: int) -> list:
     """Placements in ``cell`` (each contact on its heaviest piece) from a climb of
-    :func:`~closure_nlp.rho.frictionless.climb` with ``size = (members, iterations)``: the LP's
+    :func:`~closure_nlp.criterion.frictionless.climb` with ``size = (members, iterations)``: the
+    LP's
     placement
     and random ones (Dirichlet(1/2) weights) start it. Distinct placements, best first, as
     (element ids, positions (m, 3)); not certified (the exchange method certifies them)."""

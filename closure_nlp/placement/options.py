@@ -37,7 +37,8 @@ class PlacementOptions:
     ipopt_tol : float
     certify : bool
         Accepted for compatibility and ignored: the start's and the final rho are always
-        certified (:func:`closure_nlp.rho.support_minimum.rho`); the exchange rounds compare the
+        certified (:func:`closure_nlp.criterion.support_minimum.rho`); the exchange rounds compare
+        the
         search's
         values.
         At optimised placements many directions are equally weak, and the bounds often stop
@@ -63,7 +64,7 @@ class PlacementOptions:
         one process on 24 placements (lamp, cup, pistol; torque scale 1 and automatic):
         placement 1.2-2.1x faster (median of the six groups 1.37x); the final rho is better on
         9, worse on 12 (the path of a local method changes), by -0.097 to +0.052. Every value
-        reported at the end is certified (:func:`closure_nlp.rho.support_minimum.rho`).
+        reported at the end is certified (:func:`closure_nlp.criterion.support_minimum.rho`).
     move_rounds : int
         Rounds a neighbour-move trial gets; it runs on to ``max_rounds`` only if it already
         beats the current placement (0: every trial runs to ``max_rounds``, or

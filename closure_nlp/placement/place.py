@@ -6,11 +6,11 @@ from __future__ import annotations
 import time
 
 from closure_nlp.base.progress import Progress
+from closure_nlp.criterion.rho_hat import Eligibility
 from closure_nlp.placement.ceiling import bounded
 from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.placement.placer import ExchangePlacer
 from closure_nlp.placement.result import PlacementResult
-from closure_nlp.rho.rho_hat import Eligibility
 
 
 class Placer(ExchangePlacer):

@@ -34,14 +34,14 @@ from closure_nlp.base.ties import lowest_first
 from closure_nlp.contact.contact_set import ContactSet, friction_pieces, is_frictionless
 from closure_nlp.contact.count import require_closure_count
 from closure_nlp.contact.wrenches import WrenchSlots, pad_rows
+from closure_nlp.criterion.rho_hat import Eligibility
+from closure_nlp.criterion.sphere_search import sphere_samples
+from closure_nlp.criterion.support_minimum import SearchOptions, rho, search_rho
 from closure_nlp.model.elements import nearest_weights, simplex_weights
 from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.placement.restricted import ExchangeLP, ExchangeProblem
 from closure_nlp.placement.result import Move, PlacedContact, PlacementResult
 from closure_nlp.placement.sequential_lp import ExchangeSLP, ModelSLP
-from closure_nlp.rho.rho_hat import Eligibility
-from closure_nlp.rho.sphere_search import sphere_samples
-from closure_nlp.rho.support_minimum import SearchOptions, rho, search_rho
 from closure_nlp.selection.algorithms import SCREEN_SEARCH
 
 # Working-set sizes the exchange NLP is built for (unused directions masked out). An IPOPT

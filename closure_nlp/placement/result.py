@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from closure_nlp.contact.contact_set import ContactSet
-from closure_nlp.rho.support_minimum import certificate_keys
+from closure_nlp.criterion.support_minimum import certificate_keys
 
 
 @dataclass(frozen=True)
@@ -48,7 +48,8 @@ class PlacementResult:
     ----------
     contacts : tuple of PlacedContact
     contact_set : ContactSet
-        The placed contacts with their specs, ready for :func:`closure_nlp.rho.support_minimum.rho`.
+        The placed contacts with their specs, ready for
+        :func:`closure_nlp.criterion.support_minimum.rho`.
     rho : float
         rho(0, W_c^M) of the placed contacts, recomputed by the rho solver from the final
         positions, and certified.
@@ -69,7 +70,7 @@ class PlacementResult:
     bounds : (float, float) or None
         Certified ``lo <= rho <= hi`` of the placed contacts.
     marginal, converged : bool
-        As in :class:`~closure_nlp.rho.support_minimum.RhoResult`.
+        As in :class:`~closure_nlp.criterion.support_minimum.RhoResult`.
     capacity_bound : float or None
         Certified ceiling: no placement on the elements searched (``bound_elements``) has
         ``-rho`` above it (None without the bound).

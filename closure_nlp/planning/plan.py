@@ -4,11 +4,11 @@ or the best of several (over processes)."""
 from __future__ import annotations
 
 from closure_nlp.base.progress import Progress
+from closure_nlp.criterion.rho_hat import Eligibility
 from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.placement.place import Placer
 from closure_nlp.planning.seeds import plan_seeds
 from closure_nlp.planning.single import PlanResult, check_plan_arguments, plan_one
-from closure_nlp.rho.rho_hat import Eligibility
 from closure_nlp.selection.algorithms import SelectionOptions
 
 

@@ -29,12 +29,12 @@ from closure_nlp.base.interrupts import leave_to_parent
 from closure_nlp.base.progress import Progress
 from closure_nlp.base.tolerances import DEFAULT_TOLERANCES
 from closure_nlp.base.validation import MAX_SEED
+from closure_nlp.criterion.certificate import tolerance_unit
+from closure_nlp.criterion.rho_hat import Eligibility
 from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.placement.place import Placer
 from closure_nlp.planning import single
 from closure_nlp.planning.single import MEMO_SIZE, adopt_memo, memo_entries
-from closure_nlp.rho.certificate import tolerance_unit
-from closure_nlp.rho.rho_hat import Eligibility
 
 # The command line's defaults: 8 seeds of a few seconds each fit well within the budget on 2
 # cores (docs/benchmarks.md has the measured times); the budget stops starting seeds after a
@@ -169,7 +169,8 @@ class SeedSpread:
 
 def wrench_unit(eligibility: Eligibility, elements) -> float:
     """The wrench scale rho is measured against for contacts on ``elements``
-    (:func:`~closure_nlp.rho.certificate.tolerance_unit` of their slots): it follows ``f_max``, the
+    (:func:`~closure_nlp.criterion.certificate.tolerance_unit` of their slots): it follows
+    ``f_max``, the
     length unit and the torque scale alike."""
     return float(tolerance_unit(eligibility.slots(elements)))
 

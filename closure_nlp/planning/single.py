@@ -1,6 +1,7 @@
 """One seed's plan: heuristic, iterative selection, placement.
 
-:func:`plan_one` chains the three steps on one :class:`~closure_nlp.rho.rho_hat.Eligibility` (so
+:func:`plan_one` chains the three steps on one :class:`~closure_nlp.criterion.rho_hat.Eligibility`
+(so
 every solver is built once), through a memo of the steps other plans on it have taken.
 """
 
@@ -16,11 +17,11 @@ import numpy as np
 from closure_nlp.base.progress import Progress
 from closure_nlp.base.solver_cache import cached
 from closure_nlp.base.validation import is_whole
+from closure_nlp.criterion.rho_hat import Eligibility
 from closure_nlp.placement import ceiling
 from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.placement.place import Placer
 from closure_nlp.placement.result import PlacementResult
-from closure_nlp.rho.rho_hat import Eligibility
 from closure_nlp.selection.algorithms import (
     SelectionOptions,
     SelectionResult,

@@ -1,6 +1,6 @@
 """Selecting eligible elements: the heuristic and the iterative algorithms (paper section 5).
 
-Both steer by rho_hat = rho(0, What_c^M) (:mod:`closure_nlp.rho.rho_hat`). The heuristic grows
+Both steer by rho_hat = rho(0, What_c^M) (:mod:`closure_nlp.criterion.rho_hat`). The heuristic grows
 a set from ``i0`` random (or given) elements, each time adding the element whose best vertex
 wrench lies furthest along ``u*``, the direction that separates the current set from the origin
 (or its weakest side once the set is eligible). The iterative algorithm swaps one element at a time
@@ -19,8 +19,13 @@ from closure_nlp.base.progress import Progress
 from closure_nlp.base.validation import as_flag, as_id_list, is_whole
 from closure_nlp.contact.contact_set import ContactType
 from closure_nlp.contact.count import require_closure_count
-from closure_nlp.rho.rho_hat import Eligibility, EligibilityResult, check_usable, element_set_keys
-from closure_nlp.rho.support_minimum import SearchOptions, signed_distance
+from closure_nlp.criterion.rho_hat import (
+    Eligibility,
+    EligibilityResult,
+    check_usable,
+    element_set_keys,
+)
+from closure_nlp.criterion.support_minimum import SearchOptions, signed_distance
 
 # The light search that ranks the iterative algorithm's neighbours: few samples, one IPOPT run.
 SCREEN_SEARCH = SearchOptions(
@@ -116,7 +121,7 @@ class SelectionResult:
         Certified ``lo <= rho_hat <= hi`` of the final set (the search steered by the search's
         values; the reported one is certified).
     marginal, converged : bool
-        As in :class:`~closure_nlp.rho.rho_hat.EligibilityResult`.
+        As in :class:`~closure_nlp.criterion.rho_hat.EligibilityResult`.
     """
 
     elements: tuple[int, ...]
@@ -237,7 +242,7 @@ def _certified_result(eligibility, best, history, evaluations0, t0, **extra) -> 
 def light_rho_hat(eligibility: Eligibility, elements, warm, stop_below=None):
     """The light search's (:data:`SCREEN_SEARCH`) value of an element set, never above its full
     rho_hat, and its direction; with ``stop_below``, it stops once a direction shows ``p <=
-    stop_below`` (see :meth:`~closure_nlp.rho.support_minimum.SupportMinimizer.__call__`)."""
+    stop_below`` (see :meth:`~closure_nlp.criterion.support_minimum.SupportMinimizer.__call__`)."""
     light = eligibility.minimizer.with_search(SCREEN_SEARCH)
     slots = eligibility.slots(elements)
     found = light(slots, warm, stop_below)

@@ -20,14 +20,14 @@ from pathlib import Path
 from closure_nlp._version import __version__
 from closure_nlp.base.files import parse_json, read_input
 from closure_nlp.base.solver_cache import PerThread
+from closure_nlp.criterion.rho_hat import Eligibility
+from closure_nlp.criterion.support_minimum import SupportMinimizer
 from closure_nlp.model.elements import model_from_dict
 from closure_nlp.model.scale import contact_specs
 from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.placement.place import Placer
 from closure_nlp.planning.plan import plan
 from closure_nlp.planning.seeds import wrench_unit
-from closure_nlp.rho.rho_hat import Eligibility
-from closure_nlp.rho.support_minimum import SupportMinimizer
 from closure_nlp.selection.algorithms import SelectionOptions
 from closure_nlp.study.store import ROW_COLUMNS
 

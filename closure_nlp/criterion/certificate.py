@@ -4,9 +4,11 @@
 (:class:`~closure_nlp.contact.wrenches.WrenchSlots`). Two regimes, each with an exact certificate:
 
 * some direction has ``p(u) < 0``: the origin is outside ``W`` and ``rho = dist(0, W)``, bracketed
-  by ``-p(u)`` below and the norm of a point of ``W`` above (:mod:`closure_nlp.rho.hull_distance`);
+  by ``-p(u)`` below and the norm of a point of ``W`` above
+  (:mod:`closure_nlp.criterion.hull_distance`);
 * otherwise ``min p`` is bracketed by the best direction found above and by a branch and bound
-  over the sphere below (:mod:`closure_nlp.rho.sphere_branch_bound`); when the branch and bound
+  over the sphere below (:mod:`closure_nlp.criterion.sphere_branch_bound`); when the branch and
+  bound
   meets a
   direction with ``p < 0`` it hands over to the first regime.
 
@@ -30,9 +32,9 @@ import numpy as np
 from closure_nlp.base.tolerances import DEFAULT_TOLERANCES, Tolerances
 from closure_nlp.base.validation import as_unit_vector, is_whole
 from closure_nlp.contact.wrenches import WrenchSlots, as_slots
-from closure_nlp.rho.hull_distance import min_norm_point, nearest_point_bounds
-from closure_nlp.rho.sphere_branch_bound import BranchBoundOptions, sphere_minimum
-from closure_nlp.rho.sphere_search import descend, sphere_samples
+from closure_nlp.criterion.hull_distance import min_norm_point, nearest_point_bounds
+from closure_nlp.criterion.sphere_branch_bound import BranchBoundOptions, sphere_minimum
+from closure_nlp.criterion.sphere_search import descend, sphere_samples
 
 # Torque rows this many times larger or smaller than force rows: verdicts on a whitened copy.
 # Below it the metric alone evens the cells out (at 100, 4 of 70 sets with lever arms 10-100
@@ -151,9 +153,11 @@ def certified_bounds(
     tolerances : Tolerances
     polish : callable, optional
         ``polish(u) -> (6,)``, a local minimiser of this set's support function from ``u``
-        (:meth:`~closure_nlp.rho.support_minimum.SupportMinimizer.polish`): it keeps the branch and
+        (:meth:`~closure_nlp.criterion.support_minimum.SupportMinimizer.polish`): it keeps the
+        branch and
         bound's
-        incumbent at a minimum (:func:`~closure_nlp.rho.sphere_branch_bound.sphere_minimum`). The
+        incumbent at a minimum (:func:`~closure_nlp.criterion.sphere_branch_bound.sphere_minimum`).
+        The
         bounds
         do not depend on it.
 

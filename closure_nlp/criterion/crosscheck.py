@@ -10,7 +10,8 @@ Two facts make rho checkable by convex programs (DESIGN.md):
   sum of its rows' cones, so every row is a contact of its own here.
 * **The distance** from the origin to ``W`` is ``-min_{|u| <= 1} p(u)`` (min-max duality: ``|w| =
   max_{|v| <= 1} v.w``). The support function ``p`` is a max of convex functions, so this is a
-  convex problem: an SOCP through the same epigraph as :mod:`closure_nlp.rho.support_minimum`, but
+  convex problem: an SOCP through the same epigraph as
+  :mod:`closure_nlp.criterion.support_minimum`, but
   over the
   unit *ball*. When the origin is not inside ``W`` the minimum lies on the sphere and equals
   ``-rho``; when it is inside, the minimum is 0 at ``u = 0``, and only :func:`certified_bounds`
@@ -329,7 +330,7 @@ def distance_cvxpy(slots_or_contact_set) -> float:
     """Distance from the origin to the wrench set ``W`` (0 when the origin is in ``W``).
 
     For sets that are not force closure this is ``rho``; for force-closure sets it is 0 and
-    says nothing about ``rho < 0`` (use :func:`closure_nlp.rho.certificate.certified_bounds`).
+    says nothing about ``rho < 0`` (use :func:`closure_nlp.criterion.certificate.certified_bounds`).
 
     Parameters
     ----------

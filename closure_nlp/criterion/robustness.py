@@ -87,7 +87,7 @@ def with_robustness(result, slots: WrenchSlots, tolerance: ModelTolerance, toler
     verdict under ``tolerance``; unchanged without a tolerance."""
     from dataclasses import replace
 
-    from closure_nlp.rho.certificate import tolerance_unit
+    from closure_nlp.criterion.certificate import tolerance_unit
 
     if not tolerance or result.bounds is None:
         return result

@@ -44,7 +44,8 @@ sphere's curvature costs it less than the gap (at a sharp minimum the shells dro
 place of a chain of halvings). The minimum over the sphere
 then lies in ``[min over dropped and live cells of their bounds, incumbent]``.
 
-Symmetry. When turns about an axis map the set onto itself (:mod:`closure_nlp.rho.symmetry`: ``n``
+Symmetry. When turns about an axis map the set onto itself (:mod:`closure_nlp.criterion.symmetry`:
+``n``
 contacts equally spaced round a cylinder, coaxial round cones), ``p`` is constant on their
 orbits and the search covers only boxes that meet every orbit, mapped onto that part of the
 sphere by an invertible ``frame`` in place of the diagonal metric: ``n`` equal minima become
@@ -66,9 +67,9 @@ import numpy as np
 
 from closure_nlp.base.validation import as_shaped, is_whole
 from closure_nlp.contact.wrenches import WrenchSlots
+from closure_nlp.criterion.cube_cells import face_cells
+from closure_nlp.criterion.symmetry import find_symmetry
 from closure_nlp.kernels import branch_bound as kernels
-from closure_nlp.rho.cube_cells import face_cells
-from closure_nlp.rho.symmetry import find_symmetry
 
 MAX_POLISH = 8  # local solves per branch and bound: each cheap; the first ones do the work
 # Per unit of wrench scale: covers the float64 roundoff of support values and support points
@@ -124,10 +125,10 @@ class BranchBoundOptions:
         much there, and its children are cheaper.
     stop_below_zero : bool
         Stop, unconverged, at the first direction with ``p < 0``: the origin is then outside the
-        set, where :mod:`closure_nlp.rho.hull_distance` is exact and much faster.
+        set, where :mod:`closure_nlp.criterion.hull_distance` is exact and much faster.
     symmetry : bool
         Search only a fundamental domain of the turns that map the set onto itself
-        (:mod:`closure_nlp.rho.symmetry`), when there are: a circle of equal minima becomes a
+        (:mod:`closure_nlp.criterion.symmetry`), when there are: a circle of equal minima becomes a
         point, ``n`` equal minima one.
     """
 
@@ -213,7 +214,7 @@ def sphere_minimum(
         the gap. Its direction only enters as an evaluated sample, so any answer is safe.
 
     The search stops early, unconverged, when it finds ``p(u) < 0`` while ``stop_below_zero``:
-    the origin is then outside the set, where :mod:`closure_nlp.rho.hull_distance` is exact.
+    the origin is then outside the set, where :mod:`closure_nlp.criterion.hull_distance` is exact.
     """
     start = time.perf_counter()
     metric = np.ones(6) if metric is None else as_shaped(metric, "metric", (6,)).astype(float)

@@ -45,7 +45,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from closure_nlp.contact.wrenches import WrenchSlots
-from closure_nlp.rho.cube_cells import face_cells
+from closure_nlp.criterion.cube_cells import face_cells
 
 # Residuals of the row matching, relative to the rows' scale: far below the certificate's
 # 1e-6, far above the roundoff of grasp matrices built from symmetric data.
@@ -105,7 +105,7 @@ class AxialSymmetry:
         frame : (6, 6) float
             ``M``: the cells' directions are ``M x / |M x|``.
         axis, sign, lo, hi
-            The cells, as :func:`closure_nlp.rho.cube_cells.face_cells`.
+            The cells, as :func:`closure_nlp.criterion.cube_cells.face_cells`.
         """
         P = axis_frame(self.axis, self.mirror)
         ranges = np.tile([-1.0, 1.0], (6, 1))

@@ -51,7 +51,7 @@ def warm_up(notify=None, *, rho_only: bool = False, capacity: bool = True) -> fl
     if compiles:
         kernels.compile_in_parallel(rho_only, capacity)
     from closure_nlp.contact.contact_set import Contact, ContactSet
-    from closure_nlp.rho.support_minimum import rho
+    from closure_nlp.criterion.support_minimum import rho
 
     normals = np.vstack([np.eye(3), -np.eye(3)])
     closure = ContactSet(tuple(Contact(-n, n) for n in normals[[0, 1, 2, 3]]))
@@ -74,8 +74,8 @@ def _warm_the_others(closure, normals, capacity: bool) -> None:
     """The kernels called from Python that a certified rho does not run (the zonotope's
     capacity only with ``capacity``)."""
     from closure_nlp.contact.wrenches import WrenchSlots
-    from closure_nlp.rho.hull_distance import min_norm_point
-    from closure_nlp.rho.sphere_search import descend
+    from closure_nlp.criterion.hull_distance import min_norm_point
+    from closure_nlp.criterion.sphere_search import descend
 
     slots = WrenchSlots.from_contacts(closure)
     U = normals[:1].repeat(2, axis=1)
@@ -85,6 +85,6 @@ def _warm_the_others(closure, normals, capacity: bool) -> None:
     min_norm_point(slots.support_points(np.vstack([U, -U])))
     descend(slots, np.eye(6)[:2], 1, 0.1)  # the smoothed descent's steps
     if capacity:
-        from closure_nlp.rho.frictionless import frictionless_capacity
+        from closure_nlp.criterion.frictionless import frictionless_capacity
 
         frictionless_capacity(np.ones((1, 7, 6)))

@@ -31,9 +31,9 @@ from closure_nlp.base.tolerances import DEFAULT_TOLERANCES, Tolerances
 from closure_nlp.base.validation import as_flag, as_unit_vector, is_whole
 from closure_nlp.contact.contact_set import ContactSet
 from closure_nlp.contact.wrenches import WrenchSlots, as_slots, padded_rows, piece_square
+from closure_nlp.criterion.sphere_search import descend, smoothed_descent, sphere_samples
 from closure_nlp.kernels import descent as descent_kernels
 from closure_nlp.kernels import kernel_array
-from closure_nlp.rho.sphere_search import descend, smoothed_descent, sphere_samples
 
 
 @dataclass(frozen=True)
@@ -174,7 +174,8 @@ class SupportMinimum:
 @dataclass(frozen=True, eq=False, kw_only=True)
 class Certificate:
     """The fields a certified result adds to its search's (:class:`RhoResult`,
-    :class:`~closure_nlp.rho.rho_hat.EligibilityResult`): keyword-only, after the search's own.
+    :class:`~closure_nlp.criterion.rho_hat.EligibilityResult`): keyword-only, after the search's
+    own.
     Their meaning for each is in its class."""
 
     bounds: tuple[float, float] | None = None
@@ -215,7 +216,8 @@ class RhoResult(Certificate):
         ``hi - lo`` within the tolerance (1e-6 relative); otherwise the bounds are valid but wider.
     robust : bool or None
         Force closure for every contact set within the set's tolerance
-        (:mod:`closure_nlp.rho.robustness`); None: no tolerance, the same as ``force_closure``.
+        (:mod:`closure_nlp.criterion.robustness`); None: no tolerance, the same as
+        ``force_closure``.
     shift : float
         How far the support function can move within that tolerance (0 without one).
     timing : (float, float) or None
@@ -549,7 +551,7 @@ class SupportMinimizer:
         search's: a support value at a unit direction. The iterative selection's screens of
         neighbours that cannot win then skip most of their work (1.5x faster selection).
         """
-        from closure_nlp.rho.certificate import tolerance_unit
+        from closure_nlp.criterion.certificate import tolerance_unit
 
         unit = tolerance_unit(slots)
         stop = None if stop_below is None else stop_below / unit
@@ -694,7 +696,7 @@ def rho(
     if not isinstance(contact_set, ContactSet):
         raise TypeError(f"contact_set: expected a ContactSet, got {type(contact_set).__name__}")
     certify = as_flag(certify, "certify")
-    from closure_nlp.rho.robustness import with_robustness
+    from closure_nlp.criterion.robustness import with_robustness
 
     if solver is not None and solver not in SOLVERS:
         raise ValueError(f"solver: must be one of {', '.join(SOLVERS)}, got {solver!r}")
@@ -741,7 +743,7 @@ def certified_search(minimizer: SupportMinimizer, slots: WrenchSlots, warm_start
     nearest-point iteration is exact from any such direction (sets not in force closure: 3.2-3.4x
     less CPU, the local minimiser's runs were most of it).
     """
-    from closure_nlp.rho.certificate import tolerance_unit
+    from closure_nlp.criterion.certificate import tolerance_unit
 
     seed = minimizer.seeding()
     below = -minimizer.tolerances.certify * tolerance_unit(slots)
@@ -768,7 +770,7 @@ def certified_rho(
 ) -> RhoResult:
     """The search's minimum made certain: bounds started at its direction (and polished by the
     minimizer's local solver), the lower value wins."""
-    from closure_nlp.rho.certificate import certified_bounds
+    from closure_nlp.criterion.certificate import certified_bounds
 
     bounds = certified_bounds(
         slots,
@@ -800,7 +802,7 @@ def certified_rho(
 def signed_distance(found: SupportMinimum, slots: WrenchSlots, tolerances: Tolerances) -> float:
     """``-min p(u)`` of the search alone, with round-off around 0 (relative to the set's scale)
     snapped to exactly 0 (no interior: not closure)."""
-    from closure_nlp.rho.certificate import tolerance_unit
+    from closure_nlp.criterion.certificate import tolerance_unit
 
     value = -found.value
     return 0.0 if abs(value) <= tolerances.zero_rho * tolerance_unit(slots) else value

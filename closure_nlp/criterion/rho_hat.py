@@ -21,10 +21,8 @@ from closure_nlp.base.validation import as_flag, as_id_list, as_torque_scale
 from closure_nlp.contact.accuracy import ModelTolerance
 from closure_nlp.contact.contact_set import ContactSpec
 from closure_nlp.contact.wrenches import WrenchSlots, padded_rows
-from closure_nlp.model.elements import Model
-from closure_nlp.model.scale import AUTO, auto_torque_scale
-from closure_nlp.rho.robustness import with_robustness
-from closure_nlp.rho.support_minimum import (
+from closure_nlp.criterion.robustness import with_robustness
+from closure_nlp.criterion.support_minimum import (
     Certificate,
     SolverStats,
     SupportMinimizer,
@@ -36,6 +34,8 @@ from closure_nlp.rho.support_minimum import (
     signed_distance,
     timing_keys,
 )
+from closure_nlp.model.elements import Model
+from closure_nlp.model.scale import AUTO, auto_torque_scale
 
 
 @dataclass(frozen=True)

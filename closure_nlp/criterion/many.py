@@ -1,0 +1,249 @@
+"""Certified rho of many contact sets at once, on every core: :func:`rho_many`.
+
+Each set is certified exactly as :func:`~closure_nlp.criterion.support_minimum.rho` certifies it,
+and
+its answer depends on that set alone, so the columns are the same whatever the number of
+workers and whichever worker took which set. Threads share the process (the compiled kernels
+release the GIL); processes (fork, where the system has it) avoid the interpreter's lock for
+the Python between kernel calls, at the price of sending the sets and answers between them.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import sys
+from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
+from dataclasses import dataclass
+
+import numpy as np
+
+from closure_nlp.base.validation import as_count, is_whole
+from closure_nlp.contact.contact_set import (
+    DEFAULT_F_MAX,
+    DEFAULT_MU,
+    DEFAULT_MU_S,
+    Contact,
+    ContactSet,
+    ContactType,
+)
+from closure_nlp.criterion.support_minimum import rho
+
+# Sets per task: large enough that sending a task costs little against certifying it (about a
+# millisecond a set), small enough that the workers finish together.
+CHUNK = 32
+POOLS = ("threads", "processes")
+MAX_WORKERS = 256
+
+
+@dataclass(frozen=True, eq=False)
+class RhoColumns:
+    """The answers of :func:`rho_many`, one row per contact set, as read-only arrays.
+
+    Attributes
+    ----------
+    rho : (N,) float
+    bounds : (N, 2) float
+        Certified ``[lo, hi]`` of each rho.
+    force_closure, marginal, converged : (N,) bool
+        As :class:`~closure_nlp.criterion.support_minimum.RhoResult`'s, from each certified bracket.
+    direction : (N, 6) float
+        Each set's weakest unit wrench direction ``u*``.
+    seconds : (N,) float
+        Each set's own cost (search and certificate).
+    """
+
+    rho: np.ndarray
+    bounds: np.ndarray
+    force_closure: np.ndarray
+    marginal: np.ndarray
+    converged: np.ndarray
+    direction: np.ndarray
+    seconds: np.ndarray
+
+    def __post_init__(self) -> None:
+        for name in self.__dataclass_fields__:
+            column = np.array(getattr(self, name))  # a copy the caller cannot change
+            column.flags.writeable = False
+            object.__setattr__(self, name, column)
+
+    def __len__(self) -> int:
+        return len(self.rho)
+
+    @classmethod
+    def from_results(cls, results) -> RhoColumns:
+        return cls(
+            rho=np.array([r.rho for r in results], dtype=float),
+            bounds=np.array([r.bounds for r in results], dtype=float).reshape(-1, 2),
+            force_closure=np.array([r.force_closure for r in results], dtype=bool),
+            marginal=np.array([r.marginal for r in results], dtype=bool),
+            converged=np.array([r.converged for r in results], dtype=bool),
+            direction=np.array([r.direction for r in results], dtype=float).reshape(-1, 6),
+            seconds=np.array([r.stats.seconds for r in results], dtype=float),
+        )
+
+
+def rho_many(
+    positions,
+    inward_normals=None,
+    *,
+    type="pcwf",
+    mu=DEFAULT_MU,
+    mu_s=DEFAULT_MU_S,
+    f_max=DEFAULT_F_MAX,
+    torque_scale=1.0,
+    reference_point=None,
+    workers: int | None = None,
+    pool: str = "threads",
+) -> RhoColumns:
+    """Certified rho(0, W_c^M) of N contact sets of m contacts each.
+
+    Parameters
+    ----------
+    positions : (N, m, 3) float, or a sequence of ContactSet
+        Contact positions; or the contact sets themselves (then ``inward_normals`` and the
+        contact parameters are theirs, and must be omitted).
+    inward_normals : (N, m, 3) float
+        Unit inward normals (normalised here; zero or non-finite ones are refused).
+    type, mu, mu_s, f_max : scalar, (N,) or (N, m)
+        One value for every contact, one per set, or one per contact. ``type`` is a name
+        (``"fpc"``, ``"pcwf"``, ``"sfcl"``, ``"sfce"``) or a :class:`ContactType`.
+    torque_scale : float or (N,) float
+        Multiplies every torque row of the sets' grasp matrices.
+    reference_point : None, (3,) or (N, 3) float
+        The point torques are taken about (None: the origin).
+    workers : int, optional
+        How many sets are certified at once (default: one per core); 1 runs them in this
+        thread. The answers do not depend on it.
+    pool : {"threads", "processes"}
+        How the workers run: threads of this process, or processes forked from it (where the
+        system forks; threads otherwise).
+
+    Returns
+    -------
+    RhoColumns
+        Columns ``rho``, ``bounds``, ``force_closure``, ``marginal``, ``converged``,
+        ``direction`` and ``seconds``, in the order of the sets.
+    """
+    sets = _contact_sets(positions, inward_normals, type, mu, mu_s, f_max, torque_scale,
+                         reference_point)  # fmt: skip
+    workers = _workers(workers, len(sets))
+    if pool not in POOLS:
+        raise ValueError(f"pool: expected one of {', '.join(POOLS)}, got {pool!r}")
+    chunks = [sets[k : k + CHUNK] for k in range(0, len(sets), CHUNK)]
+    if workers == 1:
+        return RhoColumns.from_results([rho(s) for s in sets])
+    if pool == "processes" and "fork" in multiprocessing.get_all_start_methods():
+        rho(sets[0])  # kernels loaded before the fork: the workers inherit them
+        context = multiprocessing.get_context("fork")
+        with ProcessPoolExecutor(workers, mp_context=context) as executor:
+            parts = list(executor.map(_certify_chunk, chunks))
+    else:
+        with ThreadPoolExecutor(workers) as executor:
+            parts = list(executor.map(_certify_chunk, chunks))
+    return RhoColumns.from_results([r for part in parts for r in part])
+
+
+def _certify_chunk(sets) -> list:
+    return [rho(s) for s in sets]
+
+
+def _workers(workers, count: int) -> int:
+    if workers is None:
+        cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else None
+        workers = cores or os.cpu_count() or 1
+    elif isinstance(workers, bool) or not is_whole(workers) or not 1 <= workers <= MAX_WORKERS:
+        raise ValueError(f"workers: expected an integer in [1, {MAX_WORKERS}], got {workers!r}")
+    return max(1, min(int(workers), -(-count // CHUNK)))
+
+
+def _contact_sets(positions, normals, type, mu, mu_s, f_max, torque_scale, reference_point):
+    """The N ContactSets the arguments describe (see :func:`rho_many`)."""
+    if normals is None:
+        sets = list(positions) if isinstance(positions, (list, tuple)) else None
+        if sets is None or not sets:
+            raise TypeError(
+                "positions: expected (N, m, 3) positions with inward_normals, or a non-empty "
+                f"list of ContactSet, got {type(positions).__name__}"
+            )
+        for k, s in enumerate(sets):
+            if not isinstance(s, ContactSet):
+                raise TypeError(f"positions[{k}]: expected a ContactSet, got {type(s).__name__}")
+        return sets
+    P = _array3(positions, "positions")
+    U = _array3(normals, "inward_normals")
+    if P.shape != U.shape:
+        raise ValueError(
+            f"inward_normals: expected the shape of positions {P.shape}, got {U.shape}"
+        )
+    N, m, _ = P.shape
+    as_count(N, "positions", sys.maxsize, "contact sets")
+    kinds = _per_contact(type, N, m, "type", object)
+    columns = {name: _per_contact(value, N, m, name, float)
+               for name, value in (("mu", mu), ("mu_s", mu_s), ("f_max", f_max))}  # fmt: skip
+    scales = _per_set(torque_scale, N, "torque_scale", ())
+    points = (
+        None if reference_point is None else _per_set(reference_point, N, "reference_point", (3,))
+    )
+    parsed = {}
+    sets = []
+    for k in range(N):
+        contacts = []
+        for i in range(m):
+            kind = kinds[k, i]
+            if kind not in parsed:
+                parsed[kind] = kind if isinstance(kind, ContactType) else ContactType.parse(kind)
+            contacts.append(
+                Contact(
+                    P[k, i],
+                    U[k, i],
+                    parsed[kind],
+                    columns["mu"][k, i],
+                    columns["mu_s"][k, i],
+                    columns["f_max"][k, i],
+                    name=f"sets[{k}].contacts[{i}]",
+                )
+            )
+        point = None if points is None else points[k]
+        sets.append(ContactSet(tuple(contacts), float(scales[k]), point))
+    return sets
+
+
+def _array3(value, field: str) -> np.ndarray:
+    if isinstance(value, np.ma.MaskedArray):
+        raise TypeError(f"{field}: a masked array is not accepted (fill or drop masked rows)")
+    array = np.asarray(value)
+    if array.dtype == bool or not np.issubdtype(array.dtype, np.number):
+        raise TypeError(f"{field}: expected numbers, got an array of {array.dtype}")
+    if array.ndim != 3 or array.shape[2] != 3 or 0 in array.shape:
+        raise ValueError(f"{field}: expected shape (N, m, 3) with N, m >= 1, got {array.shape}")
+    return array.astype(float)
+
+
+def _per_contact(value, N: int, m: int, field: str, dtype) -> np.ndarray:
+    """``value`` as (N, m): one value, one per set (N,), or one per contact (N, m)."""
+    array = np.asarray(value, dtype=object if dtype is object else None)
+    if dtype is not object and (array.dtype == bool or not np.issubdtype(array.dtype, np.number)):
+        raise TypeError(f"{field}: expected numbers, got {value!r:.60}")
+    if array.ndim == 0:
+        return np.full((N, m), array.item(), dtype=dtype)
+    if array.shape == (N,):
+        return np.repeat(array.astype(dtype)[:, None], m, axis=1)
+    if array.shape == (N, m):
+        return array.astype(dtype)
+    raise ValueError(f"{field}: expected one value, ({N},) or ({N}, {m}) values, got {array.shape}")
+
+
+def _per_set(value, N: int, field: str, shape: tuple) -> np.ndarray:
+    """``value`` as (N, *shape): one value for every set or one per set."""
+    array = np.asarray(value)
+    if array.dtype == bool or not np.issubdtype(array.dtype, np.number):
+        raise TypeError(f"{field}: expected numbers, got {value!r:.60}")
+    if array.shape == shape:
+        return np.broadcast_to(array, (N, *shape)).astype(float)
+    if array.shape == (N, *shape):
+        return array.astype(float)
+    raise ValueError(f"{field}: expected shape {shape} or {(N, *shape)}, got {array.shape}")
+
+
+__all__ = ["RhoColumns", "rho_many"]

@@ -1,0 +1,110 @@
+"""rho_many: many contact sets at once, certified like rho, whatever the number of workers."""
+
+import numpy as np
+import pytest
+
+from closure_nlp import ContactSet, force_closure_cvxpy, rho
+from closure_nlp.contact.random_sets import random_contact_set
+from closure_nlp.criterion.many import rho_many
+
+
+def _arrays(n: int, m: int = 4, seed: int = 0):
+    rng = np.random.default_rng(seed)
+    sets = [random_contact_set(rng, ["pcwf"] * m, mu=0.5) for _ in range(n)]
+    P = np.array([[c.position for c in s.contacts] for s in sets])
+    U = np.array([[c.inward_normal for c in s.contacts] for s in sets])
+    return sets, P, U
+
+
+@pytest.fixture(scope="module")
+def forty():
+    return _arrays(40)
+
+
+def test_columns_are_each_sets_certified_rho(forty):
+    sets, P, U = forty
+    columns = rho_many(P, U, mu=0.5, workers=1)
+    assert len(columns) == 40 and columns.bounds.shape == (40, 2)
+    for k, s in enumerate(sets):
+        # the same contacts, their normals normalised once more (a last-bit difference at most)
+        again = ContactSet(
+            tuple(type(c)(P[k, i], U[k, i], mu=0.5) for i, c in enumerate(s.contacts))
+        )
+        one = rho(again)
+        assert columns.rho[k] == one.rho and tuple(columns.bounds[k]) == one.bounds
+        assert columns.rho[k] == pytest.approx(rho(s).rho, rel=1e-9, abs=1e-12)
+        assert columns.force_closure[k] == one.force_closure
+        assert np.array_equal(columns.direction[k], one.direction)
+    lo, hi = columns.bounds.T
+    assert np.all(lo <= columns.rho) and np.all(columns.rho <= hi)
+    assert 0 < columns.force_closure.sum() < 40  # both verdicts are exercised
+
+
+def test_verdicts_agree_with_the_cvxpy_check(forty):
+    """An independent check of force closure (cvxpy's LP/SOCP on the exact cones)."""
+    sets, P, U = forty
+    columns = rho_many(P, U, mu=0.5, workers=2)
+    for k in range(0, 40, 4):
+        if not columns.marginal[k]:
+            assert bool(columns.force_closure[k]) == force_closure_cvxpy(sets[k])
+
+
+@pytest.mark.parametrize("workers,pool", [(2, "threads"), (3, "threads"), (2, "processes")])
+def test_the_answers_do_not_depend_on_the_workers(workers, pool):
+    _, P, U = _arrays(70, seed=3)  # three chunks of sets
+    serial = rho_many(P, U, mu=0.5, workers=1)
+    parallel = rho_many(P, U, mu=0.5, workers=workers, pool=pool)
+    for name in ("rho", "bounds", "force_closure", "marginal", "converged", "direction"):
+        assert np.array_equal(getattr(serial, name), getattr(parallel, name)), name
+
+
+def test_parameters_per_set_and_per_contact():
+    sets, P, U = _arrays(3, m=3, seed=5)
+    types = [["sfce", "pcwf", "fpc"]] * 3
+    mus = np.array([0.3, 0.5, 0.7])  # one per set
+    columns = rho_many(P, U, type=types, mu=mus, mu_s=0.1, f_max=[[1, 2, 3]] * 3, workers=1)
+    for k in range(3):
+        expected = rho(
+            ContactSet(
+                tuple(
+                    type(c)(c.position, c.inward_normal, t, mus[k], 0.1, f)
+                    for c, t, f in zip(sets[k].contacts, types[k], (1, 2, 3))
+                )
+            )
+        )
+        assert columns.rho[k] == expected.rho
+
+
+def test_a_list_of_contact_sets_and_read_only_columns(forty):
+    sets, _, _ = forty
+    columns = rho_many(sets[:5], workers=1)
+    assert list(columns.rho) == [rho(s).rho for s in sets[:5]]
+    with pytest.raises(ValueError):
+        columns.rho[0] = 1.0
+
+
+@pytest.mark.parametrize(
+    "kwargs,error,field",
+    [
+        ({"inward_normals": np.zeros((2, 4, 3))}, ValueError, "inward_normal"),
+        ({"inward_normals": np.ones((2, 3, 3))}, ValueError, "inward_normals"),
+        ({"mu": [0.5, 0.5, 0.5]}, ValueError, "mu"),
+        ({"mu": -1.0}, ValueError, "mu"),
+        ({"type": "velcro"}, ValueError, "velcro"),
+        ({"workers": 0}, ValueError, "workers"),
+        ({"pool": "gpu"}, ValueError, "pool"),
+        ({"torque_scale": [1.0, 2.0, 3.0]}, ValueError, "torque_scale"),
+        ({"inward_normals": np.ones((2, 4, 3), dtype=bool)}, TypeError, "inward_normals"),
+    ],
+)
+def test_bad_arguments_name_the_field(kwargs, error, field):
+    _, P, U = _arrays(2)
+    args = {"inward_normals": U, **kwargs}
+    with pytest.raises(error, match=field):
+        rho_many(P[:2], **args)
+
+
+def test_masked_positions_are_refused():
+    _, P, U = _arrays(2)
+    with pytest.raises(TypeError, match="masked"):
+        rho_many(np.ma.masked_array(P, mask=np.zeros_like(P, dtype=bool)), U)
