@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: install demo test test-slow lint bench compare-peers clean
+.PHONY: install demo test test-slow lint docs bench compare-peers clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -31,6 +31,11 @@ test-slow: $(STAMP)
 lint: $(STAMP)
 	$(BIN)/ruff check closure_nlp tests examples models benchmarks
 	$(BIN)/lint-imports
+
+# The API reference of the public names (closure_nlp.__all__), from their docstrings, in site/.
+docs: $(STAMP)
+	rm -rf site
+	MPLBACKEND=Agg $(BIN)/pdoc -d numpy -o site closure_nlp
 
 bench: $(STAMP)
 	$(BIN)/python -m benchmarks.bench rho

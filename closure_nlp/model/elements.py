@@ -33,6 +33,9 @@ from closure_nlp.contact.contact_set import as_reference_point, cross, grasp_mat
 # The same shape as contacts.ContactType by choice: each string enum names its own field and
 # kind in parse errors; parse_choice holds the logic they share.
 class ElementKind(str, Enum):
+    """The kind of a surface element, spelled as in a model file's ``kind``: ``"facet"`` (a
+    planar convex polygon), ``"segment"`` (a line segment) or ``"point"``."""
+
     FACET = "facet"
     SEGMENT = "segment"
     POINT = "point"
