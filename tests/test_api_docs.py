@@ -42,26 +42,7 @@ def test_the_reference_builds_without_warnings(site):
     assert (site / "index.html").is_file()
 
 
-# ``closure_nlp.rho`` is both the function and the subpackage of that name: once a module of the
-# subpackage is imported (any other public name of it loads one), the attribute is the package.
-SHADOWED = {"rho"}
-
-
-@pytest.mark.parametrize(
-    "name",
-    [
-        pytest.param(
-            n,
-            marks=pytest.mark.xfail(
-                reason="closure_nlp.rho resolves to the subpackage, not the function",
-                strict=True,
-            ),
-        )
-        if n in SHADOWED
-        else n
-        for n in closure_nlp.__all__
-    ],
-)
+@pytest.mark.parametrize("name", closure_nlp.__all__)
 def test_every_public_name_is_documented(site, name):
     """Each public name has its own entry in the reference; each class and function with its
     docstring (values such as ``__version__`` are listed by their value)."""
