@@ -7,6 +7,8 @@ first use, so that ``import closure_nlp`` (and the command line's start) stays l
 from __future__ import annotations
 
 import importlib
+import sys
+import types
 from typing import TYPE_CHECKING
 
 from closure_nlp.base import quiet_interrupt as _quiet_interrupt  # first: Ctrl-C is one line
@@ -32,6 +34,8 @@ _PUBLIC = {
     "save_model": "closure_nlp.model.elements",
     "contact_specs": "closure_nlp.model.scale",
     "characterize": "closure_nlp.model.characterize",
+    "characterize_mesh": "closure_nlp.model.characterize",
+    "drop_outward_as_read": "closure_nlp.model.characterize",
     "CharacterizeOptions": "closure_nlp.model.characterize",
     # rho and rho_hat
     "rho": "closure_nlp.rho.support_minimum",
@@ -56,6 +60,12 @@ _PUBLIC = {
     "plan": "closure_nlp.planning.plan",
     "PlanResult": "closure_nlp.planning.single",
     "write_report": "closure_nlp.report.plan_report",
+    # studies (grids of plans on Dask)
+    "Study": "closure_nlp.study.grid",
+    "load_study": "closure_nlp.study.grid",
+    "study_from_dict": "closure_nlp.study.grid",
+    "run_study": "closure_nlp.study.running",
+    "local_cluster": "closure_nlp.study.running",
     # numerics and errors
     "Tolerances": "closure_nlp.base.tolerances",
     "DEFAULT_TOLERANCES": "closure_nlp.base.tolerances",
@@ -85,21 +95,28 @@ __all__ = [
     "SearchOptions",
     "SelectionOptions",
     "SelectionResult",
+    "Study",
     "Tolerances",
     "characterize",
+    "characterize_mesh",
     "contact_specs",
     "distance_cvxpy",
+    "drop_outward_as_read",
     "eligibility",
     "force_closure_cvxpy",
     "heuristic",
     "iterative",
     "load_contact_set",
     "load_model",
+    "load_study",
+    "local_cluster",
     "place",
     "plan",
     "rho",
+    "run_study",
     "save_model",
     "select",
+    "study_from_dict",
     "warm_up",
     "write_report",
 ]
@@ -118,6 +135,21 @@ def __dir__() -> list[str]:
     return sorted(set(globals()) | set(_PUBLIC))
 
 
+class _Package(types.ModuleType):
+    """The package's module: a sub-package named like a public name (``closure_nlp.rho``, the
+    stage, beside ``rho``, the function) does not replace that name when it is first imported
+    (the import system sets it on the parent), so ``from closure_nlp import rho`` is always the
+    function. The sub-package stays importable by its full name."""
+
+    def __setattr__(self, name, value):
+        if name in _PUBLIC and isinstance(value, types.ModuleType):
+            return
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package
+
+
 if TYPE_CHECKING:  # what static tools see; at run time the names load on first use
     from closure_nlp.base.errors import MethodError
     from closure_nlp.base.tolerances import DEFAULT_TOLERANCES, Tolerances
@@ -129,7 +161,12 @@ if TYPE_CHECKING:  # what static tools see; at run time the names load on first 
         ContactType,
         load_contact_set,
     )
-    from closure_nlp.model.characterize import CharacterizeOptions, characterize
+    from closure_nlp.model.characterize import (
+        CharacterizeOptions,
+        characterize,
+        characterize_mesh,
+        drop_outward_as_read,
+    )
     from closure_nlp.model.elements import Element, ElementKind, Model, load_model, save_model
     from closure_nlp.model.scale import contact_specs
     from closure_nlp.placement.place import Placer, place
@@ -148,3 +185,5 @@ if TYPE_CHECKING:  # what static tools see; at run time the names load on first 
         iterative,
         select,
     )
+    from closure_nlp.study.grid import Study, load_study, study_from_dict
+    from closure_nlp.study.running import local_cluster, run_study
