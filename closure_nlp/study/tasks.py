@@ -117,6 +117,14 @@ class Task:
         return PlacementOptions(**dict(self.placement))
 
 
+# The grid's axes: the fields of a task that a study file gives as one value or a list (the
+# study's keys and the result rows' columns are derived from the Task fields).
+GRID_AXES = tuple(
+    f.name
+    for f in fields(Task)
+    if f.name not in {"model", "model_file", "model_digest", "seed", "selection", "placement"}
+)
+
 _CACHE_SIZE = 8
 # A worker drops its solver caches when its resident set after a task has grown by more than
 # this since the first task after its last drop (their NLPs, 2-5 MB per element-set shape and
@@ -312,16 +320,8 @@ def worker_memory() -> dict:
 
 
 # The task's fields that a row holds as they are (the options go in as JSON).
-_TASK_COLUMNS = (
-    "model",
-    "model_digest",
-    "type",
-    "contacts",
-    "mu",
-    "mu_s",
-    "f_max",
-    "torque_scale",
-    "seed",
+_TASK_COLUMNS = tuple(
+    f.name for f in fields(Task) if f.name not in {"model_file", "selection", "placement"}
 )
 
 
