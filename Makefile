@@ -37,14 +37,16 @@ docs: $(STAMP)
 	rm -rf site
 	MPLBACKEND=Agg $(BIN)/pdoc -d numpy -o site closure_nlp
 
+# The benchmarks of a few minutes each, as JSON in out/bench/, then their tables
+# (docs/benchmarks.md). The long ones run by name, e.g. make bench BENCH="startup plans seeds gap
+# units characterize model-size".
+BENCH ?= rho rho-hat certify engine batch select plan
 bench: $(STAMP)
-	$(BIN)/python -m benchmarks.bench rho
-	$(BIN)/python -m benchmarks.bench rho-hat
-	$(BIN)/python -m benchmarks.bench certify
-	$(BIN)/python -m benchmarks.bench engine
-	$(BIN)/python -m benchmarks.bench batch
-	$(BIN)/python -m benchmarks.bench select
-	$(BIN)/python -m benchmarks.bench plan
+	mkdir -p out/bench
+	for what in $(BENCH); do \
+		$(BIN)/python -m benchmarks.bench $$what > out/bench/$$what.json || exit 1; \
+	done
+	$(BIN)/python -m benchmarks.tables $(BENCH:%=out/bench/%.json)
 
 # The outside implementations compared in examples/compare_solvers.py --peers, each in its own
 # environment under .peers/ (never part of `make test`). graspnetAPI's own requirements do not

@@ -1158,7 +1158,37 @@ def bench_units(
     return report
 
 
+def cpu_model() -> str:
+    """The CPU's model name from /proc/cpuinfo (empty where there is none)."""
+    try:
+        text = Path("/proc/cpuinfo").read_text()
+    except OSError:
+        return ""
+    for line in text.splitlines():
+        if line.startswith("model name"):
+            return line.split(":", 1)[1].strip()
+    return ""
+
+
+def machine(load_before: tuple[float, ...]) -> dict:
+    """Where and when a report was measured: cores, CPU model, the 1-minute load average before
+    and after the run (other processes share the cores; the milliseconds move with them), date."""
+    return {
+        "cores": os.cpu_count(),
+        "cpu": cpu_model(),
+        "load": [round(load_before[0], 2), round(os.getloadavg()[0], 2)],
+        "date": time.strftime("%Y-%m-%d"),
+    }
+
+
+def write_report(report: dict, load_before: tuple[float, ...]) -> None:
+    """The report as JSON on stdout, with the machine it was measured on."""
+    json.dump({**report, "machine": machine(load_before)}, sys.stdout, indent=2)
+    sys.stdout.write("\n")
+
+
 def main(argv=None) -> int:
+    load_before = os.getloadavg()
     parser = argparse.ArgumentParser(prog="python -m benchmarks.bench", description=__doc__)
     sub = parser.add_subparsers(dest="what", required=True)
     p = sub.add_parser("rho", help="rho(0, W_c^M) per evaluation against SLSQP from +-e_k")
@@ -1218,8 +1248,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     if args.what == "startup":  # its own processes and caches: nothing to warm up here
         report = bench_startup(args.repeats, args.baseline, command=args.command)
-        json.dump(report, sys.stdout, indent=2)
-        sys.stdout.write("\n")
+        write_report(report, load_before)
         return 0
     from closure_nlp.criterion.warm_up import warm_up
 
@@ -1254,8 +1283,7 @@ def main(argv=None) -> int:
         report = bench_gap(names, args.seed, args.neighbours, compare=args.compare, budgets=budgets)
     else:
         report = bench_select(args.seeds)
-    json.dump(report, sys.stdout, indent=2)
-    sys.stdout.write("\n")
+    write_report(report, load_before)
     return 0
 
 

@@ -32,6 +32,8 @@ _PUBLIC = {
     "save_model": "closure_nlp.model.elements",
     "contact_specs": "closure_nlp.model.scale",
     "characterize": "closure_nlp.model.characterize",
+    "characterize_mesh": "closure_nlp.model.characterize",
+    "drop_outward_as_read": "closure_nlp.model.characterize",
     "CharacterizeOptions": "closure_nlp.model.characterize",
     # rho and rho_hat
     "rho": "closure_nlp.criterion.support_minimum",
@@ -43,6 +45,8 @@ _PUBLIC = {
     "force_closure_cvxpy": "closure_nlp.criterion.crosscheck",
     "distance_cvxpy": "closure_nlp.criterion.crosscheck",
     "warm_up": "closure_nlp.criterion.warm_up",
+    "rho_many": "closure_nlp.criterion.many",
+    "RhoColumns": "closure_nlp.criterion.many",
     # selection, placement, planning, reports
     "select": "closure_nlp.selection.algorithms",
     "heuristic": "closure_nlp.selection.algorithms",
@@ -51,11 +55,17 @@ _PUBLIC = {
     "SelectionResult": "closure_nlp.selection.algorithms",
     "place": "closure_nlp.placement.place",
     "Placer": "closure_nlp.placement.place",
-    "PlacementOptions": "closure_nlp.placement.options",
-    "PlacementResult": "closure_nlp.placement.result",
+    "PlacementOptions": "closure_nlp.placement.placer",
+    "PlacementResult": "closure_nlp.placement.placer",
     "plan": "closure_nlp.planning.plan",
     "PlanResult": "closure_nlp.planning.single",
     "write_report": "closure_nlp.report.plan_report",
+    # studies (grids of plans on Dask)
+    "Study": "closure_nlp.study.grid",
+    "load_study": "closure_nlp.study.grid",
+    "study_from_dict": "closure_nlp.study.grid",
+    "run_study": "closure_nlp.study.running",
+    "local_cluster": "closure_nlp.study.running",
     # numerics and errors
     "Tolerances": "closure_nlp.base.tolerances",
     "DEFAULT_TOLERANCES": "closure_nlp.base.tolerances",
@@ -81,25 +91,34 @@ __all__ = [
     "PlacementResult",
     "Placer",
     "PlanResult",
+    "RhoColumns",
     "RhoResult",
     "SearchOptions",
     "SelectionOptions",
     "SelectionResult",
+    "Study",
     "Tolerances",
     "characterize",
+    "characterize_mesh",
     "contact_specs",
     "distance_cvxpy",
+    "drop_outward_as_read",
     "eligibility",
     "force_closure_cvxpy",
     "heuristic",
     "iterative",
     "load_contact_set",
     "load_model",
+    "load_study",
+    "local_cluster",
     "place",
     "plan",
     "rho",
+    "rho_many",
+    "run_study",
     "save_model",
     "select",
+    "study_from_dict",
     "warm_up",
     "write_report",
 ]
@@ -130,15 +149,20 @@ if TYPE_CHECKING:  # what static tools see; at run time the names load on first 
         load_contact_set,
     )
     from closure_nlp.criterion.crosscheck import distance_cvxpy, force_closure_cvxpy
+    from closure_nlp.criterion.many import RhoColumns, rho_many
     from closure_nlp.criterion.rho_hat import Eligibility, EligibilityResult, eligibility
     from closure_nlp.criterion.support_minimum import RhoResult, SearchOptions, rho
     from closure_nlp.criterion.warm_up import warm_up
-    from closure_nlp.model.characterize import CharacterizeOptions, characterize
+    from closure_nlp.model.characterize import (
+        CharacterizeOptions,
+        characterize,
+        characterize_mesh,
+        drop_outward_as_read,
+    )
     from closure_nlp.model.elements import Element, ElementKind, Model, load_model, save_model
     from closure_nlp.model.scale import contact_specs
-    from closure_nlp.placement.options import PlacementOptions
     from closure_nlp.placement.place import Placer, place
-    from closure_nlp.placement.result import PlacementResult
+    from closure_nlp.placement.placer import PlacementOptions, PlacementResult
     from closure_nlp.planning.plan import plan
     from closure_nlp.planning.single import PlanResult
     from closure_nlp.report.plan_report import write_report
@@ -149,3 +173,5 @@ if TYPE_CHECKING:  # what static tools see; at run time the names load on first 
         iterative,
         select,
     )
+    from closure_nlp.study.grid import Study, load_study, study_from_dict
+    from closure_nlp.study.running import local_cluster, run_study

@@ -2,18 +2,13 @@
 
     python examples/compare_solvers.py [--small] [--out examples/out] [--seeds 3]
 
-The suite: random contact sets (``closure_nlp.contact.random_sets``) of every contact type and
-mixed,
+The suite: random contact sets (``random_contact_set``) of every contact type and mixed,
 m = 2..7, force closure and not. For each set the certified bounds ``lo <= rho <= hi``
-(``closure_nlp.criterion.certificate``, started at IPOPT's direction) are the yardstick; a method's
-error
-is
-how far its rho falls outside ``[lo, hi]`` (0 inside). Methods:
+(``certified_bounds``, started at IPOPT's direction) are the yardstick; a method's error is how
+far its rho falls outside ``[lo, hi]`` (0 inside). Methods:
 
-* IPOPT: ``closure_nlp.criterion.support_minimum.search_rho`` with ``solver="ipopt"`` (our search
-alone,
-with
-  the CasADi support-minimum NLP), solver built and warmed up first.
+* IPOPT: ``search_rho`` with ``solver="ipopt"`` (our search alone, with the CasADi
+  support-minimum NLP), solver built and warmed up first.
 * SLSQP from +-e_k: the paper's multi-start SQP (``benchmarks.bench.paper_baseline``).
 * GraspIt!/Dex-Net style: every friction cone cut to 8 edges (soft fingers: 8 edges and the two
   spin tips), the convex hull of the union of all edge wrenches at ``f_max``, epsilon = distance
@@ -21,7 +16,7 @@ with
   interior). This is the hull of the *union* of the contacts' wrenches (an L1 grasp wrench
   space with polyhedral cones), a smaller set than the paper's ``W_c^M`` (union of all
   Minkowski sums): its error says how much that choice changes the number, not a solver error.
-* cvxpy SOCP: ``closure_nlp.criterion.crosscheck.distance_cvxpy``, exact for sets that are not force
+* cvxpy SOCP: ``closure_nlp.distance_cvxpy``, exact for sets that are not force
   closure (and only there: it returns 0 for the others).
 * cvxpy force-closure check: the verdict only (rank + SOCP margin).
 
@@ -52,23 +47,36 @@ import matplotlib
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
-from benchmarks.bench import paper_baseline
-from closure_nlp.base.files import write_atomic
-from closure_nlp.contact.contact_set import ContactSet, ContactType, load_contact_set
-from closure_nlp.contact.random_sets import random_contact_set
-from closure_nlp.contact.wrenches import WrenchSlots
-from closure_nlp.criterion.certificate import certified_bounds
-from closure_nlp.criterion.crosscheck import ball_minimum, force_closure_check
-from closure_nlp.criterion.rho_hat import Eligibility
-from closure_nlp.criterion.support_minimum import SupportMinimizer, rho, search_rho
-from closure_nlp.model.elements import load_model
-from closure_nlp.model.scale import contact_specs
+from closure_nlp import (
+    ContactSet,
+    ContactType,
+    Eligibility,
+    contact_specs,
+    load_contact_set,
+    load_model,
+    rho,
+)
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402  (after the backend is chosen)
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-import peers  # noqa: E402  (examples/peers.py: the outside implementations)
+# examples/peers.py (the outside implementations), and benchmarks/ from the checkout: the
+# internal pieces this comparison times one by one (the search without its certificate, the
+# certificate alone, the conic cross-checks) and the paper's baseline.
+sys.path[:0] = [str(Path(__file__).resolve().parent), str(Path(__file__).resolve().parents[1])]
+import peers  # noqa: E402
+
+from benchmarks.bench import paper_baseline  # noqa: E402
+from benchmarks.internals import (  # noqa: E402
+    SupportMinimizer,
+    WrenchSlots,
+    ball_minimum,
+    certified_bounds,
+    force_closure_check,
+    random_contact_set,
+    search_rho,
+    write_atomic,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 TYPES = ["fpc", "pcwf", "sfcl", "sfce"]

@@ -11,7 +11,7 @@ Two studies, from ``examples/studies/``:
 - ``grasps.toml``: 3 and 4 PCwFs, SFCls and SFCes on the lamp and the cup, 20 seeds.
 
 The two machined parts are meshes made here with trimesh and described by
-:func:`closure_nlp.model.characterize.characterize`; their STL and model files are written to
+:func:`closure_nlp.characterize`; their STL and model files are written to
 ``examples/studies/models/`` if missing. ``--small`` runs a CI-sized version of both studies
 (FPC fixtures and 3-finger PCwF/SFCe grasps, one seed, one placement start; under a minute on 2
 workers); ``--seeds N`` keeps the whole grid with N seeds. Run it again and finished tasks are
@@ -34,10 +34,15 @@ try:
 except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib
 
-from closure_nlp.base.files import write_atomic
-from closure_nlp.model.characterize import characterize
-from closure_nlp.model.elements import save_model
-from closure_nlp.study import Study, load_study, local_cluster, run_study, study_from_dict
+from closure_nlp import (
+    Study,
+    characterize,
+    load_study,
+    local_cluster,
+    run_study,
+    save_model,
+    study_from_dict,
+)
 
 HERE = Path(__file__).resolve().parent
 STUDIES = HERE / "studies"
@@ -139,7 +144,7 @@ def build_models(folder: Path = MODELS) -> list[Path]:
             continue
         folder.mkdir(parents=True, exist_ok=True)
         mesh = make()
-        write_atomic(folder / f"{name}.stl", mesh.export(file_type="stl"))
+        (folder / f"{name}.stl").write_bytes(mesh.export(file_type="stl"))
         # The options the committed models were made with (before spacing and reference
         # point had defaults of their own): every ruling kept, torques about the origin.
         model = characterize(

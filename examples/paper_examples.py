@@ -18,12 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from closure_nlp.base.files import write_atomic
-from closure_nlp.criterion.rho_hat import Eligibility
-from closure_nlp.model.elements import load_model
-from closure_nlp.model.scale import contact_specs
-from closure_nlp.placement.options import PlacementOptions
-from closure_nlp.planning.plan import plan
+from closure_nlp import Eligibility, PlacementOptions, contact_specs, load_model, plan
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -110,8 +105,9 @@ def main(argv=None) -> int:
     writer = csv.DictWriter(buffer, fieldnames=fields, extrasaction="ignore")
     writer.writeheader()
     writer.writerows(rows)
-    write_atomic(args.out / "paper_examples.csv", buffer.getvalue())
-    write_atomic(args.out / "paper_examples.md", markdown)
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "paper_examples.csv").write_text(buffer.getvalue())
+    (args.out / "paper_examples.md").write_text(markdown)
     print(markdown)
     return 0
 

@@ -26,12 +26,14 @@ from pathlib import Path
 
 import trimesh
 
-from closure_nlp.base.errors import MethodError
-from closure_nlp.base.files import write_atomic
-from closure_nlp.criterion.rho_hat import Eligibility
-from closure_nlp.model.characterize import characterize_mesh, drop_outward_as_read
-from closure_nlp.model.scale import contact_specs, resolve
-from closure_nlp.planning.plan import plan
+from closure_nlp import (
+    Eligibility,
+    MethodError,
+    characterize_mesh,
+    contact_specs,
+    drop_outward_as_read,
+    plan,
+)
 
 OUT = Path(__file__).parent / "out"
 MESHES = {
@@ -71,14 +73,13 @@ def run_one(name: str, mesh, units: str, seed: int) -> list[dict]:
     # As `closure-nlp characterize` writes it: the elements the model commands refuse against
     # the written mesh are dropped (plan and show would refuse the model otherwise).
     with tempfile.TemporaryDirectory() as folder:
-        write_atomic(Path(folder) / "m.stl", found.mesh.export(file_type="stl"))
+        (Path(folder) / "m.stl").write_bytes(found.mesh.export(file_type="stl"))
         model, dropped = drop_outward_as_read(found.model, folder)
     model = replace(model, mesh=None)
     seconds = time.perf_counter() - t
     repairs = list(found.repairs) + [f"dropped {line.split(' (')[0]}" for line in found.dropped]
     if dropped:
         repairs.append(f"dropped {len(dropped)} element(s) whose normal points out of the mesh")
-    scale = resolve(model)
     rows = []
     for grasp, (m, kind) in GRASPS.items():
         row = {
@@ -90,7 +91,8 @@ def run_one(name: str, mesh, units: str, seed: int) -> list[dict]:
             "repairs": "; ".join(repairs),
             "grasp": grasp,
         }
-        hand = Eligibility(model, contact_specs(m, type=kind, mu_s=scale.mu_s), scale.torque_scale)
+        # model=: the automatic mu_s; Eligibility's torque scale is automatic by default
+        hand = Eligibility(model, contact_specs(m, type=kind, model=model))
         t = time.perf_counter()
         try:
             run = plan(hand, seed=seed)

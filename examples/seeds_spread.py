@@ -14,9 +14,11 @@ import argparse
 import json
 from pathlib import Path
 
+import matplotlib
 import numpy as np
 
-from closure_nlp.report.drawing import pyplot, save_figure
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402  (after the backend is chosen)
 
 HERE = Path(__file__).resolve().parent
 
@@ -27,7 +29,6 @@ def main(argv=None) -> int:
     parser.add_argument("--out", default=str(HERE.parent / "docs" / "seeds_spread.png"))
     args = parser.parse_args(argv)
     examples = json.loads(Path(args.report).read_text())["examples"]
-    plt = pyplot()
     fig, axes = plt.subplots(1, len(examples), figsize=(3.2 * len(examples), 3.2), sharey=False)
     for ax, (name, entry) in zip(np.atleast_1d(axes), examples.items()):
         seeds, rhos = entry["seeds_each"], entry["rho_each"]
@@ -48,7 +49,7 @@ def main(argv=None) -> int:
         ax.legend(fontsize="x-small")
     np.atleast_1d(axes)[0].set_ylabel("rho (lower holds more)")
     fig.tight_layout()
-    save_figure(fig, args.out)
+    fig.savefig(args.out, dpi=130, bbox_inches="tight")
     plt.close(fig)
     print(args.out)
     return 0

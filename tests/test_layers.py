@@ -44,3 +44,12 @@ def test_every_public_name_loads():
         assert getattr(closure_nlp, name) is not None, name
     with pytest.raises(AttributeError):
         closure_nlp.no_such_name  # noqa: B018
+
+
+def test_a_sub_package_does_not_hide_a_public_name():
+    """The stage's package (``closure_nlp.criterion``) is imported by the package's own modules;
+    ``rho`` on the top level stays the function."""
+    import closure_nlp.criterion.rho_hat  # noqa: F401
+    from closure_nlp import rho
+
+    assert callable(rho) and rho.__module__ == "closure_nlp.criterion.support_minimum"

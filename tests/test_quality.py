@@ -220,8 +220,8 @@ def test_defaults_and_overrides():
 
 def test_nlp_cache_keeps_the_most_recent_shapes(monkeypatch):
     """Shapes beyond MAX_PROBLEMS evict the least recently used one; answers do not change."""
-    import closure_nlp.criterion.support_minimum as quality
     from closure_nlp.contact.wrenches import WrenchSlots
+    from closure_nlp.criterion import support_minimum as quality
 
     monkeypatch.setattr(quality, "MAX_PROBLEMS", 2)
     minimizer = quality.SupportMinimizer(solver="ipopt")  # the NLPs are IPOPT's

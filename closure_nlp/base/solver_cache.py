@@ -6,10 +6,10 @@ a few KB each.
 
 A built CasADi solver must not run in two threads at once: four threads calling ``rho`` on one
 shared solver cache crashed the process (segmentation faults inside IPOPT). Each thread therefore
-builds its own solvers (:class:`PerThread`). Measured on 32 random sets (4 threads on 2 loaded
-cores, load 3.7): per-thread solvers, built afresh, 1.36 s; one shared cache with a lock around
-every IPOPT run 2.24 s; serially 1.52 s with every solver already built. CasADi releases the
-interpreter during a solve, so threads with their own solvers do run IPOPT in parallel.
+builds its own solvers (:class:`PerThread`) rather than sharing one cache behind a lock, which
+would run every IPOPT solve one at a time: CasADi releases the interpreter during a solve, so
+threads with their own solvers run IPOPT in parallel, and that outweighs building the solvers
+once per thread.
 """
 
 from __future__ import annotations
@@ -22,8 +22,8 @@ T = TypeVar("T")
 
 # Options of the NLP solvers these caches hold (exchange, support minimum). CasADi also builds,
 # unless told not to, the gradient of the Lagrangian with respect to the parameters, for their
-# multipliers ``lam_p``, which nothing here reads: without it an exchange NLP builds 1.22x and a
-# support-minimum NLP 1.16x faster, and IPOPT takes the same iterates to the bit.
+# multipliers ``lam_p``, which nothing here reads: without it the NLPs build faster, and IPOPT
+# takes the same iterates to the bit.
 NLPSOL_OPTIONS = {
     "print_time": False,
     "error_on_fail": False,

@@ -30,7 +30,7 @@ from closure_nlp.contact.accuracy import NO_TOLERANCE, ModelTolerance, tolerance
 from closure_nlp.contact.contact_set import as_reference_point, cross, grasp_matrices, local_frame
 
 
-# The same shape as contacts.ContactType by choice: each string enum names its own field and
+# The same shape as contact_set.ContactType by choice: each string enum names its own field and
 # kind in parse errors; parse_choice holds the logic they share.
 class ElementKind(str, Enum):
     """The kind of a surface element, spelled as in a model file's ``kind``: ``"facet"`` (a

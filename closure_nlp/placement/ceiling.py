@@ -65,16 +65,14 @@ error is of second order in the pieces' sizes, with no kink at the contacts on a
 cell's bound is the least of the two LPs' weak duals (both certified).
 
 Incumbents come from the exchange method (:class:`~closure_nlp.placement.placer.Placer`) started at
+the LP's placement in the best cell, every value certified by
+:func:`closure_nlp.criterion.support_minimum.rho`. With frictionless contacts only, a climb on the
+closed-form capacity of their zonotope (:mod:`closure_nlp.criterion.frictionless`) first searches
 the
-LP's placement in the best cell, every value certified by
-:func:`closure_nlp.criterion.support_minimum.rho`. With
-frictionless contacts only, a climb on the closed-form capacity of their zonotope
-(:mod:`closure_nlp.criterion.frictionless`) first searches the root (random starts) and each such
-cell
-(the
-LP's placement and random starts), and the exchange method starts from its best placements: on
-the pistol's 7 FPC set its incumbent reaches -0.0837 where the exchange method alone stopped at
--0.0680 and its runs from the LP's placements at -0.0774 (60 s).
+root (random starts) and each such cell (the LP's placement and random starts), and the exchange
+method starts from its best placements: thousands of capacities cost less than one exchange run,
+and the climb reaches placements the exchange method, a local method, stops short of
+(docs/placement.md, the pistol).
 """
 
 from __future__ import annotations
@@ -94,8 +92,7 @@ from closure_nlp.criterion.sphere_search import descend, sphere_samples
 from closure_nlp.model.elements import nearest_weights
 from closure_nlp.placement import max_min_lp as lp_solvers  # tests swap its solvers
 from closure_nlp.placement.max_min_lp import INF, OPTIMAL, dual_bound, max_min_model, thread_solver
-from closure_nlp.placement.options import PlacementOptions
-from closure_nlp.placement.placer import ExchangePlacer
+from closure_nlp.placement.placer import ExchangePlacer, PlacementOptions
 
 # Directions kept in the shared working set of the cutting planes (the most recent ones).
 MAX_DIRECTIONS = 600
@@ -110,9 +107,8 @@ ROOT_CUT_SAMPLES = 24
 CUT_ITERATIONS = 60
 # Frictionless contacts: the climb on their zonotope's closed-form capacity (members,
 # iterations) at the root and at a cell, and the root's placements polished by the exchange
-# method. Pistol 7 FPC (elements 24,12,3,5,20,31,43), seeds 0-2: (200, 100) climbs to
-# 0.078-0.080 in 1.6-2.8 s, (600, 200) to 0.080-0.081 in 12-14 s (load 6.5); the exchange
-# method alone placed -0.0680.
+# method. The root's (200, 100) gets most of what three times the members and twice the steps
+# reach, at a sixth of their time, which every frictionless placement with a ceiling pays.
 CLIMB_ROOT = (200, 100)
 CLIMB_CELL = (100, 60)
 CLIMB_POLISHES = 2
@@ -152,9 +148,8 @@ class BoundOptions:
         decide when they run: the same answer on any machine.
     cut_samples : int
         Quasi-random starts (besides ``+-e_k`` and the working set's lowest directions) of a
-        cell's cut descent; the root's always has 24. Fewer make cells cheaper and looser:
-        measured at 800 cells on the cup (4 SFCe), 0 starts gave a ceiling of 0.1524 against
-        0.148-0.149 with 12-48.
+        cell's cut descent; the root's always has 24. Fewer make cells cheaper and looser
+        (without any, the cup's ceiling after 800 cells is 2-3% higher).
     lp_rows : int
         Rows (directions) a cell's LP starts with, the parent's active ones besides; the
         working set's others join where the LP's weights fall below its value on them (row
@@ -269,7 +264,7 @@ class CapacityBound:
         ``(value - capacity) / value`` when ``capacity > 0`` (the best placement is force
         closure), else None: a relative gap to a ceiling means nothing below zero capacity.
     placement : object or None
-        The best placement found (a :class:`~closure_nlp.placement.result.PlacementResult`), or None
+        The best placement found (a :class:`~closure_nlp.placement.placer.PlacementResult`), or None
         when none beat the one given.
     nodes : int
         Cells bounded (the root included).

@@ -101,8 +101,8 @@ def thread_solver(name: str, interior: bool = False):
 
 def highs_solve(A: np.ndarray, owner: np.ndarray, m: int, lower=None, upper=None, interior=False):
     """The LP ``min -t`` s.t. ``t - A lam <= 0``, ``sum_{r of i} lam_r = 1``, ``lam >= 0`` by
-    HiGHS itself, one solver per thread (scipy's ``linprog`` around the same solver spends
-    about 4 ms per call checking its options, 2-3 times the solve of a cell's LP):
+    HiGHS itself, one solver per thread (scipy's ``linprog`` around the same solver checks its
+    options on every call, which costs more than the solve of a cell's LP):
     (primal x (R + 1,), duals of the N inequality rows, optimal t). ``lower`` and ``upper``
     (R,), optional, bound ``lam`` further (the exchange method's trust region); ``interior``:
     by the interior point method, without crossover (:func:`max_min_lp`)."""

@@ -276,9 +276,8 @@ class ModelSLP(ExchangeSLP):
     start weights, :func:`restricted_model`) by sequential linear programming. Each term is
     convex in the weights (a norm of a linear function plus a linear one), so every step is
     monotone as for :class:`ExchangeSLP`; the steps end inside the optimal face
-    (:meth:`ExchangeSLP._ascend` with ``centre``), as IPOPT's interior point does. On the
-    restricted problems of a lamp plan (4 PCwF) it ends at IPOPT's weights on 121 of 125
-    (within 1e-4 of the elements' size), 2.7-3.3x faster; on a cup plan's (4 SFCe), 83 of 101.
+    (:meth:`ExchangeSLP._ascend` with ``centre``), as IPOPT's interior point does, so that it
+    mostly ends at IPOPT's weights, in a fraction of IPOPT's time (docs/placement.md).
     The value returned is the model's, a lower bound of the true ``min_k p(u_k; c)``, as
     IPOPT's ``r`` is."""
 

@@ -29,22 +29,9 @@ from closure_nlp.model.elements import load_model
 from closure_nlp.model.scale import contact_specs
 from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.selection.algorithms import SelectionOptions
-from closure_nlp.study.tasks import Task
+from closure_nlp.study.tasks import GRID_AXES, Task
 
-STUDY_KEYS = {
-    "name",
-    "description",
-    "models",
-    "type",
-    "contacts",
-    "mu",
-    "mu_s",
-    "f_max",
-    "torque_scale",
-    "seeds",
-    "selection",
-    "placement",
-}
+STUDY_KEYS = {"name", "description", "models", "seeds", "selection", "placement", *GRID_AXES}
 REQUIRED_KEYS = {"models", "contacts"}
 MODEL_SUFFIX = ".model.json"
 

@@ -86,7 +86,7 @@ class Task:
         data["placement"] = dict(self.placement)
         return {"version": TASK_VERSION, **data}
 
-    @cached_property  # asked 7 times per task by a run: 31 of 41 s for 100,000 tasks
+    @cached_property  # a run asks for it several times per task; hashing is most of its cost
     def task_id(self) -> str:
         """16 hex digits of the SHA-256 of the canonical JSON of :meth:`inputs`."""
         text = json.dumps(self.inputs(), sort_keys=True, separators=(",", ":"), allow_nan=False)
@@ -117,14 +117,22 @@ class Task:
         return PlacementOptions(**dict(self.placement))
 
 
+# The grid's axes: the fields of a task that a study file gives as one value or a list (the
+# study's keys and the result rows' columns are derived from the Task fields).
+GRID_AXES = tuple(
+    f.name
+    for f in fields(Task)
+    if f.name not in {"model", "model_file", "model_digest", "seed", "selection", "placement"}
+)
+
 _CACHE_SIZE = 8
 # A worker drops its solver caches when its resident set after a task has grown by more than
 # this since the first task after its last drop (their NLPs, 2-5 MB per element-set shape and
 # 15-30 MB per exchange shape, are most of the growth on the fixture study's pistol). Relative,
 # because most of the floor is not the caches': the numba kernels hold about 150 MiB, and about
 # 250 MiB more in a worker that compiled them. A fixed 450 MiB, which every fixture task passes,
-# would rebuild every solver per task and lose the plan memo (seeds meeting the same elements):
-# pistol 7-PCwF seeds 2-8 serially take 24.6 s of CPU against 31.3 s, at 400-436 MiB after each.
+# would rebuild every solver per task and lose the plan memo (seeds meeting the same elements),
+# which is what makes a model's later seeds cheaper.
 MEMORY_GROWTH_MIB = 256.0
 # Per thread: CasADi solvers must not be called from two threads at once, and a joined cluster's
 # workers may run several tasks at a time (the local cluster's have one thread each).
@@ -141,9 +149,8 @@ def _solvers(task: Task, model_text: str | None) -> tuple[Eligibility, Placer, d
     last few (specs, torque scale) combinations keep their eligibility and placers, so the
     placement NLPs are built once per worker too. A task on another model than the previous one
     drops them all (:func:`release_memory`): the NLP shapes differ between models anyway, and a
-    worker that kept them grew to 1.5 GB over three models (706 -> 483 MiB measured serially on
-    pistol, L-bracket and stepped shaft, the same seconds). Tasks come in grid order, models
-    outermost, so a worker meets each model about once.
+    worker that kept them would grow by every model's solvers for no gain in time. Tasks come in
+    grid order, models outermost, so a worker meets each model about once.
     """
     if getattr(_local, "model", None) not in (None, task.model_digest):
         release_memory()
@@ -313,16 +320,8 @@ def worker_memory() -> dict:
 
 
 # The task's fields that a row holds as they are (the options go in as JSON).
-_TASK_COLUMNS = (
-    "model",
-    "model_digest",
-    "type",
-    "contacts",
-    "mu",
-    "mu_s",
-    "f_max",
-    "torque_scale",
-    "seed",
+_TASK_COLUMNS = tuple(
+    f.name for f in fields(Task) if f.name not in {"model_file", "selection", "placement"}
 )
 
 
