@@ -105,7 +105,7 @@ OUTCOMES = {
 }
 
 
-def fake_plan(eligibility, *, seed, **kwargs):
+def fake_plan(eligibility, placer, seed, **kwargs):
     outcome = OUTCOMES[seed]
     if isinstance(outcome, Exception):
         raise outcome
@@ -143,7 +143,7 @@ def test_every_seed_failing_raises_the_first_error(monkeypatch):
         plan(hand(), seeds=2, workers=1)
 
 
-def slow_plan(eligibility, *, seed, **kwargs):
+def slow_plan(eligibility, placer, seed, **kwargs):
     time.sleep(0.4)
     return OUTCOMES[0]
 
@@ -238,7 +238,7 @@ def test_rhos_within_the_certified_accuracy_tie_and_the_lowest_seed_wins(scale):
     assert mixed[seeds.choose(mixed)][0] == 2
 
 
-def tied_plan(eligibility, *, seed, **kwargs):
+def tied_plan(eligibility, placer, seed, **kwargs):
     """Seeds 0 and 1 tie (1 by round-off lower), seed 0 finishing last; seed 2 holds less."""
     time.sleep({0: 0.5, 1: 0.0, 2: 0.1}[seed])
     rho = {0: TIE[0], 1: TIE[1], 2: -0.9}[seed]
@@ -261,7 +261,7 @@ def test_a_tie_goes_to_the_lowest_seed_whatever_the_order_the_seeds_finish(monke
 SLEEP = {0: 0.1, 1: 0.4, 2: 0.8, 3: 0.0}
 
 
-def memo_plan(eligibility, *, seed, memo, **kwargs):
+def memo_plan(eligibility, placer, seed, *, memo, **kwargs):
     """Adds one step to the memo, keyed as plan keys it, and tells the earlier seeds' steps it
     found there (as ``reused``). Seed 0 ends first, in one worker, which then runs seed 2;
     seed 3 starts when seed 1 ends, in the other worker."""

@@ -49,6 +49,11 @@ def plan(
     their computation took; :attr:`PlanResult.seconds` is this plan's own time.
     """
     alternatives = check_plan_arguments(alternatives, memo)
+    if placer is not None and placer.eligibility is not eligibility:
+        raise ValueError("placer: must be built on the same Eligibility as the plan")
+    common = dict(
+        start=start, selection=selection, progress=progress, alternatives=alternatives, memo=memo
+    )
     if seeds is not None:
         return plan_seeds(
             eligibility,
@@ -56,24 +61,10 @@ def plan(
             seeds=seeds,
             workers=workers,
             budget=budget,
-            start=start,
-            selection=selection,
             placement=placement,
-            progress=progress,
             placer=placer,
-            alternatives=alternatives,
-            memo=memo,
+            **common,
         )
     if workers is not None or budget is not None:
         raise ValueError("workers, budget: only with seeds (a plan of several seeds)")
-    return plan_one(
-        eligibility,
-        seed=seed,
-        start=start,
-        selection=selection,
-        placement=placement,
-        progress=progress,
-        placer=placer,
-        alternatives=alternatives,
-        memo=memo,
-    )
+    return plan_one(eligibility, placer or Placer(eligibility, placement), seed, **common)

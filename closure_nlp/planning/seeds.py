@@ -321,7 +321,7 @@ def _run_one(eligibility, placer, memo, progress, kwargs, seed: int):
     t = time.perf_counter()
     try:
         result = single.plan_one(
-            eligibility, seed=seed, placer=placer, memo=memo, progress=progress, **kwargs
+            eligibility, placer, seed, memo=memo, progress=progress, **kwargs
         )
     except Exception as exc:  # noqa: BLE001 - recorded; raised when every seed fails
         return SeedRun(seed, None, f"{type(exc).__name__}: {exc}", time.perf_counter() - t), exc

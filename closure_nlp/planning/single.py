@@ -19,7 +19,6 @@ from closure_nlp.base.solver_cache import cached
 from closure_nlp.base.validation import is_whole
 from closure_nlp.criterion.rho_hat import Eligibility
 from closure_nlp.placement import ceiling
-from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.placement.place import Placer
 from closure_nlp.placement.result import PlacementResult
 from closure_nlp.selection.algorithms import (
@@ -119,24 +118,20 @@ def check_plan_arguments(alternatives, memo) -> int:
 
 def plan_one(
     eligibility: Eligibility,
+    placer: Placer,
+    seed: int | None,
     *,
-    seed: int | None = 0,
     start=None,
     selection: SelectionOptions = SelectionOptions(),
-    placement: PlacementOptions = PlacementOptions(),
     progress: Progress | None = None,
-    placer: Placer | None = None,
     alternatives: int = 4,
     memo: dict | None = None,
 ) -> PlanResult:
-    """One seed's plan: heuristic from ``seed`` (or ``start``), iterative from its result, then
-    placement (see :func:`closure_nlp.planning.plan.plan`)."""
+    """One seed's plan by ``placer`` (built on ``eligibility``): heuristic from ``seed`` (or
+    ``start``), iterative from its result, then placement (see
+    :func:`closure_nlp.planning.plan.plan`)."""
     alternatives = check_plan_arguments(alternatives, memo)
     t0 = time.perf_counter()
-    if placer is None:
-        placer = Placer(eligibility, placement)
-    elif placer.eligibility is not eligibility:
-        raise ValueError("placer: must be built on the same Eligibility as the plan")
     recall = _Recall(memo, eligibility, selection, placer, progress)
     first = heuristic(eligibility, start=start, seed=seed, options=selection, progress=progress)
     second = recall.iterative(first.elements, "iterative")
