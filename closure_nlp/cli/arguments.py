@@ -169,12 +169,17 @@ def alternatives_flag(value: int) -> int:
     return value
 
 
-def length_value(text: str) -> float:
-    """argparse type: a finite number >= 0."""
+def number_value(text: str) -> float:
+    """``text`` as a number, or argparse's error naming it."""
     try:
-        value = float_value(text)
+        return float_value(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+
+
+def length_value(text: str) -> float:
+    """argparse type: a finite number >= 0."""
+    value = number_value(text)
     if not (value >= 0 and value != float("inf")):
         raise argparse.ArgumentTypeError(f"expected a finite number >= 0, got {text!r}")
     return value
@@ -199,10 +204,7 @@ def point3_value(text: str) -> list[float]:
 
 def angle_value(text: str) -> float:
     """argparse type: a finite number of degrees (``nan`` would draw an empty picture)."""
-    try:
-        value = float_value(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    value = number_value(text)
     if not abs(value) <= 360.0:
         raise argparse.ArgumentTypeError(f"expected degrees in [-360, 360], got {text!r}")
     return value
@@ -239,3 +241,18 @@ gap_value = bounded_float(0.0, 1.0, "the gap")
 budget_value = bounded(
     float_value, "a number", lambda v: 0 < v < math.inf, "(0, inf)", "the time budget"
 )
+
+
+def model_parser(sub, common, name: str, help_text: str, count: str | None = None):
+    """The parser of a command on one MODEL; ``count`` adds how it says how many contacts:
+    ``"elements"`` (``--elements I,J,...``, one per contact) or ``"contacts"`` (``--contacts
+    M``)."""
+    p = sub.add_parser(name, parents=[common], help=help_text)
+    p.add_argument("model", metavar="MODEL", help="*.model.json")
+    if count == "elements":
+        p.add_argument("--elements", required=True, help="element ids, one per contact: I,J,...")
+    elif count == "contacts":
+        p.add_argument(
+            "--contacts", type=int_value, required=True, metavar="M", help="number of contacts"
+        )
+    return p

@@ -9,8 +9,7 @@ import sys
 from closure_nlp.base.files import (
     check_output_file,
 )
-from closure_nlp.cli.arguments import length_value, model_tolerance, point3_value, spacing_value
-from closure_nlp.cli.output import InputError, OutputFault, emit, reading, shown
+from closure_nlp.cli import arguments, output
 
 
 def add_characterize(sub, common) -> None:
@@ -20,23 +19,20 @@ def add_characterize(sub, common) -> None:
     p.add_argument("mesh", metavar="MESH", help="mesh file (STL, OBJ, PLY, GLB, OFF...)")
     p.add_argument("--out", required=True, metavar="MODEL", help="*.model.json to write")
     spacing = "(default auto: 0.2 x the part's radius; 0 keeps all)"
-    p.add_argument(
-        "--segment-spacing",
-        type=spacing_value,
-        default="auto",
-        metavar="X",
-        help=f"ruling spacing {spacing}",
-    )
-    p.add_argument(
-        "--point-spacing",
-        type=spacing_value,
-        default="auto",
-        metavar="Y",
-        help=f"point spacing {spacing}",
-    )
+    for flag, metavar, what in (
+        ("--segment-spacing", "X", "ruling"),
+        ("--point-spacing", "Y", "point"),
+    ):
+        p.add_argument(
+            flag,
+            type=arguments.spacing_value,
+            default="auto",
+            metavar=metavar,
+            help=f"{what} spacing {spacing}",
+        )
     p.add_argument(
         "--sharp-angle",
-        type=length_value,
+        type=arguments.length_value,
         default=30.0,
         metavar="DEG",
         help="edges sharper than this separate surfaces (default 30)",
@@ -54,12 +50,13 @@ def add_characterize(sub, common) -> None:
     )
     p.add_argument(
         "--reference-point",
-        type=point3_value,
+        type=arguments.point3_value,
         metavar="X,Y,Z",
         help="point torques are taken about (default: the part's centre of mass)",
     )
     p.add_argument("--up", default="z", choices=["x", "y", "z"], help="up axis for pictures")
     p.set_defaults(run=cmd_characterize)
+
 
 # The flags of ``characterize`` passed to :func:`characterize_mesh` under their own names.
 CHARACTERIZE_FLAGS = (
@@ -82,7 +79,7 @@ def cmd_characterize(args) -> None:
     from closure_nlp.model.elements import save_model
     from closure_nlp.model.scale import units_warning
 
-    with reading(args.out):
+    with output.reading(args.out):
         out = check_output_file(args.out)
     mesh_ref = Path(os.path.relpath(Path(args.mesh).resolve(), out.resolve().parent)).as_posix()
     copy = None
@@ -95,9 +92,9 @@ def cmd_characterize(args) -> None:
         )
     except ValueError as exc:
         text, prefix = str(exc), f"{args.mesh}: "
-        raise InputError(args.mesh, text.removeprefix(prefix)) from None
+        raise output.InputError(args.mesh, text.removeprefix(prefix)) from None
     model, dropped = found.model, list(found.dropped)
-    model = dataclasses.replace(model, tolerance=model_tolerance(args, model.tolerance))
+    model = dataclasses.replace(model, tolerance=arguments.model_tolerance(args, model.tolerance))
     try:
         if copy is not None:  # the repaired mesh, beside the model (pictures draw it)
             write_atomic(copy, found.mesh.export(file_type="stl"))
@@ -107,12 +104,12 @@ def cmd_characterize(args) -> None:
         dropped += more
         save_model(model, out)
     except OSError as exc:
-        raise OutputFault(args.out, f"cannot write: {exc.strerror or exc}") from None
+        raise output.OutputFault(args.out, f"cannot write: {exc.strerror or exc}") from None
     for line in dropped:
-        sys.stderr.write(f"warning: {shown(args.mesh)}: dropped {line}\n")
+        sys.stderr.write(f"warning: {output.shown(args.mesh)}: dropped {line}\n")
     warning = units_warning(model.radius, model.units)
     if warning:
-        sys.stderr.write(f"warning: {shown(args.mesh)}: {warning}\n")
+        sys.stderr.write(f"warning: {output.shown(args.mesh)}: {warning}\n")
     counts = model.counts()
     summary = ", ".join(f"{n} {kind}s" for kind, n in counts.items())
     payload = {
@@ -130,12 +127,12 @@ def cmd_characterize(args) -> None:
         "tolerance": model.tolerance.to_dict(),
     }
     tol = model.tolerance
-    emit(
+    output.emit(
         args,
         payload,
-        f"{shown(args.mesh)}: {found.text()}\n{shown(args.mesh)}: {summary}, "
-        f"{len(model.adjacency)} neighbour pairs -> {shown(out)}"
-        f"\n{shown(args.mesh)}: model accuracy: positions within "
+        f"{output.shown(args.mesh)}: {found.text()}\n{output.shown(args.mesh)}: {summary}, "
+        f"{len(model.adjacency)} neighbour pairs -> {output.shown(out)}"
+        f"\n{output.shown(args.mesh)}: model accuracy: positions within "
         f"{tol.position:.3g}{' ' + model.units if model.units else ''}, normals within "
         f"{tol.normal_deg:.3g} degrees of the mesh (verdicts are robust within it)",
     )

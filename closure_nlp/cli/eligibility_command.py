@@ -5,39 +5,30 @@ from __future__ import annotations
 import time
 
 from closure_nlp.base.formatting import certain
-from closure_nlp.cli.arguments import add_contact_options, id_list
-from closure_nlp.cli.output import (
-    bounds_text,
-    emit,
-    joined_ids,
-    reading,
-    shown,
-    verdict_text,
-    whole_cost,
-)
+from closure_nlp.cli import arguments, output
 from closure_nlp.cli.setup import model_eligibility
 
 
 def add_eligibility(sub, common) -> None:
-    p = sub.add_parser("eligibility", parents=[common], help="rho(0, What_c^M) of element sets")
-    p.add_argument("model", metavar="MODEL", help="*.model.json")
-    p.add_argument("--elements", required=True, help="element ids, one per contact: I,J,...")
-    add_contact_options(p)
+    p = arguments.model_parser(
+        sub, common, "eligibility", "rho(0, What_c^M) of element sets", "elements"
+    )
+    arguments.add_contact_options(p)
     p.set_defaults(run=cmd_eligibility)
 
 
 def cmd_eligibility(args) -> None:
-    ids = id_list(args.elements, "--elements")
+    ids = arguments.id_list(args.elements, "--elements")
     eligibility = model_eligibility(args, len(ids), "--elements")
-    with reading(args.model):
+    with output.reading(args.model):
         ids = eligibility.check_elements(ids, "--elements")
     t0 = time.perf_counter()
     result = eligibility(ids)
-    verdict = verdict_text(result, result.eligible, "eligible", "not eligible")
-    emit(
+    verdict = output.verdict_text(result, result.eligible, "eligible", "not eligible")
+    output.emit(
         args,
-        {**result.to_dict(), **whole_cost(result, t0)},
-        f"{shown(args.model)}: elements {joined_ids(result.elements)}: "
+        {**result.to_dict(), **output.whole_cost(result, t0)},
+        f"{output.shown(args.model)}: elements {output.joined_ids(result.elements)}: "
         f"rho_hat = {certain(result.rho_hat, result.bounds)} ({verdict})"
-        + bounds_text(result, "rho_hat"),
+        + output.bounds_text(result, "rho_hat"),
     )

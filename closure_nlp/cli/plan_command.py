@@ -14,64 +14,46 @@ from closure_nlp.base.formatting import certain
 from closure_nlp.base.validation import (
     MAX_SEED,
 )
-from closure_nlp.cli.arguments import (
-    MAX_WORKERS,
-    add_bound_options,
-    add_contact_options,
-    add_margin_option,
-    add_placement_options,
-    alternatives_flag,
-    bounded_int,
-    budget_value,
-    int_value,
-    seed_value,
-)
-from closure_nlp.cli.output import InputError, check_finite, emit, joined_ids, reading, shown
-from closure_nlp.cli.setup import (
-    margin_text,
-    model_eligibility,
-    placement_setup,
-    placement_text,
-    with_margin,
-)
+from closure_nlp.cli import arguments, output, setup
 from closure_nlp.planning.plan import plan
 from closure_nlp.planning.seeds import DEFAULT_BUDGET, DEFAULT_SEEDS, MAX_PLAN_SEEDS
 from closure_nlp.report.plan_report import write_report
 
 
 def add_plan(sub, common) -> None:
-    p = sub.add_parser("plan", parents=[common], help="heuristic, iterative and placement")
-    p.add_argument("model", metavar="MODEL", help="*.model.json")
-    p.add_argument(
-        "--contacts", type=int_value, required=True, metavar="M", help="number of contacts"
+    p = arguments.model_parser(
+        sub, common, "plan", "heuristic, iterative and placement", "contacts"
     )
     p.add_argument(
-        "--seed", type=seed_value, default=0, help="random start of the heuristic (the first seed)"
+        "--seed",
+        type=arguments.seed_value,
+        default=0,
+        help="random start of the heuristic (the first seed)",
     )
     p.add_argument(
         "--seeds",
-        type=bounded_int(1, MAX_PLAN_SEEDS, "the number of seeds"),
+        type=arguments.bounded_int(1, MAX_PLAN_SEEDS, "the number of seeds"),
         default=DEFAULT_SEEDS,
         metavar="N",
         help=f"plans from seeds S..S+N-1, the best returned (default {DEFAULT_SEEDS})",
     )
     p.add_argument(
         "--budget",
-        type=budget_value,
+        type=arguments.budget_value,
         default=DEFAULT_BUDGET,
         metavar="SECONDS",
         help=f"no further seed starts after this (default {DEFAULT_BUDGET:g})",
     )
     p.add_argument(
         "--workers",
-        type=bounded_int(1, MAX_WORKERS, "the number of worker processes"),
+        type=arguments.bounded_int(1, arguments.MAX_WORKERS, "the number of worker processes"),
         metavar="K",
         help="processes the seeds run on (default: one per core)",
     )
-    add_placement_options(p)
+    arguments.add_placement_options(p)
     p.add_argument(
         "--alternatives",
-        type=int_value,
+        type=arguments.int_value,
         default=4,
         metavar="N",
         help="further element sets placed when placement fails (default 4)",
@@ -82,23 +64,23 @@ def add_plan(sub, common) -> None:
     p.add_argument(
         "--up", choices=["x", "y", "z"], help="model axis drawn upwards (default: the model's)"
     )
-    add_margin_option(p)
-    add_bound_options(p)
-    add_contact_options(p)
+    arguments.add_margin_option(p)
+    arguments.add_bound_options(p)
+    arguments.add_contact_options(p)
     p.set_defaults(run=cmd_plan)
 
 
 def cmd_plan(args) -> None:
     from closure_nlp.placement.margin import on_original
 
-    eligibility = model_eligibility(args, args.contacts, closure=True)
+    eligibility = setup.model_eligibility(args, args.contacts, closure=True)
     original = eligibility.model
-    with reading(args.model):
-        eligibility = with_margin(args, eligibility)
-    placement_options, progress, close = placement_setup(args, False, check_output_dir)
+    with output.reading(args.model):
+        eligibility = setup.with_margin(args, eligibility)
+    placement_options, progress, close = setup.placement_setup(args, False, check_output_dir)
     try:
         if args.seed + args.seeds - 1 > MAX_SEED:
-            raise InputError(
+            raise output.InputError(
                 "--seeds", f"seeds {args.seed}..{args.seed + args.seeds - 1} pass {MAX_SEED}"
             )
         several = {} if args.seeds == 1 else {"seeds": args.seeds, "workers": args.workers}
@@ -107,7 +89,7 @@ def cmd_plan(args) -> None:
             seed=args.seed,
             placement=placement_options,
             progress=progress,
-            alternatives=alternatives_flag(args.alternatives),
+            alternatives=arguments.alternatives_flag(args.alternatives),
             **several,
             **({"budget": args.budget} if several else {}),
         )
@@ -117,7 +99,7 @@ def cmd_plan(args) -> None:
         result = dataclasses.replace(result, placement=on_original(result.placement, original))
     payload = result.to_dict()
     payload["margin"] = args.margin
-    check_finite(payload, args.model)  # before anything is written
+    output.check_finite(payload, args.model)  # before anything is written
     if args.out:
         options = {
             "contacts": args.contacts,
@@ -138,23 +120,23 @@ def cmd_plan(args) -> None:
         payload["out"] = {name: os.path.join(args.out, name) for name in written}
     h, it = result.heuristic, result.iterative
     text = (
-        f"{shown(args.model)}: heuristic {joined_ids(h.elements)} "
+        f"{output.shown(args.model)}: heuristic {output.joined_ids(h.elements)} "
         f"rho_hat = {certain(h.rho_hat, h.bounds)} "
-        f"({h.seconds:.2f} s); iterative {joined_ids(it.elements)} "
+        f"({h.seconds:.2f} s); iterative {output.joined_ids(it.elements)} "
         f"rho_hat = {certain(it.rho_hat, it.bounds)} "
         f"({it.seconds:.2f} s)\n"
         + "".join(
-            f"placement on {joined_ids(a.elements)} ({a.source}): rho = {a.rho:.6g}"
+            f"placement on {output.joined_ids(a.elements)} ({a.source}): rho = {a.rho:.6g}"
             f"{' (force closure)' if a.force_closure else ''} ({a.seconds:.2f} s)\n"
             for a in result.attempts[1:]
         )
-        + f"{placement_text(result.placement, original)}"
-        + f"{margin_text(args, eligibility.model)}\n"
+        + f"{setup.placement_text(result.placement, original)}"
+        + f"{setup.margin_text(args, eligibility.model)}\n"
         + ("" if result.seeds is None else result.seeds.line() + "\n")
         + f"total {result.seconds:.2f} s"
-        + (f"; report in {shown(args.out)}" if args.out else "")
+        + (f"; report in {output.shown(args.out)}" if args.out else "")
     )
-    emit(args, payload, text)
+    output.emit(args, payload, text)
     if not result.force_closure:
         raise MethodError(f"{args.model}: {result.failure()}")
     if result.placement.robust is False:

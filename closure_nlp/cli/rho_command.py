@@ -6,8 +6,7 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 
 from closure_nlp.base.formatting import certain
-from closure_nlp.cli.arguments import MAX_WORKERS, bounded_int, model_tolerance
-from closure_nlp.cli.output import bounds_text, emit, load_each, shown, verdict_text, whole_cost
+from closure_nlp.cli import arguments, output
 from closure_nlp.criterion.support_minimum import rho
 from closure_nlp.report.plan_report import load_contacts
 
@@ -24,7 +23,7 @@ def add_rho(sub, common) -> None:
     )
     p.add_argument(
         "--workers",
-        type=bounded_int(1, MAX_WORKERS, "the number of workers"),
+        type=arguments.bounded_int(1, arguments.MAX_WORKERS, "the number of workers"),
         default=1,
         metavar="K",
         help="files certified at once, in threads (default 1); the answers and their order "
@@ -34,26 +33,26 @@ def add_rho(sub, common) -> None:
 
 
 def cmd_rho(args) -> None:
-    loaded = load_each(args.files, load_contacts)
+    loaded = output.load_each(args.files, load_contacts)
     if args.workers == 1:
         answers = (_answer(args, path, contact_set) for path, contact_set in loaded)
         for payload, text in answers:
-            emit(args, payload, text)
+            output.emit(args, payload, text)
         return
     with ThreadPoolExecutor(min(args.workers, len(loaded))) as pool:
         for payload, text in pool.map(lambda item: _answer(args, *item), loaded):
-            emit(args, payload, text)
+            output.emit(args, payload, text)
 
 
 def _answer(args, path, contact_set) -> tuple[dict, str]:
     """One file's JSON answer and its line of text."""
     t0 = time.perf_counter()
-    result = rho(contact_set, tolerance=model_tolerance(args, contact_set.tolerance))
-    payload = {"file": path, **result.to_dict(), **whole_cost(result, t0)}
+    result = rho(contact_set, tolerance=arguments.model_tolerance(args, contact_set.tolerance))
+    payload = {"file": path, **result.to_dict(), **output.whole_cost(result, t0)}
     direction = " ".join(f"{x:+.4f}" for x in result.direction)
     text = (
-        f"{shown(path)}: rho = {certain(result.rho, result.bounds)} "
-        f"({verdict_text(result, result.force_closure)}); "
-        f"weakest direction u* = [{direction}]" + bounds_text(result, "rho")
+        f"{output.shown(path)}: rho = {certain(result.rho, result.bounds)} "
+        f"({output.verdict_text(result, result.force_closure)}); "
+        f"weakest direction u* = [{direction}]" + output.bounds_text(result, "rho")
     )
     return payload, text

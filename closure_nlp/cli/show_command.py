@@ -6,24 +6,14 @@ from closure_nlp.base.files import (
     check_output_file,
 )
 from closure_nlp.base.formatting import certain
-from closure_nlp.cli.arguments import add_mesh_option, angle_value, int_value
-from closure_nlp.cli.output import (
-    InputError,
-    OutputFault,
-    emit,
-    load_each,
-    reading,
-    shown,
-    verdict_text,
-)
+from closure_nlp.cli import arguments, output
 from closure_nlp.cli.setup import read_model
 from closure_nlp.criterion.support_minimum import rho
 from closure_nlp.report.plan_report import load_contacts
 
 
 def add_show(sub, common) -> None:
-    p = sub.add_parser("show", parents=[common], help="picture (or 3-D scene) of a model")
-    p.add_argument("model", metavar="MODEL", help="*.model.json")
+    p = arguments.model_parser(sub, common, "show", "picture (or 3-D scene) of a model")
     p.add_argument(
         "--contacts", metavar="FILE", help="*.contacts.json (or a plan's report.json) to draw"
     )
@@ -38,10 +28,14 @@ def add_show(sub, common) -> None:
         metavar="I,J,...",
         help="element ids to highlight (default: the contacts' 'element' ids)",
     )
-    p.add_argument("--elev", type=angle_value, default=22.0, help="view elevation, degrees")
-    p.add_argument("--azim", type=angle_value, default=-58.0, help="view azimuth, degrees")
+    p.add_argument(
+        "--elev", type=arguments.angle_value, default=22.0, help="view elevation, degrees"
+    )
+    p.add_argument(
+        "--azim", type=arguments.angle_value, default=-58.0, help="view azimuth, degrees"
+    )
     p.add_argument("--no-mesh", action="store_true", help="do not draw the model's mesh")
-    add_mesh_option(p)
+    arguments.add_mesh_option(p)
     p.add_argument("--ids", action="store_true", help="write each element's id beside it")
     p.add_argument(
         "--up", choices=["x", "y", "z"], help="model axis drawn upwards (default: the model's)"
@@ -69,7 +63,8 @@ def show_title(model, contacts) -> str | None:
     result = rho(contacts)
     return (
         f"{model.name}: {len(contacts.contacts)} contacts, rho = "
-        f"{certain(result.rho, result.bounds)} ({verdict_text(result, result.force_closure)})"
+        f"{certain(result.rho, result.bounds)} "
+        f"({output.verdict_text(result, result.force_closure)})"
     )
 
 
@@ -78,28 +73,30 @@ def cmd_show(args) -> None:
 
     from closure_nlp.report.drawing import PICTURE_SUFFIXES, SCENE_SUFFIXES, save_view
 
-    with reading(args.out):
+    with output.reading(args.out):
         check_output_file(args.out)
     marked: list[int] = []
     model = read_model(args, marked)
     contacts, highlight = None, []
     if args.contacts:
-        [(_, contacts)] = load_each([args.contacts], load_contacts)
+        [(_, contacts)] = output.load_each([args.contacts], load_contacts)
         highlight = contact_elements(args.contacts)
     if args.highlight:
         try:
-            highlight = [int_value(part) for part in args.highlight.split(",")]
+            highlight = [arguments.int_value(part) for part in args.highlight.split(",")]
         except ValueError:
             message = f"expected element ids I,J,..., got {args.highlight!r}"
-            raise InputError("--highlight", message) from None
+            raise output.InputError("--highlight", message) from None
     try:
         for k, i in enumerate(highlight):
             model.check_id(i, f"contacts[{k}].element" if not args.highlight else "--highlight")
     except (ValueError, TypeError) as exc:
-        raise InputError(args.contacts if not args.highlight else "--highlight", str(exc)) from None
+        raise output.InputError(
+            args.contacts if not args.highlight else "--highlight", str(exc)
+        ) from None
     suffix = Path(args.out).suffix.lower()
     if suffix not in PICTURE_SUFFIXES | SCENE_SUFFIXES:
-        raise InputError(
+        raise output.InputError(
             "--out",
             f"unsupported file type {suffix or args.out!r} "
             "(use .png, .svg, .pdf, .jpg, .glb or .html)",
@@ -110,9 +107,9 @@ def cmd_show(args) -> None:
     try:
         out = save_view(model, args.out, contacts, highlight=highlight, marked=marked, **options)
     except OSError as exc:
-        raise OutputFault(args.out, f"cannot write: {exc.strerror or exc}") from None
+        raise output.OutputFault(args.out, f"cannot write: {exc.strerror or exc}") from None
     point = ", ".join(f"{x:.6g}" for x in model.reference_point)
-    emit(
+    output.emit(
         args,
         {
             "file": args.model,
@@ -121,7 +118,7 @@ def cmd_show(args) -> None:
             "reference_point": model.reference_point.tolist(),
             "marked": marked,
         },
-        f"{shown(args.model)}: drawn to {shown(out)} (torques about [{point}]"
+        f"{output.shown(args.model)}: drawn to {output.shown(out)} (torques about [{point}]"
         + (f" {model.units}" if model.units else "")
         + ", marked x)",
     )

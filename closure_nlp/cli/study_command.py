@@ -8,8 +8,7 @@ from closure_nlp.base.errors import MethodError
 from closure_nlp.base.files import (
     check_output_dir,
 )
-from closure_nlp.cli.arguments import MAX_WORKERS, bounded_int, scheduler_address, study_count
-from closure_nlp.cli.output import InputError, emit, reading, shown
+from closure_nlp.cli import arguments, output
 
 
 def add_study(sub, common) -> None:
@@ -22,19 +21,22 @@ def add_study(sub, common) -> None:
     )
     p.add_argument(
         "--scheduler",
-        type=scheduler_address,
+        type=arguments.scheduler_address,
         metavar="ADDRESS",
         help="join this Dask scheduler (tcp://HOST:PORT)",
     )
     p.add_argument(
         "--workers",
-        type=bounded_int(1, MAX_WORKERS, "the number of local workers"),
+        type=arguments.bounded_int(1, arguments.MAX_WORKERS, "the number of local workers"),
         metavar="N",
         help="local workers (default: cores)",
     )
     p.add_argument("--serial", action="store_true", help="run in this process, without Dask")
     p.add_argument(
-        "--limit", type=study_count(0), metavar="N", help="run at most N tasks now (then resume)"
+        "--limit",
+        type=arguments.study_count(0),
+        metavar="N",
+        help="run at most N tasks now (then resume)",
     )
     p.add_argument("--retry-failed", action="store_true", help="run failed tasks again")
     p.set_defaults(run=cmd_study)
@@ -46,8 +48,8 @@ def cmd_study(args) -> None:
     try:
         study = load_study(args.study)
     except (ValueError, TypeError) as exc:
-        raise InputError(args.study, str(exc)) from None
-    with reading(args.out):
+        raise output.InputError(args.study, str(exc)) from None
+    with output.reading(args.out):
         check_output_dir(args.out, marker=None)  # results are added to it (resume)
     bar = None
 
@@ -78,12 +80,13 @@ def cmd_study(args) -> None:
             bar.close()
     payload = {"file": args.study, **result.to_dict()}
     text = (
-        f"{shown(args.study)}: {result.total} tasks: {result.run} run ({result.failed} failed), "
+        f"{output.shown(args.study)}: {result.total} tasks: {result.run} run "
+        f"({result.failed} failed), "
         f"{result.skipped} done before, {result.remaining} remaining; {result.seconds:.1f} s on "
         f"{result.workers} worker(s), {result.tasks_per_second:.3f} tasks/s\n"
-        f"summary in {shown(result.paths['summary.md'])}"
+        f"summary in {output.shown(result.paths['summary.md'])}"
     )
-    emit(args, payload, text)
+    output.emit(args, payload, text)
     if result.failed:
         raise MethodError(
             f"{args.study}: {result.failed} of {result.run} tasks failed "
