@@ -1170,6 +1170,56 @@ def cpu_model() -> str:
     return ""
 
 
+def mesh_sampled_sets(count: int, m: int = 4, seed: int = 0, model: str = "lamp"):
+    """``count`` sets of ``m`` contacts at random points of an example's mesh, inward normals of
+    their triangles: positions (count, m, 3), normals, the torque scale and reference point of
+    the part (``1 / radius`` about the centre of its bounding box)."""
+    import trimesh
+
+    mesh = trimesh.load(str(MODELS_DIR / f"{model}.stl"), force="mesh")
+    points, faces = trimesh.sample.sample_surface(mesh, count * m, seed=seed)
+    centre = (points.max(axis=0) + points.min(axis=0)) / 2
+    radius = float(np.linalg.norm(points - centre, axis=1).max())
+    P = points.reshape(count, m, 3)
+    U = -np.asarray(mesh.face_normals)[faces].reshape(count, m, 3)
+    return P, U, 1.0 / radius, centre
+
+
+def bench_throughput(sets: int = 1000, seed: int = 0, workers=(1, 2)) -> dict:
+    """Certified rho per second of mesh-sampled 4-PCwF sets (mu 0.5; mixed verdicts) by
+    rho_many, one worker and each count of ``workers`` in threads and in processes, in this
+    process, alternated; every run's columns checked equal to the first's."""
+    from closure_nlp import rho_many
+
+    P, U, scale, centre = mesh_sampled_sets(sets, seed=seed)
+    kwargs = {"mu": 0.5, "torque_scale": scale, "reference_point": centre}
+    rho_many(P[:8], U[:8], workers=1, **kwargs)  # solvers built outside the timings
+    runs, first, same = {}, None, True
+    for pool in ("threads", "processes"):
+        for k in workers:
+            t = time.perf_counter()
+            columns = rho_many(P, U, workers=k, pool=pool, **kwargs)
+            seconds = time.perf_counter() - t
+            runs[f"{pool} {k}"] = {"seconds": seconds, "sets_per_second": sets / seconds}
+            if first is None:
+                first = columns
+            same &= bool(np.array_equal(first.bounds, columns.bounds))
+    fc = first.force_closure
+    unit = np.maximum(np.abs(first.rho), np.finfo(float).tiny)
+    return {
+        "sets": sets,
+        "force_closure_share": float(fc.mean()),
+        "median_ms": {
+            "all": float(1e3 * np.median(first.seconds)),
+            "force_closure": float(1e3 * np.median(first.seconds[fc])) if fc.any() else None,
+        },
+        "widest_relative_bracket": float(np.max(np.diff(first.bounds, axis=1)[:, 0] / unit)),
+        "converged": int(first.converged.sum()),
+        "runs": runs,
+        "same_columns_every_run": same,
+    }
+
+
 def machine(load_before: tuple[float, ...]) -> dict:
     """Where and when a report was measured: cores, CPU model, the 1-minute load average before
     and after the run (other processes share the cores; the milliseconds move with them), date."""
@@ -1241,6 +1291,10 @@ def main(argv=None) -> int:
     p = sub.add_parser("batch", help="certified rho per file: the CLI's rho on many files")
     p.add_argument("--files", type=int, default=200)
     p.add_argument("--repeats", type=int, default=3)
+    p = sub.add_parser("throughput", help="certified rho per second of many sets (rho_many)")
+    p.add_argument("--sets", type=int, default=1000)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--workers", default="1,2", help="worker counts, comma-separated")
     p = sub.add_parser("units", help="pybullet's domino in m and mm, placed under margins")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--cells", type=int, default=200, help="cells of each ceiling (default 200)")
@@ -1275,6 +1329,9 @@ def main(argv=None) -> int:
         report = bench_plans(seeds, args.baseline, args.models.split(","), args.flags.split())
     elif args.what == "batch":
         report = bench_batch(args.files, args.repeats)
+    elif args.what == "throughput":
+        counts = tuple(int(k) for k in args.workers.split(","))
+        report = bench_throughput(args.sets, args.seed, counts)
     elif args.what == "units":
         report = bench_units(seed=args.seed, cells=args.cells, lp_centre=args.lp_centre)
     elif args.what == "gap":

@@ -47,6 +47,8 @@ _PUBLIC = {
     "warm_up": "closure_nlp.criterion.warm_up",
     "rho_many": "closure_nlp.criterion.many",
     "RhoColumns": "closure_nlp.criterion.many",
+    "rho_hat_many": "closure_nlp.criterion.many",
+    "RhoHatColumns": "closure_nlp.criterion.many",
     # selection, placement, planning, reports
     "select": "closure_nlp.selection.algorithms",
     "heuristic": "closure_nlp.selection.algorithms",
@@ -92,6 +94,7 @@ __all__ = [
     "Placer",
     "PlanResult",
     "RhoColumns",
+    "RhoHatColumns",
     "RhoResult",
     "SearchOptions",
     "SelectionOptions",
@@ -114,6 +117,7 @@ __all__ = [
     "place",
     "plan",
     "rho",
+    "rho_hat_many",
     "rho_many",
     "run_study",
     "save_model",
@@ -149,7 +153,7 @@ if TYPE_CHECKING:  # what static tools see; at run time the names load on first 
         load_contact_set,
     )
     from closure_nlp.criterion.crosscheck import distance_cvxpy, force_closure_cvxpy
-    from closure_nlp.criterion.many import RhoColumns, rho_many
+    from closure_nlp.criterion.many import RhoColumns, RhoHatColumns, rho_hat_many, rho_many
     from closure_nlp.criterion.rho_hat import Eligibility, EligibilityResult, eligibility
     from closure_nlp.criterion.support_minimum import RhoResult, SearchOptions, rho
     from closure_nlp.criterion.warm_up import warm_up

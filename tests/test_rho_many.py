@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from closure_nlp import ContactSet, force_closure_cvxpy, rho
+from closure_nlp import ContactSet, Eligibility, contact_specs, force_closure_cvxpy, load_model, rho
 from closure_nlp.contact.random_sets import random_contact_set
-from closure_nlp.criterion.many import rho_many
+from closure_nlp.criterion.many import rho_hat_many, rho_many
 
 
 def _arrays(n: int, m: int = 4, seed: int = 0):
@@ -108,3 +108,19 @@ def test_masked_positions_are_refused():
     _, P, U = _arrays(2)
     with pytest.raises(TypeError, match="masked"):
         rho_many(np.ma.masked_array(P, mask=np.zeros_like(P, dtype=bool)), U)
+
+
+def test_rho_hat_many_is_each_sets_rho_hat_whatever_the_workers():
+    from pathlib import Path
+
+    lamp = load_model(Path(__file__).resolve().parents[1] / "models" / "lamp.model.json")
+    hand = Eligibility(lamp, contact_specs(4, type="pcwf", mu=0.2, model=lamp))
+    rng = np.random.default_rng(2)
+    sets = [rng.integers(0, len(lamp), 4).tolist() for _ in range(12)]
+    one = rho_hat_many(hand, sets, workers=1)
+    two = rho_hat_many(hand, sets, workers=2)
+    assert np.array_equal(one.bounds, two.bounds) and np.array_equal(one.eligible, two.eligible)
+    for k, ids in enumerate(sets):
+        assert one.rho_hat[k] == hand(ids).rho_hat
+    with pytest.raises(ValueError, match="element_sets"):
+        rho_hat_many(hand, [[0, 1]])

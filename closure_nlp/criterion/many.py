@@ -36,8 +36,48 @@ POOLS = ("threads", "processes")
 MAX_WORKERS = 256
 
 
+class _Columns:
+    """Read-only columns of many certified answers, one row per set (the fields of each
+    subclass); ``from_results`` reads them from results of that kind."""
+
+    # column -> (attribute of a result, dtype, shape of one row)
+    COLUMNS: dict = {}
+
+    def __post_init__(self) -> None:
+        for name in self.COLUMNS:
+            column = np.array(getattr(self, name))  # a copy the caller cannot change
+            column.flags.writeable = False
+            object.__setattr__(self, name, column)
+
+    def __len__(self) -> int:
+        return len(self.seconds)
+
+    @classmethod
+    def from_results(cls, results):
+        columns = {}
+        for name, (attribute, dtype, shape) in cls.COLUMNS.items():
+            values = [_attribute(r, attribute) for r in results]
+            columns[name] = np.array(values, dtype=dtype).reshape(len(results), *shape)
+        return cls(**columns)
+
+
+def _attribute(result, dotted: str):
+    for part in dotted.split("."):
+        result = getattr(result, part)
+    return result
+
+
+_SHARED = {
+    "bounds": ("bounds", float, (2,)),
+    "marginal": ("marginal", bool, ()),
+    "converged": ("converged", bool, ()),
+    "direction": ("direction", float, (6,)),
+    "seconds": ("stats.seconds", float, ()),
+}
+
+
 @dataclass(frozen=True, eq=False)
-class RhoColumns:
+class RhoColumns(_Columns):
     """The answers of :func:`rho_many`, one row per contact set, as read-only arrays.
 
     Attributes
@@ -46,12 +86,15 @@ class RhoColumns:
     bounds : (N, 2) float
         Certified ``[lo, hi]`` of each rho.
     force_closure, marginal, converged : (N,) bool
-        As :class:`~closure_nlp.criterion.support_minimum.RhoResult`'s, from each certified bracket.
+        As :class:`~closure_nlp.criterion.support_minimum.RhoResult`'s, from each certified
+        bracket.
     direction : (N, 6) float
         Each set's weakest unit wrench direction ``u*``.
     seconds : (N,) float
         Each set's own cost (search and certificate).
     """
+
+    COLUMNS = {"rho": ("rho", float, ()), "force_closure": ("force_closure", bool, ()), **_SHARED}
 
     rho: np.ndarray
     bounds: np.ndarray
@@ -61,26 +104,21 @@ class RhoColumns:
     direction: np.ndarray
     seconds: np.ndarray
 
-    def __post_init__(self) -> None:
-        for name in self.__dataclass_fields__:
-            column = np.array(getattr(self, name))  # a copy the caller cannot change
-            column.flags.writeable = False
-            object.__setattr__(self, name, column)
 
-    def __len__(self) -> int:
-        return len(self.rho)
+@dataclass(frozen=True, eq=False)
+class RhoHatColumns(_Columns):
+    """The answers of :func:`rho_hat_many`, one row per element set: ``rho_hat`` (N,),
+    ``eligible`` (N,) and the other columns of :class:`RhoColumns`."""
 
-    @classmethod
-    def from_results(cls, results) -> RhoColumns:
-        return cls(
-            rho=np.array([r.rho for r in results], dtype=float),
-            bounds=np.array([r.bounds for r in results], dtype=float).reshape(-1, 2),
-            force_closure=np.array([r.force_closure for r in results], dtype=bool),
-            marginal=np.array([r.marginal for r in results], dtype=bool),
-            converged=np.array([r.converged for r in results], dtype=bool),
-            direction=np.array([r.direction for r in results], dtype=float).reshape(-1, 6),
-            seconds=np.array([r.stats.seconds for r in results], dtype=float),
-        )
+    COLUMNS = {"rho_hat": ("rho_hat", float, ()), "eligible": ("eligible", bool, ()), **_SHARED}
+
+    rho_hat: np.ndarray
+    bounds: np.ndarray
+    eligible: np.ndarray
+    marginal: np.ndarray
+    converged: np.ndarray
+    direction: np.ndarray
+    seconds: np.ndarray
 
 
 def rho_many(
@@ -146,6 +184,35 @@ def rho_many(
 
 def _certify_chunk(sets) -> list:
     return [rho(s) for s in sets]
+
+
+def rho_hat_many(eligibility, element_sets, *, workers: int | None = None) -> RhoHatColumns:
+    """Certified rho_hat of many element sets of one model, in threads.
+
+    Parameters
+    ----------
+    eligibility : Eligibility
+        The model, contact specs and torque scale
+        (:class:`~closure_nlp.criterion.rho_hat.Eligibility`).
+    element_sets : sequence of sequences of int
+        Element ids, one per contact of each set.
+    workers : int, optional
+        Sets certified at once (default: one per core); the answers do not depend on it.
+
+    Returns
+    -------
+    RhoHatColumns
+    """
+    sets = [
+        eligibility.check_elements(ids, f"element_sets[{k}]") for k, ids in enumerate(element_sets)
+    ]
+    if not sets:
+        raise ValueError("element_sets: at least one set is needed, got none")
+    workers = _workers(workers, len(sets))
+    if workers == 1:
+        return RhoHatColumns.from_results([eligibility(ids) for ids in sets])
+    with ThreadPoolExecutor(workers) as executor:
+        return RhoHatColumns.from_results(list(executor.map(eligibility, sets)))
 
 
 def _workers(workers, count: int) -> int:
@@ -246,4 +313,4 @@ def _per_set(value, N: int, field: str, shape: tuple) -> np.ndarray:
     raise ValueError(f"{field}: expected shape {shape} or {(N, *shape)}, got {array.shape}")
 
 
-__all__ = ["RhoColumns", "rho_many"]
+__all__ = ["RhoColumns", "RhoHatColumns", "rho_hat_many", "rho_many"]
