@@ -93,6 +93,22 @@ def test_plan_cli_equals_api(capsys, box):
     assert _without_timings(from_cli) == _without_timings(json.loads(json.dumps(api)))
 
 
+@pytest.mark.slow
+def test_the_command_lines_default_seeds_are_the_apis_seeds_argument(capsys, box):
+    """``plan`` on the command line runs DEFAULT_SEEDS seeds; ``plan(..., seeds=N)`` in the API
+    runs the same seeds and chooses the same one (the README says how to get one from the
+    other)."""
+    from closure_nlp.planning.seeds import DEFAULT_SEEDS
+
+    argv = ["plan", str(box), "--contacts", "3", "--seed", "3", "--starts", "2", *OPTIONS]
+    from_cli = _cli(capsys, *argv, "--type", "pcwf")
+    hand = _hand(box, 3, "pcwf")
+    api = plan(hand, seed=3, seeds=DEFAULT_SEEDS, placement=PlacementOptions(starts=2))
+    assert from_cli["placement"]["rho"] == api.placement.rho
+    assert [c["element"] for c in from_cli["placement"]["contacts"]] == list(api.placement.elements)
+    assert from_cli["seeds"]["requested"] == DEFAULT_SEEDS
+
+
 @pytest.mark.slow  # 47 s: the fast suite stays near 10 minutes
 def test_select_and_place_cli_equal_api(capsys, box):
     argv = ["select", str(box), "--contacts", "2", "--algorithm", "iterative", "--seed", "5"]
