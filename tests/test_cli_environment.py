@@ -167,8 +167,10 @@ def test_plan_out_onto_a_full_disk_keeps_the_old_report(tmp_path, capsys, monkey
         (Path(staged) / "report.json").write_text("half")
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(Path(staged) / "x.png"))
 
-    monkeypatch.setattr(cli, "plan", lambda *a, **k: Done())
-    monkeypatch.setattr(cli, "write_report", full)
+    from closure_nlp.cli import plan_command
+
+    monkeypatch.setattr(plan_command, "plan", lambda *a, **k: Done())
+    monkeypatch.setattr(plan_command, "write_report", full)
     code = cli.main(["plan", str(LAMP), "--contacts", "4", "--out", str(out)])
     out_text, err = capsys.readouterr()
     assert code == 1 and out_text == ""
