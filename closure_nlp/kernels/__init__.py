@@ -102,10 +102,6 @@ def _drop_stale_kernels() -> None:
 
 _drop_stale_kernels()
 
-from ._link import install as _install_late_linking  # noqa: E402
-
-_install_late_linking()
-
 
 def kernel_array(a) -> np.ndarray:
     """``a`` as the kernels are compiled for it: float64, C order, aligned, writeable, a
