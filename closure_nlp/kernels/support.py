@@ -22,7 +22,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-OPTIONS = {"cache": True, "nogil": True, "fastmath": False, "error_model": "numpy"}
+from . import CACHE
+
+OPTIONS = {"cache": CACHE, "nogil": True, "fastmath": False, "error_model": "numpy"}
 # Thin wrappers, inlined where they are called: a call that passes arrays costs more than a
 # support point's arithmetic (reference counts of every array).
 WRAPPER = {**OPTIONS, "inline": "always"}
