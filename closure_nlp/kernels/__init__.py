@@ -126,19 +126,45 @@ def drop_stale_cache(cache: Path, digest: str, modules) -> None:
         pass
 
 
-def _wipe(cache: Path, modules) -> None:
-    """Remove ``modules``' cached kernels, and the stamp of a completed compile, from
-    ``cache`` (those that can be removed)."""
+def _wipe(cache: Path, modules, keep=frozenset()) -> None:
+    """Remove ``modules``' cached kernels, but those named in ``keep`` (``module.function``),
+    and the stamp of a completed compile, from ``cache`` (those that can be removed)."""
     try:
         entries = list(cache.iterdir())
     except OSError:
         return
     for entry in entries:
-        if _is_kernel_file(entry, modules) or entry.name == _WARM:
+        kernel = _is_kernel_file(entry, modules) and entry.name.split("-", 1)[0] not in keep
+        if kernel or entry.name == _WARM:
             try:
                 entry.unlink(missing_ok=True)
             except OSError:
                 pass
+
+
+def _in_memory() -> frozenset:
+    """``module.function`` of every kernel of this package compiled or loaded in this process."""
+    names = set()
+    for module_name, module in list(sys.modules.items()):
+        if not module_name.startswith(f"{__name__}.") or module is None:
+            continue
+        for value in vars(module).values():
+            if getattr(value, "overloads", None) and hasattr(value, "py_func"):
+                names.add(f"{module_name.rsplit('.', 1)[1]}.{value.py_func.__qualname__}")
+    return frozenset(names)
+
+
+def _drop_damaged(error: Exception, notify=None) -> None:
+    """After ``error`` loading a cached kernel: every cached kernel of this package that this
+    process has not loaded or compiled is removed (the damaged file among them; those in
+    memory loaded well, and stay for the next start), said once."""
+    _trouble["healed"] = True
+    _wipe(CACHE_FOLDER, _MODULES, keep=_in_memory())
+    _notice(
+        f"a damaged compiled kernel in {CACHE_FOLDER} ({type(error).__name__}: {error}): "
+        "the cached kernels not yet loaded are dropped and compiled again",
+        notify,
+    )
 
 
 def _cache_folder() -> Path | None:
@@ -199,8 +225,9 @@ _TRIES = 200
 def _compile(kernel, signature, notify=None) -> None:
     """``kernel.compile(signature)`` whatever the disk cache holds or accepts.
 
-    A cached kernel numba fails to load (a truncated, empty or foreign file) drops every cached
-    kernel of this package, said once, and the compile starts again (once per process). A
+    A cached kernel numba fails to load (a truncated, empty or foreign file) drops the cached
+    kernels not yet loaded (:func:`_drop_damaged`), and the compile starts again (once per
+    process). A
     kernel numba cannot save (a full disk, a read-only folder): numba keeps a kernel it has
     compiled before saving it, so the compile started again finds that one in memory and goes
     on to the next; said once. A :class:`~numba.core.errors.TypingError` is the caller's."""
@@ -223,13 +250,7 @@ def _compile(kernel, signature, notify=None) -> None:
         except Exception as error:
             if _trouble["healed"] or CACHE_FOLDER is None:
                 raise
-            _trouble["healed"] = True
-            _wipe(CACHE_FOLDER, _MODULES)
-            _notice(
-                f"a damaged compiled kernel in {CACHE_FOLDER} ({type(error).__name__}: "
-                f"{error}): every cached kernel of closure_nlp dropped and compiled again",
-                notify,
-            )
+            _drop_damaged(error, notify)
     kernel.compile(signature)
 
 
@@ -550,8 +571,8 @@ def cached(rho_only: bool = False, capacity: bool = True, notify=None) -> bool:
     """Whether every kernel called from Python that a warm-up of ``rho_only`` and ``capacity``
     wants (:func:`_wanted`) is in the disk cache, compiled from these sources by this numba and
     Python (a completed compile's stamp says so), and loads: they are loaded here (the warm-up
-    runs them next). A cached kernel that fails to load drops every cached kernel of this
-    package, said once through ``notify``: False, a compile is due."""
+    runs them next). A cached kernel that fails to load drops those not yet loaded
+    (:func:`_drop_damaged`), said once through ``notify``: False, a compile is due."""
     import importlib
 
     from numba.core.errors import TypingError
@@ -578,13 +599,7 @@ def cached(rho_only: bool = False, capacity: bool = True, notify=None) -> bool:
         except TypingError:
             return False
         except Exception as error:  # a damaged file: numba loads it with no check of its own
-            _trouble["healed"] = True
-            _wipe(CACHE_FOLDER, _MODULES)
-            _notice(
-                f"a damaged compiled kernel in {CACHE_FOLDER} ({type(error).__name__}: "
-                f"{error}): every cached kernel of closure_nlp dropped and compiled again",
-                notify,
-            )
+            _drop_damaged(error, notify)
             return False
         if sum(kernel.stats.cache_misses.values()):  # its file gone: compiled, not loaded
             return False
