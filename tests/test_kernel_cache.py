@@ -355,7 +355,7 @@ def test_the_package_cache_is_stamped_with_its_sources():
     from closure_nlp import kernels
 
     package = Path(kernels.__file__).resolve().parent
-    cache = kernels._cache_folder(package)
+    cache = kernels.CACHE_FOLDER
     stamp = cache / "closure_nlp_kernels.sha256"
     assert stamp.read_text() == kernels.sources_digest(package)
 

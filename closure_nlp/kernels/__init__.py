@@ -594,6 +594,7 @@ def cached(rho_only: bool = False, capacity: bool = True, notify=None) -> bool:
         if rho_only and (module, name) in INNER_IN_RHO:
             continue
         kernel = getattr(importlib.import_module(f"{__name__}.{module}"), name)
+        misses = sum(kernel.stats.cache_misses.values())
         try:
             kernel.compile(declared[module, name])
         except TypingError:
@@ -601,6 +602,6 @@ def cached(rho_only: bool = False, capacity: bool = True, notify=None) -> bool:
         except Exception as error:  # a damaged file: numba loads it with no check of its own
             _drop_damaged(error, notify)
             return False
-        if sum(kernel.stats.cache_misses.values()):  # its file gone: compiled, not loaded
+        if sum(kernel.stats.cache_misses.values()) > misses:  # its file gone: compiled here
             return False
     return True
