@@ -39,7 +39,7 @@ def warm_up(notify=None, *, rho_only: bool = False, capacity: bool = True) -> fl
 
     import numpy as np
 
-    compiles = not kernels.cached(rho_only, capacity)
+    compiles = not kernels.cached(rho_only, capacity, notify)
     log = logging.getLogger("closure_nlp")
     where = os.environ.get("NUMBA_CACHE_DIR") or str(Path(kernels.__file__).resolve().parent)
     text = f"compiling the numeric kernels (once; cached in {where})"
@@ -49,7 +49,7 @@ def warm_up(notify=None, *, rho_only: bool = False, capacity: bool = True) -> fl
             notify(text)
     start = time.perf_counter()  # loading from the cache costs too: done here, not in an answer
     if compiles:
-        kernels.compile_in_parallel(rho_only, capacity)
+        kernels.compile_in_parallel(rho_only, capacity, notify)
     from closure_nlp.contact.contact_set import Contact, ContactSet
     from closure_nlp.criterion.support_minimum import rho
 

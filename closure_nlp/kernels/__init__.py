@@ -13,12 +13,33 @@ Every kernel is compiled on first use and cached on disk (``cache=True``), relea
 from __future__ import annotations
 
 import hashlib
+import logging
 import os
 import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
+
+log = logging.getLogger("closure_nlp")
+
+
+def _user_cache_folders() -> list[Path]:
+    """Where the kernels may cache when their own folder is read-only: the user's cache
+    folder, then the temporary folder (either left out when there is none)."""
+    folders = []
+    base = os.environ.get("XDG_CACHE_HOME") or (
+        os.environ.get("LOCALAPPDATA") if sys.platform == "win32" else None
+    )
+    try:
+        folders.append((Path(base) if base else Path.home() / ".cache") / "closure_nlp" / "numba")
+    except (RuntimeError, KeyError):  # no home folder to be found
+        pass
+    try:
+        folders.append(Path(tempfile.gettempdir()) / "closure_nlp")
+    except OSError:  # gettempdir raises when no candidate folder is writable
+        pass
+    return folders
 
 
 def _cache_dir_fallback() -> None:
@@ -31,11 +52,7 @@ def _cache_dir_fallback() -> None:
     pycache = here / "__pycache__"
     if os.access(pycache if pycache.is_dir() else here, os.W_OK):
         return
-    base = os.environ.get("XDG_CACHE_HOME") or (
-        os.environ.get("LOCALAPPDATA") if sys.platform == "win32" else None
-    )
-    root = Path(base) if base else Path.home() / ".cache"
-    for folder in (root / "closure_nlp" / "numba", Path(tempfile.gettempdir()) / "closure_nlp"):
+    for folder in _user_cache_folders():
         try:
             folder.mkdir(parents=True, exist_ok=True)
         except OSError:
@@ -48,6 +65,30 @@ def _cache_dir_fallback() -> None:
 _cache_dir_fallback()
 
 
+def _probe() -> int:
+    return 0
+
+
+def _find_cache_folder() -> Path | None:
+    """The folder numba caches this folder's kernels in (its own choice among the user's
+    ``NUMBA_CACHE_DIR``, ``__pycache__`` and a user-wide folder, each tried for writing),
+    None when it can write none: the kernels then compile in memory at every start."""
+    from numba import njit
+
+    try:
+        return Path(njit(cache=True)(_probe).stats.cache_path)
+    except Exception:  # numba refuses cache=True when it finds no writable folder
+        return None
+
+
+CACHE_FOLDER = _find_cache_folder()
+CACHE = CACHE_FOLDER is not None  # the kernels' ``cache`` option
+_STAMP = "closure_nlp_kernels.sha256"  # the sources the cached kernels were compiled from
+# The kernels a completed compile left in the cache: written only after each was compiled and
+# saved without error, so that a start finding it loads them without a compile notice.
+_WARM = "closure_nlp_kernels.warm"
+
+
 def sources_digest(folder: Path) -> str:
     """A digest of every kernel module's source in ``folder``."""
     digest = hashlib.sha256()
@@ -56,11 +97,20 @@ def sources_digest(folder: Path) -> str:
     return digest.hexdigest()
 
 
+def _is_kernel_file(entry: Path, modules) -> bool:
+    """Whether ``entry`` is a cached kernel of ``modules``: numba names its files
+    ``module.function-line.pyXY[.n].nbi|nbc``, and ``.tmp.<id>`` after them while writing."""
+    name = entry.name
+    return name.split(".")[0] in modules and (
+        entry.suffix in (".nbi", ".nbc") or ".nbi.tmp." in name or ".nbc.tmp." in name
+    )
+
+
 def drop_stale_cache(cache: Path, digest: str, modules) -> None:
     """Remove ``modules``' compiled kernels from ``cache`` unless they were compiled from the
     sources of ``digest``: numba checks a cached kernel against its own file only, and a kernel
     compiled with an older version of a callee in another module would load unchanged."""
-    stamp = cache / "closure_nlp_kernels.sha256"
+    stamp = cache / _STAMP
     try:
         if stamp.read_text() == digest:
             return
@@ -70,41 +120,138 @@ def drop_stale_cache(cache: Path, digest: str, modules) -> None:
         # made first: a folder numba has yet to create (a fresh NUMBA_CACHE_DIR) gets its stamp
         # now, else the next process would drop every kernel this one compiles
         cache.mkdir(parents=True, exist_ok=True)
-        for entry in cache.iterdir():
-            if entry.suffix in (".nbi", ".nbc") and entry.name.split(".")[0] in modules:
-                entry.unlink(missing_ok=True)
+        _wipe(cache, modules)
         stamp.write_text(digest)
     except OSError:  # none writable: numba caches nothing there either
         pass
 
 
-def _cache_folder(here: Path) -> Path | None:
-    """Where numba caches the kernels of ``here``: the user's ``NUMBA_CACHE_DIR`` (numba's own
-    sub-folder for this folder) or the package's ``__pycache__``."""
-    if "NUMBA_CACHE_DIR" not in os.environ:
-        return here / "__pycache__"
+def _wipe(cache: Path, modules, keep=frozenset()) -> None:
+    """Remove ``modules``' cached kernels, but those named in ``keep`` (``module.function``),
+    and the stamp of a completed compile, from ``cache`` (those that can be removed)."""
     try:
-        from numba.core.caching import _CacheLocator  # private: its folder naming
-
-        sub = _CacheLocator.get_suitable_cache_subpath(str(here / "__init__.py"))
-    except Exception:
-        return None
-    return Path(os.environ["NUMBA_CACHE_DIR"]) / sub
-
-
-def _drop_stale_kernels() -> None:
-    here = Path(__file__).resolve().parent
-    cache = _cache_folder(here)
-    if cache is not None:
-        modules = {source.stem for source in here.glob("*.py")}
-        drop_stale_cache(cache, sources_digest(here), modules)
+        entries = list(cache.iterdir())
+    except OSError:
+        return
+    for entry in entries:
+        kernel = _is_kernel_file(entry, modules) and entry.name.split("-", 1)[0] not in keep
+        if kernel or entry.name == _WARM:
+            try:
+                entry.unlink(missing_ok=True)
+            except OSError:
+                pass
 
 
-_drop_stale_kernels()
+def _in_memory() -> frozenset:
+    """``module.function`` of every kernel of this package compiled or loaded in this process."""
+    names = set()
+    for module_name, module in list(sys.modules.items()):
+        if not module_name.startswith(f"{__name__}.") or module is None:
+            continue
+        for value in vars(module).values():
+            if getattr(value, "overloads", None) and hasattr(value, "py_func"):
+                names.add(f"{module_name.rsplit('.', 1)[1]}.{value.py_func.__qualname__}")
+    return frozenset(names)
 
-from ._link import install as _install_late_linking  # noqa: E402
 
-_install_late_linking()
+def _drop_damaged(error: Exception, notify=None) -> None:
+    """After ``error`` loading a cached kernel: every cached kernel of this package that this
+    process has not loaded or compiled is removed (the damaged file among them; those in
+    memory loaded well, and stay for the next start), said once."""
+    _trouble["healed"] = True
+    _wipe(CACHE_FOLDER, _MODULES, keep=_in_memory())
+    _notice(
+        f"a damaged compiled kernel in {CACHE_FOLDER} ({type(error).__name__}: {error}): "
+        "the cached kernels not yet loaded are dropped and compiled again",
+        notify,
+    )
+
+
+def _cache_folder() -> Path | None:
+    """Where numba caches the kernels (None: nowhere, they compile in memory)."""
+    return CACHE_FOLDER
+
+
+_HERE = Path(__file__).resolve().parent
+_MODULES = frozenset(source.stem for source in _HERE.glob("*.py"))
+_DIGEST = sources_digest(_HERE)
+if CACHE_FOLDER is not None:
+    drop_stale_cache(CACHE_FOLDER, _DIGEST, _MODULES)
+
+
+def _identity() -> str:
+    """What a cached kernel was compiled by: these sources, this numba and this Python."""
+    import numba
+
+    return f"{_DIGEST} numba {numba.__version__} python {sys.implementation.cache_tag}"
+
+
+# What went wrong with the disk cache in this process: ``unwritable`` once a kernel could not be
+# saved (from then on the kernels compile in memory), ``healed`` once damaged cached kernels
+# were dropped (once: a second failure is not the cache's).
+_trouble = {"unwritable": False, "healed": False}
+_said: set = set()
+
+
+def _notice(text: str, notify=None) -> None:
+    """``text`` once per process, as a ``warning:`` line: through ``notify`` when given, else
+    as a Python warning (the CLI shows each as one ``warning:`` line); the library never
+    prints."""
+    if text in _said:
+        return
+    _said.add(text)
+    log.info(text)
+    if notify is not None:
+        notify(f"warning: {text}")
+    else:
+        import warnings
+
+        warnings.warn(text, RuntimeWarning, stacklevel=3)
+
+
+def _no_cache_notice(notify=None) -> None:
+    _notice(
+        "no writable folder for the compiled kernels' disk cache: they compile in memory, "
+        "at every start",
+        notify,
+    )
+
+
+# Tries of one compile through a cache that cannot be written: each failed save leaves one more
+# kernel compiled in memory (more than the package has kernels).
+_TRIES = 200
+
+
+def _compile(kernel, signature, notify=None) -> None:
+    """``kernel.compile(signature)`` whatever the disk cache holds or accepts.
+
+    A cached kernel numba fails to load (a truncated, empty or foreign file) drops the cached
+    kernels not yet loaded (:func:`_drop_damaged`), and the compile starts again (once per
+    process). A
+    kernel numba cannot save (a full disk, a read-only folder): numba keeps a kernel it has
+    compiled before saving it, so the compile started again finds that one in memory and goes
+    on to the next; said once. A :class:`~numba.core.errors.TypingError` is the caller's."""
+    from numba.core.errors import TypingError
+
+    for _ in range(_TRIES):
+        try:
+            kernel.compile(signature)
+            return
+        except TypingError:
+            raise
+        except OSError as error:
+            _trouble["unwritable"] = True
+            reason = error.strerror or str(error)
+            _notice(
+                f"the compiled kernels cannot be saved in {CACHE_FOLDER} ({reason}): "
+                "compiled in memory, again at the next start",
+                notify,
+            )
+        except Exception as error:
+            if _trouble["healed"] or CACHE_FOLDER is None:
+                raise
+            _drop_damaged(error, notify)
+    kernel.compile(signature)
 
 
 def kernel_array(a) -> np.ndarray:
@@ -235,14 +382,21 @@ def signatures() -> dict:
 
 
 def compile_group(
-    group: int, rho_only: bool = False, capacity: bool = True, marks=None, helper=None
+    group: int,
+    rho_only: bool = False,
+    capacity: bool = True,
+    marks=None,
+    helper=None,
+    notify=None,
 ) -> None:
     """Compile (or load from the disk cache) the kernels of ``COMPILE_GROUPS[group]``, in
     order, those a warm-up of ``rho_only`` and ``capacity`` wants (:func:`_wanted`).
 
     ``marks``, a folder shared by the two processes of a cold compile: the helper (group 1)
     marks there each kernel it is done with; the first group, for a kernel of :data:`AWAITED`, waits
-    until the helper has marked it (or ``helper``, its process, has ended), then loads it."""
+    until the helper has marked it (or ``helper``, its process, has ended), then loads it. A
+    helper that cannot save a kernel stops: what it compiles in memory is of no use to the
+    other process."""
     import importlib
 
     from numba.core.errors import TypingError
@@ -256,12 +410,14 @@ def compile_group(
             _wait_for(mark, helper)
         try:
             kernel = getattr(importlib.import_module(f"{__name__}.{module}"), name)
-            kernel.compile(declared[module, name])
+            _compile(kernel, declared[module, name], notify)
         except TypingError:  # a stale declaration: the kernel compiles at its first call
             pass  # (tests/test_kernel_cache checks the declarations against the calls)
         finally:
             if mark is not None and group == 1:
                 mark.touch()
+        if mark is not None and group == 1 and _trouble["unwritable"]:
+            return
 
 
 def _wait_for(mark: Path, helper) -> None:
@@ -280,19 +436,72 @@ def helper_code(statements: str) -> str:
     return f"import sys; sys.path.insert(0, {root!r}); {statements}"
 
 
-def compile_in_parallel(rho_only: bool = False, capacity: bool = True) -> None:
-    """The first list of kernels compiled here while another process compiles the second
-    (on a machine of one core, or should the other process fail, this one compiles it after:
-    the same kernels, the same cache)."""
+_MARKS_PREFIX = "closure_nlp_compile_"
+
+
+def _marks_folder() -> Path | None:
+    """A new folder for the marks of a cold compile, named after this process (a folder whose
+    process has ended is removed here: one killed mid-compile leaves its own), None when
+    there is no temporary folder to write."""
+    import shutil
+
+    try:
+        temporary = Path(tempfile.gettempdir())
+        for folder in temporary.glob(f"{_MARKS_PREFIX}*_*"):
+            pid = folder.name[len(_MARKS_PREFIX) :].split("_")[0]
+            if pid.isdigit() and not _alive(int(pid)):
+                shutil.rmtree(folder, ignore_errors=True)
+        return Path(tempfile.mkdtemp(prefix=f"{_MARKS_PREFIX}{os.getpid()}_"))
+    except OSError:
+        return None
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # another user's process: alive
+        return True
+    return True
+
+
+def _helper(rho_only: bool, capacity: bool, marks: str, parent: int) -> None:
+    """The compile helper's process: the second list of kernels, for as long as ``parent``
+    (the process that started it) lives; orphaned, it removes the marks and ends at once (its
+    compile is of use to no one)."""
+    import shutil
+    import threading
+    import time
+
+    def watch():
+        while os.getppid() == parent:
+            time.sleep(0.1)
+        shutil.rmtree(marks, ignore_errors=True)
+        os._exit(1)
+
+    threading.Thread(target=watch, daemon=True).start()
+    compile_group(1, rho_only, capacity, marks)
+
+
+def compile_in_parallel(rho_only: bool = False, capacity: bool = True, notify=None) -> None:
+    """The first list of kernels compiled here while another process compiles the second,
+    then the second loaded here from the cache the other process wrote (on a machine of one
+    core, without a temporary folder or disk cache, or should the other process fail, this
+    one compiles it: the same kernels, the same cache). Once every kernel is compiled and
+    saved, the cache is stamped as holding them (:func:`cached`)."""
     import shutil
     import subprocess
 
-    helper = None
-    marks = tempfile.mkdtemp(prefix="closure_nlp_compile_")
-    if (os.cpu_count() or 1) > 1:
+    if not CACHE:
+        _no_cache_notice(notify)
+    helper = marks = None
+    if CACHE and (os.cpu_count() or 1) > 1:
+        marks = _marks_folder()
+    if marks is not None:
         code = helper_code(
-            f"from {__name__} import compile_group; "
-            f"compile_group(1, {rho_only}, {capacity}, {marks!r})"
+            f"from {__name__} import _helper; "
+            f"_helper({rho_only}, {capacity}, {str(marks)!r}, {os.getpid()})"
         )
         try:
             helper = subprocess.Popen(
@@ -304,32 +513,95 @@ def compile_in_parallel(rho_only: bool = False, capacity: bool = True) -> None:
         except (OSError, ValueError):  # no interpreter to start: compile it all here
             helper = None
     try:
-        compile_group(0, rho_only, capacity, marks, helper)
+        compile_group(0, rho_only, capacity, marks, helper, notify)
         if helper is not None:
-            helper.wait()  # its kernels then load from the disk cache (or compile here, failed)
+            helper.wait()
+        compile_group(1, rho_only, capacity, notify=notify)
     except BaseException:  # an interrupt: no process left compiling behind
         if helper is not None and helper.poll() is None:
             helper.kill()
             helper.wait()
         raise
     finally:
-        shutil.rmtree(marks, ignore_errors=True)
+        if marks is not None:
+            shutil.rmtree(marks, ignore_errors=True)
+    if CACHE and not _trouble["unwritable"]:
+        _stamp_warm(_entry_points(rho_only, capacity))
 
 
-def cached(rho_only: bool = False, capacity: bool = True) -> bool:
+# Entry points a certified rho runs only inside other kernels (the local minimiser calls
+# Wolfe's nearest point): a warm ``rho`` command loads them not (milliseconds each).
+INNER_IN_RHO = (("nearest_point", "min_norm_point"),)
+
+
+def _entry_points(rho_only: bool, capacity: bool) -> list:
+    """The kernels called from Python that a warm-up of ``rho_only`` and ``capacity`` wants."""
+    return [
+        (module, name)
+        for module, names in ENTRY_POINTS.items()
+        for name in names
+        if _wanted((module, name), rho_only, capacity)
+    ]
+
+
+def _stamp_warm(kernels) -> None:
+    """Add ``kernels`` to the stamp of the kernels a completed compile saved (written whole,
+    then renamed: never read half-written)."""
+    stamp = CACHE_FOLDER / _WARM
+    names = {f"{module}.{name}" for module, name in kernels}
+    try:
+        lines = stamp.read_text().splitlines()
+        if lines and lines[0] == _identity():
+            names.update(lines[1:])
+    except OSError:
+        pass
+    text = "\n".join([_identity(), *sorted(names)]) + "\n"
+    part = stamp.with_name(f"{_WARM}.{os.getpid()}.part")
+    try:
+        part.write_text(text)
+        os.replace(part, stamp)
+    except OSError:  # not written: the next start compiles (loads) and says so
+        try:
+            part.unlink(missing_ok=True)
+        except OSError:
+            pass
+
+
+def cached(rho_only: bool = False, capacity: bool = True, notify=None) -> bool:
     """Whether every kernel called from Python that a warm-up of ``rho_only`` and ``capacity``
-    wants (:func:`_wanted`) has a current copy in numba's disk cache (the index numba reads:
-    empty when missing or when the source changed since)."""
+    wants (:func:`_wanted`) is in the disk cache, compiled from these sources by this numba and
+    Python (a completed compile's stamp says so), and loads: they are loaded here (the warm-up
+    runs them next). A cached kernel that fails to load drops those not yet loaded
+    (:func:`_drop_damaged`), said once through ``notify``: False, a compile is due."""
     import importlib
 
-    try:
-        for module, names in ENTRY_POINTS.items():
-            loaded = importlib.import_module(f"{__name__}.{module}")
-            for name in names:
-                if not _wanted((module, name), rho_only, capacity):
-                    continue
-                if not getattr(loaded, name)._cache._cache_file._load_index():
-                    return False
-        return True
-    except Exception:  # numba's cache layout is private: assume a compile is due
+    from numba.core.errors import TypingError
+
+    if not CACHE:
+        _no_cache_notice(notify)
         return False
+    wanted = _entry_points(rho_only, capacity)
+    try:
+        lines = (CACHE_FOLDER / _WARM).read_text().splitlines()
+    except (OSError, UnicodeDecodeError):
+        return False
+    if not lines or lines[0] != _identity():
+        return False
+    if not {f"{module}.{name}" for module, name in wanted} <= set(lines[1:]):
+        return False
+    declared = signatures()
+    for module, name in wanted:
+        if rho_only and (module, name) in INNER_IN_RHO:
+            continue
+        kernel = getattr(importlib.import_module(f"{__name__}.{module}"), name)
+        misses = sum(kernel.stats.cache_misses.values())
+        try:
+            kernel.compile(declared[module, name])
+        except TypingError:
+            return False
+        except Exception as error:  # a damaged file: numba loads it with no check of its own
+            _drop_damaged(error, notify)
+            return False
+        if sum(kernel.stats.cache_misses.values()) > misses:  # its file gone: compiled here
+            return False
+    return True

@@ -9,20 +9,19 @@ kernels use these instead."""
 from __future__ import annotations
 
 import numpy as np
-from numba import types
+from numba import njit, types
 
-from ._link import kernel_only
 from .support import OPTIONS
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def copy_into(dst, src):
     """``dst[:len(src)] = src`` for vectors."""
     for k in range(len(src)):
         dst[k] = src[k]
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def copy_rows(dst, start, src):
     """``dst[start:start + len(src)] = src`` for matrices of equal width."""
     for i in range(src.shape[0]):
@@ -30,14 +29,14 @@ def copy_rows(dst, start, src):
             dst[start + i, k] = src[i, k]
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def fill(dst, n, value):
     """``dst[:n] = value`` for vectors."""
     for k in range(n):
         dst[k] = value
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def dot(a, b):
     """``a @ b`` for vectors of equal length."""
     s = 0.0
@@ -50,13 +49,13 @@ def dot(a, b):
 SMALL_SORT = 15
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def _before(a, b):
     """numpy's order of floats: NaN last."""
     return a < b or (np.isnan(b) and not np.isnan(a))
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def argsort(values):
     """``np.argsort(values)`` of a float vector, the same order as numba's (its quicksort step
     for step: ties and NaN end where it puts them), written out here: numba compiles its
@@ -130,7 +129,7 @@ except Exception:  # a numba without it: np.linalg.solve below
 
 if _gesv is not None:
 
-    @kernel_only(**OPTIONS)
+    @njit(**OPTIONS)
     def solve(a, b):
         """``np.linalg.solve(a, b)`` for a square ``a`` (n, n) and a vector ``b`` (n,) of
         finite numbers: the same LAPACK call (``dgesv``) on the same column-major copies, so
@@ -152,7 +151,7 @@ if _gesv is not None:
 
 else:
 
-    @kernel_only(**OPTIONS)
+    @njit(**OPTIONS)
     def solve(a, b):
         """``np.linalg.solve(a, b)``."""
         return np.linalg.solve(a, b.copy())

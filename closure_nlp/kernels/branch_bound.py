@@ -18,7 +18,6 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ._link import kernel_only
 from .arrays import argsort, copy_into, copy_rows, fill, solve
 from .slot_game import EPS as SLOT_EPS
 from .slot_game import MAX_PIVOTS as SLOT_PIVOTS
@@ -85,7 +84,7 @@ FLAT = 0.5
 ROUND_STEP = {**OPTIONS, "inline": "always"}
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def face_point(axis, sign, y, metric, out):
     """``metric @ x`` for the cube-face point ``x`` with ``x[axis] = sign`` and the other five
     coordinates ``y`` (5,); into ``out`` (6,), unnormalised."""
@@ -99,7 +98,7 @@ def face_point(axis, sign, y, metric, out):
         out[r] = s
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def normalise(x):
     s = 0.0
     for k in range(len(x)):
@@ -109,7 +108,7 @@ def normalise(x):
         x[k] /= s
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def cell_samples(axis, sign, lo, hi, metric, out):
     """Unit directions of the cell's centre and its five axes' ends: ``out`` (11, 6)."""
     y = np.empty(5)
@@ -124,7 +123,7 @@ def cell_samples(axis, sign, lo, hi, metric, out):
         normalise(out[s])
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def cell_geometry(axis, sign, lo, hi, metric, floor, centre, corners, unit):
     """The cap holding the cell: fills its centre (6,), its 32 corners (mapped by ``metric``)
     and their unit directions (32, 6); returns the cap's angular radius and a lower bound on
@@ -175,7 +174,7 @@ def cell_geometry(axis, sign, lo, hi, metric, floor, centre, corners, unit):
     return delta, np.sqrt(far) * floor
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def geometry(n):
     """Room for the :func:`cell_geometry` of ``n`` cells, one row each: (delta (n,), nearest
     (n,), centre (n, 6), corners (n, 32, 6), unit (n, 32, 6)). The screens fill the rows of
@@ -187,7 +186,7 @@ def geometry(n):
     )  # fmt: skip
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def geometry_into(axis, sign, lo, hi, metric, floor, geo, n, row):
     """:func:`cell_geometry` of cell ``n`` into row ``row`` of ``geo`` (:func:`geometry`)."""
     delta, nearest, centre, corners, unit = geo
@@ -196,7 +195,7 @@ def geometry_into(axis, sign, lo, hi, metric, floor, geo, n, row):
     )
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def move_geometry(geo, n, row):
     """Row ``n`` of ``geo`` (:func:`geometry`) copied to row ``row``."""
     delta, nearest, centre, corners, unit = geo
@@ -207,7 +206,7 @@ def move_geometry(geo, n, row):
         copy_rows(unit[row], np.int64(0), unit[n])
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def box_bound(w, corners, unit, nearest):
     """A lower bound of ``w . u`` over the cell: exact (the smallest over the unit corners)
     where ``w . x >= 0`` at every corner, else the most negative ``w . x`` over the smallest
@@ -222,7 +221,7 @@ def box_bound(w, corners, unit, nearest):
     return low if raw >= 0.0 else raw / nearest
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def line_search(beta, s, A, b, C):
     """argmax over [0, 1] of ``beta g - s sqrt(A g^2 + 2 b g + C)`` (concave)."""
     if not A > 0.0:
@@ -240,7 +239,7 @@ def line_search(beta, s, A, b, C):
     return min(1.0, max(0.0, g))
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def frank_wolfe(points, n, c, delta, steps, lam, wbar):
     """Convex weights ``lam`` of ``points[:n]`` for a high cap bound ``cos(delta) wbar . c -
     sin(delta) |wbar_perp|`` (concave in the weights; every iterate is valid); fills ``lam``
@@ -309,7 +308,7 @@ def frank_wolfe(points, n, c, delta, steps, lam, wbar):
     return cd * lam_a - sd * b_bar
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def game_weights(M, lam, stop=np.inf, max_pivots=MAX_PIVOTS, give_up=-np.inf):
     """Convex weights ``lam`` (K,) maximising ``min_c (M lam)_c`` for ``M`` (C, K): the value
     of a small matrix game by a fresh convex game (:func:`.slot_game.game_solve`, scaled to
@@ -329,7 +328,7 @@ def game_weights(M, lam, stop=np.inf, max_pivots=MAX_PIVOTS, give_up=-np.inf):
     return pivots
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def lowest_corners(unit, wbar, rows_in):
     """The lowest ``unit[q] . wbar`` over the corners in a game's rows (``rows_in[q]``), the
     lowest over the others and the corner of the latter (-1: none)."""
@@ -343,7 +342,7 @@ def lowest_corners(unit, wbar, rows_in):
     return low_in, low_out, at
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def exact_bound(points, n, corners, unit, nearest, stop, give_up, wbar):
     """The corner bound of the best convex combination of ``points[:n]`` against the cell's
     unit corners (a matrix game), or of one whose game value reaches ``stop`` or that
@@ -402,7 +401,7 @@ def dot6(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3] + a[4] * b[4] + a[5] * b[5]
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def slot_bound(G, f, W, npc, ends, dirs, corners, unit, nearest, stop, give_up, wbar, work):
     """The corner bound of the best combination of every slot's own support points at the
     directions ``dirs`` (N, 6), each slot with its own weights summing to at most 1
@@ -521,7 +520,7 @@ def slot_bound(G, f, W, npc, ends, dirs, corners, unit, nearest, stop, give_up, 
     return bound if bound > 0.0 else -np.inf
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def slot_work(f, ends, N):
     """The buffers of :func:`slot_bound` for ``N`` directions and its added columns."""
     N += COLUMN_ROUNDS
@@ -533,7 +532,7 @@ def slot_work(f, ends, N):
     )  # fmt: skip
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def tangent_basis(u, E):
     """An orthonormal basis (5, 6) of the tangent space at unit ``u``: a Householder
     reflection taking ``u`` to ``+-e_0``, its other columns."""
@@ -548,7 +547,7 @@ def tangent_basis(u, E):
             E[j - 1, k] = (1.0 if k == j else 0.0) - 2.0 * v[k] * v[j] / vv
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def cloud(u, scales, out):
     """``u`` and ``u +- eps e_j`` along a tangent basis, normalised: ``out`` (1 + 10 k, 6).
     Their support points hold every piece of ``p`` that meets at ``u``."""
@@ -573,7 +572,7 @@ def consider(G, f, W, npc, ends, U, points, best, best_u):
     return consider_in(G, f, W, npc, ends, U, points, best, best_u, scratch(f))
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def consider_in(G, f, W, npc, ends, U, points, best, best_u, D):
     """:func:`consider` with the caller's scratch ``D`` (:func:`~.support.scratch`): a loop
     over cells allocates it once (at 2,000 contacts a fresh one per call cost more than the
@@ -729,7 +728,7 @@ def bound_cells(
     return out
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def screen(axis, sign, lo, hi, metric, floor, lin, target, margin, tally, geo):
     """Which cells (indices) the linear bound of their inherited point ``lin`` (N, 6) leaves
     below ``target``; the others are dropped before their samples are taken, their bounds
@@ -913,7 +912,7 @@ def advance(
             copy_into(lin[c], inherited[live[c]])
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def take_cells(axis, sign, lo, hi, rows):
     """The cells ``rows`` (indices, repeats allowed): a loop, not fancy indexing (numba
     compiles numpy's broadcasting for each array type)."""
@@ -928,7 +927,7 @@ def take_cells(axis, sign, lo, hi, rows):
     return axis2, sign2, lo2, hi2
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def halve(axis, sign, lo, hi, cells_per_round):
     """Every cell cut in two across its widest coordinate, ``cuts`` times (``2^cuts``
     children, ``cuts <= 5``), so that a round holds about ``cells_per_round`` cells."""
@@ -968,7 +967,7 @@ SHELL_ALIVE = 4
 INNER_SHARE = 0.5
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def holds(axis, sign, lo, hi, x, y):
     """Whether the ray through ``metric @ x`` meets the cell's box; its face coordinates into
     ``y`` (5,)."""
@@ -985,7 +984,7 @@ def holds(axis, sign, lo, hi, x, y):
     return True
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def shells(lo, hi, y, h, shrink):
     """The box ``[lo, hi]`` (5,) cut round its point ``y``: an inner box ``y +- h`` (clipped
     to the box) and nested shells between, each ``shrink`` times smaller than the one holding
@@ -1041,7 +1040,7 @@ def shells(lo, hi, y, h, shrink):
     return out_lo[: n + 1], out_hi[: n + 1]
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def split(axis, sign, lo, hi, cells_per_round, metric, best_u, radius, below):
     """The live cells' children: a cell of angular radius under ``below`` holding the
     incumbent ``best_u`` cut into :func:`shells` round it, its inner box of angular radius

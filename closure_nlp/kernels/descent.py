@@ -8,14 +8,13 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ._link import kernel_only
 from .arrays import copy_into, dot
 from .branch_bound import cloud, normalise
 from .nearest_point import TOL, min_norm_point
 from .support import D_VALUE, OPTIONS, no_vector, scratch, set_value, support_point, support_value
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def _rotate(u, direction, angle, out):
     """``cos(angle) u + sin(angle) direction``, normalised, into ``out``."""
     c, s = np.cos(angle), np.sin(angle)
@@ -81,7 +80,7 @@ def descend_many(G, f, W, npc, ends, U0, iterations, stop):
 PLAIN_ITERATIONS = 150
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def _bb_angle(u, g, last_u, last_g):
     """The Barzilai-Borwein step along ``-g`` at ``u`` as a rotation angle: ``|s|^2 / (s.y)``
     times ``|g|``, with ``s`` the last move and ``y`` the change of ``g``, both taken into the
@@ -187,7 +186,7 @@ def local_minimum(G, f, W, npc, ends, u0, max_iter, smallest):
 PAIRWISE_BLOCK = 128
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def _pairwise_sum(a, lo, hi):
     """``a[lo:hi].sum()`` in numpy's order (its pairwise summation of a contiguous axis) for
     up to :data:`PAIRWISE_BLOCK` terms (numpy splits longer ones in halves: not done here, a
@@ -211,7 +210,7 @@ def _pairwise_sum(a, lo, hi):
     return total
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def _dot6(a, b):
     """``einsum("r,r->", a, b)`` of two (6,) in numpy's order (two SIMD lanes)."""
     even = ((0.0 + a[0] * b[0]) + a[2] * b[2]) + a[4] * b[4]
@@ -219,7 +218,7 @@ def _dot6(a, b):
     return 0.0 + (even + odd)
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def _logaddexp0(y):
     """``np.logaddexp(0.0, y)`` (numpy's formula)."""
     if y == 0.0:

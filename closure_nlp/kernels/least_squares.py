@@ -18,14 +18,14 @@ any minimiser of the residual: the point ``A z`` is the same).
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
-from ._link import kernel_only
 from .support import OPTIONS
 
 EPS = np.finfo(np.float64).eps
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def least_squares(A, b, z):
     """``z`` (n,) minimising ``|A z - b|`` for ``A`` (m, n), ``b`` (m,); ``A`` and ``b`` are
     overwritten (their QR factors). Returns the numerical rank."""

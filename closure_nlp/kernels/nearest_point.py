@@ -6,7 +6,6 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ._link import kernel_only
 from .arrays import copy_into, dot
 from .least_squares import least_squares
 from .support import OPTIONS, scratch, support_point
@@ -16,7 +15,7 @@ STALL = 10  # Gilbert steps without progress after which the bracket is returned
 TOL = 1e-15  # Wolfe's default optimality tolerance (the kernels pass it: one compile)
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def _affine_minimizer(P, S, k, mu):
     """Weights ``mu[:k]`` (summing to 1) of the point of the affine hull of ``P[S[:k]]``
     nearest 0, by least squares on the differences (not their Gram matrix, whose condition
@@ -39,7 +38,7 @@ def _affine_minimizer(P, S, k, mu):
         mu[0] -= z[i - 1]
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def _current(P, S, lam, k):
     x = np.zeros(P.shape[1])
     for i in range(k):  # loops, not array arithmetic (numba compiles numpy's broadcasting)
@@ -48,7 +47,7 @@ def _current(P, S, lam, k):
     return x
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def _line_step(S, lam, k, x, P, j):
     """``x`` moved towards ``P[j]`` by exact line search; returns the new count, or -1 when
     the step is zero."""

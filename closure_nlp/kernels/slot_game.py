@@ -29,8 +29,8 @@ slot to the same weights.
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
-from ._link import kernel_only
 from .arrays import fill
 from .support import OPTIONS
 
@@ -42,14 +42,14 @@ GIVE_UP_EVERY = 2  # pivots between the checks of the game's dual bound (each ab
 FEASIBLE = 1e-13
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def game_tableau(rows, columns, blocks):
     """An empty tableau and basis for games of up to ``rows`` rows and ``columns`` columns."""
     T = np.zeros((1 + blocks + rows, 2 + blocks + rows + columns))
     return T, np.empty(1 + blocks + rows, np.int64)
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def tableau_pivot(T, basis, i, j, blocks, C, K):
     """A simplex pivot on row ``i`` and column ``j`` over the tableau's live part (``C`` game
     rows, ``K`` weights)."""
@@ -71,7 +71,7 @@ def tableau_pivot(T, basis, i, j, blocks, C, K):
     basis[i] = j
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def game_open(M, block, blocks, exact, T, basis):
     """A fresh game of ``M`` (C, K) in ``T``: a convex game (``exact``, one block whose weights
     sum to 1) scaled to [0, 1], else scaled by its largest entry; each block's best column
@@ -118,7 +118,7 @@ def game_open(M, block, blocks, exact, T, basis):
     return low, span
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def game_add_row(M, block, blocks, T, basis, low, span):
     """Game row ``C - 1`` of ``M`` (C, K) into an optimal game of the other rows, in its
     basis (its slack basic, negative where the weights leave the row below the value)."""
@@ -143,7 +143,7 @@ def game_add_row(M, block, blocks, T, basis, low, span):
     basis[r] = 2 + blocks + c
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def game_add_column(M, block, blocks, T, basis, low, span):
     """Column ``K - 1`` of ``M`` (C, K) into a game of the other columns: the tableau's
     column is the basis' inverse (the slack columns) times the column's constraints."""
@@ -157,7 +157,7 @@ def game_add_column(M, block, blocks, T, basis, low, span):
         T[r, L0 + k] = s
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def game_grow_row(M, block, blocks, exact, T, basis, low, span, warm):
     """Game row ``C - 1`` of ``M`` (C, K) into the game in ``T``: by :func:`game_add_row` when
     the last solve left the tableau ``warm``, else the whole game opened afresh
@@ -168,7 +168,7 @@ def game_grow_row(M, block, blocks, exact, T, basis, low, span, warm):
     return low, span
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def game_grow_columns(M, block, blocks, exact, T, basis, low, span, warm, first):
     """Columns ``first .. K - 1`` of ``M`` (C, K) into the game in ``T``, as
     :func:`game_grow_row` adds a row."""
@@ -179,7 +179,7 @@ def game_grow_columns(M, block, blocks, exact, T, basis, low, span, warm, first)
     return low, span
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def mix_bound(M, block, blocks, exact, T):
     """An upper bound on the game's value from the tableau's dual estimates of its rows
     (``T[0]``'s slack columns, clipped at 0 and normalised: the optimal mix at the optimum):
@@ -206,7 +206,7 @@ def mix_bound(M, block, blocks, exact, T):
     return bound
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def game_solve(M, block, blocks, exact, T, basis, low, span, lam, stop, give_up, max_pivots,
                eps, mix):  # fmt: skip
     """Pivots of the game in ``T`` (:func:`game_open`, :func:`game_add_row`,
@@ -336,7 +336,7 @@ def game_solve(M, block, blocks, exact, T, basis, low, span, lam, stop, give_up,
     return -1 - pivots if gave_up else pivots, warm
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def block_game_weights(M, block, blocks, lam, stop=np.inf, give_up=-np.inf, mix=None):
     """Weights ``lam`` (K,) >= 0 with ``sum lam[block == b] <= 1`` for every block ``b <
     blocks`` that maximise ``min_c (M lam)_c`` for ``M`` (C, K), by a fresh game

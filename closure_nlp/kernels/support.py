@@ -22,9 +22,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ._link import kernel_only
+from . import CACHE
 
-OPTIONS = {"cache": True, "nogil": True, "fastmath": False, "error_model": "numpy"}
+OPTIONS = {"cache": CACHE, "nogil": True, "fastmath": False, "error_model": "numpy"}
 # Thin wrappers, inlined where they are called: a call that passes arrays costs more than a
 # support point's arithmetic (reference counts of every array).
 WRAPPER = {**OPTIONS, "inline": "always"}
@@ -39,14 +39,14 @@ D_Q, D_PIECE, D_VALUE, D_CHOSEN = 4, 5, 6, 7
 SUMS = {**OPTIONS, "fastmath": {"reassoc", "nsz"}}
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def scratch(f):
     """The per-row scratch (8, K) of :func:`set_value`: callers allocate it once, not per
     direction."""
     return np.empty((8, len(f)))
 
 
-@kernel_only(**SUMS)
+@njit(**SUMS)
 def positive_sum(value, chosen):
     """The sum of the positive ``value`` (K,) (eq 26 with a row per slot; reordered into
     SIMD lanes: within a few ulps of the sum in row order), ``chosen`` (K,) 1 where positive."""
@@ -58,7 +58,7 @@ def positive_sum(value, chosen):
     return total
 
 
-@kernel_only(**SUMS)
+@njit(**SUMS)
 def support_wrench(G, f, W, D, spin, out):
     """The chosen rows' support forces ``f (e_n + W[piece] d / sqrt(q))`` (from the terms
     :func:`set_value` left in ``D``) mapped to one wrench ``out`` (6,); the spin column only
@@ -93,7 +93,7 @@ def support_wrench(G, f, W, D, spin, out):
     out[0], out[1], out[2], out[3], out[4], out[5] = o0, o1, o2, o3, o4, o5
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def set_value(G, f, W, npc, ends, u, D, out, slots, rows):
     """``p(u)`` (eq 26: the sum of the positive slot values, else the largest) of one unit
     direction ``u`` (6,); ``D`` (8, K) scratch (:func:`scratch`) holds each row's terms after.

@@ -7,11 +7,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ._link import kernel_only
 from .support import OPTIONS
 
 
-@kernel_only(**OPTIONS)
+@njit(**OPTIONS)
 def _det(A, n):
     """Determinant of ``A[:n, :n]`` by LU with partial pivoting (overwrites ``A``)."""
     det = 1.0
