@@ -130,6 +130,15 @@ def add_contact_options(parser) -> None:
     add_mesh_option(parser)
 
 
+def add_region_options(parser) -> None:
+    g = parser.add_argument_group(
+        "where contacts may go (repeatable: --only regions united, then --exclude regions removed)"
+    )
+    forms = "ids:I,J,A-B | facing:AXIS[:DEG] | box:X0,Y0,Z0,X1,Y1,Z1"
+    g.add_argument("--only", action="append", metavar="SPEC", help=f"contacts only here: {forms}")
+    g.add_argument("--exclude", action="append", metavar="SPEC", help=f"never here: {forms}")
+
+
 def add_mesh_option(parser) -> None:
     parser.add_argument(
         "--allow-outside-mesh",

@@ -23,6 +23,7 @@ def add_place(sub, common) -> None:
     p.add_argument("--out", metavar="FILE", help="write the placed contacts as a contact-set file")
     arguments.add_margin_option(p)
     arguments.add_bound_options(p)
+    arguments.add_region_options(p)
     arguments.add_contact_options(p)
     p.set_defaults(run=cmd_place)
 
@@ -33,6 +34,7 @@ def cmd_place(args) -> None:
     ids = arguments.id_list(args.elements, "--elements")
     eligibility = setup.model_eligibility(args, len(ids), "--elements")
     original = eligibility.model
+    intent = setup.intent_keys(args, eligibility)
     with output.reading(args.model):
         ids = eligibility.check_elements(ids, "--elements")
         require_closure_count(eligibility.specs, "--elements")
@@ -47,6 +49,7 @@ def cmd_place(args) -> None:
     placed = setup.placement_text(result, original)
     payload, text = result.to_dict(), f"{output.shown(args.model)}: {placed}"
     payload["margin"] = args.margin
+    payload.update(intent)
     text += setup.margin_text(args, eligibility.model)
     if args.out:
         output.check_finite(payload, args.model)  # before anything is written

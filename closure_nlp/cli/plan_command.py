@@ -66,6 +66,7 @@ def add_plan(sub, common) -> None:
     )
     arguments.add_margin_option(p)
     arguments.add_bound_options(p)
+    arguments.add_region_options(p)
     arguments.add_contact_options(p)
     p.set_defaults(run=cmd_plan)
 
@@ -75,6 +76,7 @@ def cmd_plan(args) -> None:
 
     eligibility = setup.model_eligibility(args, args.contacts, closure=True)
     original = eligibility.model
+    intent = setup.intent_keys(args, eligibility)
     with output.reading(args.model):
         eligibility = setup.with_margin(args, eligibility)
     placement_options, progress, close = setup.placement_setup(args, False, check_output_dir)
@@ -99,6 +101,7 @@ def cmd_plan(args) -> None:
         result = dataclasses.replace(result, placement=on_original(result.placement, original))
     payload = result.to_dict()
     payload["margin"] = args.margin
+    payload.update(intent)
     output.check_finite(payload, args.model)  # before anything is written
     if args.out:
         options = {

@@ -4,8 +4,7 @@ from __future__ import annotations
 
 from closure_nlp.base.errors import MethodError
 from closure_nlp.base.formatting import certain
-from closure_nlp.cli import arguments, output
-from closure_nlp.cli.setup import model_eligibility
+from closure_nlp.cli import arguments, output, setup
 from closure_nlp.selection.algorithms import run_selection
 
 
@@ -16,12 +15,13 @@ def add_select(sub, common) -> None:
     p.add_argument(
         "--seed", type=arguments.seed_value, default=0, help="random start of the heuristic"
     )
+    arguments.add_region_options(p)
     arguments.add_contact_options(p)
     p.set_defaults(run=cmd_select)
 
 
 def cmd_select(args) -> None:
-    eligibility = model_eligibility(args, args.contacts, closure=True)
+    eligibility = setup.model_eligibility(args, args.contacts, closure=True)
     with output.reading(args.model):
         start = arguments.id_list(args.start, "--start") if args.start else None
         if start is not None:
@@ -36,7 +36,7 @@ def cmd_select(args) -> None:
     verdict = output.verdict_text(result, result.eligible, "eligible", "not eligible")
     output.emit(
         args,
-        {"algorithm": args.algorithm, **result.to_dict()},
+        {"algorithm": args.algorithm, **result.to_dict(), **setup.intent_keys(args, eligibility)},
         f"{output.shown(args.model)}: {args.algorithm}: "
         f"elements {output.joined_ids(result.elements)}: "
         f"rho_hat = {certain(result.rho_hat, result.bounds)} ({verdict})"

@@ -47,7 +47,21 @@ def model_eligibility(args, m: int, field: str = "--contacts", closure: bool = F
     if closure:
         with reading(args.model):
             require_closure_count(specs, field)
-    return Eligibility(model, specs, scale.torque_scale)
+    only, exclude = getattr(args, "only", None), getattr(args, "exclude", None)
+    with reading(args.model):
+        eligibility = Eligibility(model, specs, scale.torque_scale, only=only, exclude=exclude)
+    left = int(eligibility.model.usable.sum())
+    if left == 0 or left < m <= int(model.usable.sum()):
+        flag = "--exclude" if exclude else "--only"
+        raise InputError(flag, f"{left} element(s) left where contacts may go, for {m} contacts")
+    return eligibility
+
+
+def intent_keys(args, eligibility) -> dict:
+    """The JSON keys of where contacts may go: ``excluded`` ids, when the command set any."""
+    if not (getattr(args, "only", None) or getattr(args, "exclude", None)):
+        return {}
+    return {"excluded": list(eligibility.excluded)}
 
 
 def read_model(args, marked: list | None = None):

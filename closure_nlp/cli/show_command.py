@@ -9,6 +9,7 @@ from closure_nlp.base.formatting import certain
 from closure_nlp.cli import arguments, output
 from closure_nlp.cli.setup import read_model
 from closure_nlp.criterion.support_minimum import rho
+from closure_nlp.model.regions import with_exclusions
 from closure_nlp.report.plan_report import load_contacts
 
 
@@ -36,6 +37,7 @@ def add_show(sub, common) -> None:
     )
     p.add_argument("--no-mesh", action="store_true", help="do not draw the model's mesh")
     arguments.add_mesh_option(p)
+    arguments.add_region_options(p)
     p.add_argument("--ids", action="store_true", help="write each element's id beside it")
     p.add_argument(
         "--up", choices=["x", "y", "z"], help="model axis drawn upwards (default: the model's)"
@@ -77,6 +79,8 @@ def cmd_show(args) -> None:
         check_output_file(args.out)
     marked: list[int] = []
     model = read_model(args, marked)
+    with output.reading(args.model):  # excluded elements drawn grey
+        model = with_exclusions(model, args.only, args.exclude)
     contacts, highlight = None, []
     if args.contacts:
         [(_, contacts)] = output.load_each([args.contacts], load_contacts)

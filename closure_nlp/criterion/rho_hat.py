@@ -35,6 +35,7 @@ from closure_nlp.criterion.support_minimum import (
     timing_keys,
 )
 from closure_nlp.model.elements import Model
+from closure_nlp.model.regions import excluded_elements, with_exclusions
 from closure_nlp.model.scale import AUTO, auto_torque_scale
 
 
@@ -112,6 +113,11 @@ class Eligibility:
         Holds the cached NLPs (one per shape) and the search options.
     tolerance : ModelTolerance, optional
         The model's accuracy (default: the model's own): results carry ``robust``.
+    only, exclude : region or list of regions, optional
+        Where contacts may go (:mod:`closure_nlp.model.regions`: ``"ids:3,7,10-14"``,
+        ``"facing:+z:10"``, ``"box:X0,Y0,Z0,X1,Y1,Z1"`` or a list of ids): the elements outside
+        every ``only`` region, or inside an ``exclude`` one, are used by no step of selection or
+        placement (:attr:`excluded`). The automatic torque scale stays the whole part's.
     """
 
     def __init__(
@@ -121,6 +127,9 @@ class Eligibility:
         torque_scale: float | str = AUTO,
         minimizer: SupportMinimizer | None = None,
         tolerance: ModelTolerance | None = None,
+        *,
+        only=None,
+        exclude=None,
     ):
         if not isinstance(model, Model):
             raise TypeError(f"model: expected a Model, got {type(model).__name__}")
@@ -130,7 +139,8 @@ class Eligibility:
         for i, s in enumerate(specs):
             if not isinstance(s, ContactSpec):
                 raise TypeError(f"specs[{i}]: expected a ContactSpec, got {type(s).__name__}")
-        self.model = model
+        self.excluded = excluded_elements(model, only, exclude)
+        self.model = with_exclusions(model, only, exclude)
         self.specs = specs
         auto = isinstance(torque_scale, str) and torque_scale == AUTO
         self.torque_scale = auto_torque_scale(model) if auto else as_torque_scale(torque_scale)
@@ -250,7 +260,8 @@ def check_usable(model: Model, ids: tuple[int, ...], field: str) -> tuple[int, .
     if bad:
         listed = ",".join(str(e) for e in bad)
         raise ValueError(
-            f"{field}: element(s) {listed} may hold no contact (too small for the margin)"
+            f"{field}: element(s) {listed} may hold no contact (excluded, or too small for the "
+            "margin)"
         )
     return ids
 

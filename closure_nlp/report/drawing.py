@@ -23,6 +23,7 @@ SEGMENT_COLOUR = np.array([0.12, 0.31, 0.47])
 POINT_COLOUR = np.array([0.16, 0.5, 0.38])
 HIGHLIGHT_COLOUR = np.array([0.95, 0.55, 0.15])
 MARKED_COLOUR = np.array([0.85, 0.1, 0.55])  # elements a check refused (shown, not hidden)
+UNUSABLE_COLOUR = np.array([0.6, 0.6, 0.6])  # elements no contact may use (excluded, margins)
 CONTACT_COLOUR = "#c0392b"
 LIGHT = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
 PICTURE_SUFFIXES = {".png", ".pdf", ".svg", ".jpg", ".jpeg"}
@@ -202,6 +203,7 @@ def update_legend(ax, model: Model | None = None, chosen=(), marked=()) -> None:
             ),
             (len(chosen), Patch(facecolor=HIGHLIGHT_COLOUR, label="chosen elements")),
             (len(marked), Patch(facecolor=MARKED_COLOUR, label="normal out of the mesh")),
+            (len(model.unusable), Patch(facecolor=UNUSABLE_COLOUR, label="no contact here")),
             (1, Line2D([], [], color="black", marker="x", ls="", label="reference point")),
         ]
         ax._closure_model_legend = [h for n, h in kinds if n]
@@ -232,8 +234,12 @@ def _draw_mesh(ax, model: Model) -> None:
     )
 
 
-def _colour(i: int, base, chosen: set[int], marked: set[int]):
-    return MARKED_COLOUR if i in marked else HIGHLIGHT_COLOUR if i in chosen else base
+def _colour(i: int, base, chosen: set[int], marked: set[int], unusable=frozenset()):
+    if i in marked:
+        return MARKED_COLOUR
+    if i in chosen:
+        return HIGHLIGHT_COLOUR
+    return UNUSABLE_COLOUR if i in unusable else base
 
 
 def _draw_facets(ax, model: Model, chosen: set[int], marked: set[int] = frozenset()) -> None:
@@ -243,8 +249,12 @@ def _draw_facets(ax, model: Model, chosen: set[int], marked: set[int] = frozense
     if not ids:
         return
     normals = np.array([model.elements[i].inward_normal for i in ids])
+    unusable = set(model.unusable)
     colours = np.array(
-        [_shade(n[None], _colour(i, FACET_COLOUR, chosen, marked))[0] for i, n in zip(ids, normals)]
+        [
+            _shade(n[None], _colour(i, FACET_COLOUR, chosen, marked, unusable))[0]
+            for i, n in zip(ids, normals)
+        ]
     )
     polygons = [_shown(ax, model.elements[i].vertices) for i in ids]
     ax.add_collection3d(
@@ -264,7 +274,8 @@ def _draw_segments(ax, model: Model, chosen: set[int], marked: set[int] = frozen
     if not ids:
         return
     lines = [_shown(ax, model.elements[i].vertices) for i in ids]
-    colours = np.array([_colour(i, SEGMENT_COLOUR, chosen, marked) for i in ids])
+    unusable = set(model.unusable)
+    colours = np.array([_colour(i, SEGMENT_COLOUR, chosen, marked, unusable) for i in ids])
     widths = [3.0 if i in chosen or i in marked else 1.4 for i in ids]
     ax.add_collection3d(Line3DCollection(lines, colors=colours, linewidths=widths))
 
