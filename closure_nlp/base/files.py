@@ -252,10 +252,6 @@ def _non_finite_path(value) -> list | None:
     return None
 
 
-
-
-
-
 # --- output paths: checked before any work, folders written as a set ------------------------
 
 

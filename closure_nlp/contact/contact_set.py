@@ -174,8 +174,6 @@ class ContactSpec:
         )
 
 
-
-
 @dataclass(frozen=True, eq=False)
 class Contact:
     """One contact: where, which way it pushes, and what it can carry.

@@ -292,12 +292,6 @@ def _refine_below(slots: WrenchSlots, refine_below: float | None) -> float:
     return np.pi if slots.m <= FEW_CONTACTS else REFINE_BELOW
 
 
-
-
-
-
-
-
 def _initial_cells(splits: int):
     """Every cube face cut into ``2^(5 splits)`` boxes: axis, sign, lo, hi."""
     return face_cells(splits)

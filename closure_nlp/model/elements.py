@@ -509,8 +509,6 @@ def save_model(model: Model, path) -> Path:
     return write_json(path, model.to_dict())
 
 
-
-
 def part_radius(points, reference_point) -> float:
     """Radius of the part's bounding sphere about the reference point: the largest distance from
     ``reference_point`` (3,) to ``points`` (n, 3) (a model's element vertices). The one

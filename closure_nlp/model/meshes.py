@@ -367,8 +367,6 @@ def _open_message(pieces) -> str:
     )
 
 
-
-
 def read_mesh(path, source: str | None = None):
     """A ``trimesh.Trimesh`` from a mesh file (STL, OBJ, PLY, GLB, OFF...).
 

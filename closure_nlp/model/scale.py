@@ -33,8 +33,6 @@ def is_auto(value) -> bool:
     return value is None or (isinstance(value, str) and value.strip().lower() == AUTO)
 
 
-
-
 def auto_torque_scale(model: Model) -> float:
     """``1 / R``, R the radius of the part's bounding sphere about its reference point."""
     radius = model.radius
@@ -149,8 +147,6 @@ def scale_warnings(scale: ModelScale, types=()) -> list[str]:
                 f"out for {MU_S_FRACTION:g} x radius"
             )
     return out
-
-
 
 
 def contact_specs(

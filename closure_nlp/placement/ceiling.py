@@ -556,22 +556,6 @@ class _GrowingLP:
         return _cell_bound(A[rows], self.owner, pool[rows], x, duals, value)
 
 
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
 def element_pieces(eligibility: Eligibility, element: int) -> list[Piece]:
     """An element as one piece (a facet as its polygon)."""
     e = eligibility.model.elements[element]

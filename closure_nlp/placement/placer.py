@@ -69,18 +69,6 @@ ROUND_SEARCH = SearchOptions(samples=32, smoothing=(0.03,), ipopt_starts=2, ipop
 WARM_DIRECTIONS = 4
 
 
-
-
-
-
-
-
-
-
-
-
-
-
 class ElementFrame:
     """A contact's element in the exchange NLP: its (padded) vertices' grasp matrices ``G``, and
     ``d = G(x)^T u`` as an affine function of the scaled offset ``xi = (x - centre) / size`` of
@@ -126,8 +114,6 @@ def _unpadded(weights: np.ndarray, count: int) -> np.ndarray:
     w = np.maximum(np.asarray(weights[:count], dtype=float), 0.0)
     w[-1] += max(float(np.sum(weights[count:])), 0.0)
     return w / w.sum()
-
-
 
 
 class ExchangePlacer:
