@@ -38,15 +38,18 @@ def _json(capsys, *argv):
 
 
 def test_characterize_measures_the_models_accuracy(tmp_path):
-    """A tessellated sphere's points stand for faces whose normals differ by degrees; a box's
-    facets are exact. The tolerance goes into the model file and back."""
+    """Each element carries its own accuracy: a tessellated sphere's points stand for faces
+    whose normals differ by degrees; a box's facets are exact. The model-wide tolerance is left
+    to the user. The tolerances go into the model file and back."""
     sphere = characterize_mesh(trimesh.creation.icosphere(subdivisions=2, radius=0.05)).model
-    assert 1.0 < sphere.tolerance.normal_deg < 20.0
-    assert sphere.tolerance.position == 0.0
+    assert not sphere.tolerance
+    for e in sphere.elements:
+        assert 1.0 < e.tolerance.normal_deg < 20.0 and e.tolerance.position == 0.0
     box = characterize_mesh(trimesh.creation.box((1.0, 2.0, 3.0))).model
-    assert box.tolerance.normal_deg < 1e-6 and box.tolerance.position < 1e-9
+    assert not any(e.tolerance for e in box.elements)
     save_model(sphere, tmp_path / "s.model.json")
-    assert load_model(tmp_path / "s.model.json").tolerance == sphere.tolerance
+    again = load_model(tmp_path / "s.model.json")
+    assert [e.tolerance for e in again.elements] == [e.tolerance for e in sphere.elements]
 
 
 def test_rho_is_robust_only_within_the_tolerance(tmp_path, capsys):
@@ -119,10 +122,39 @@ def test_seven_frictionless_contacts_on_pybullets_smooth_sphere_are_not_held(tmp
     model = tmp_path / "sphere.model.json"
     assert cli.main(["characterize", str(mesh), "--out", str(model), "--units", "m"]) == 0
     capsys.readouterr()
-    assert load_model(model).tolerance.normal_deg > 1.0
+    assert max(e.tolerance.normal_deg for e in load_model(model).elements) > 1.0
     points = "219,85,216,148,35,141,7"
     argv = ["place", str(model), "--elements", points, "--type", "fpc", "--no-bound"]
     code, data, err = _json(capsys, *argv)
     assert code == 1 and "not robust" in err
     assert data["force_closure"] is True and data["robust"] is False
     assert -1e-4 < data["rho"] < 0.0  # held by the file, by a hair
+
+
+def test_each_element_carries_its_accuracy_into_the_contacts_file(tmp_path, capsys):
+    """A faceted cylinder's side facets stand for a curved surface, its caps are exact: the
+    placed contacts carry their elements' tolerances, and ``rho`` of the written contacts gives
+    the placement's robust verdict and shift."""
+    mesh = tmp_path / "can.stl"
+    trimesh.creation.cylinder(radius=0.03, height=0.1, sections=16).export(mesh)
+    model = tmp_path / "can.model.json"
+    assert cli.main(["characterize", str(mesh), "--out", str(model), "--units", "m"]) == 0
+    capsys.readouterr()
+    loaded = load_model(model)
+    assert not loaded.tolerance
+    deviations = sorted({round(e.tolerance.normal_deg, 6) for e in loaded.elements})
+    assert deviations[0] == 0.0 and deviations[-1] > 1.0  # caps exact, the side faceted
+    code, found, _ = _json(
+        capsys, "select", str(model), "--contacts", "4", "--mu", "0.5", "--seed", "1"
+    )
+    ids = ",".join(map(str, found["elements"]))
+    out = tmp_path / "placed.contacts.json"
+    code, placed, _ = _json(
+        capsys, "place", str(model), "--elements", ids, "--mu", "0.5", "--no-bound", "--out", str(out)
+    )
+    written = json.loads(out.read_text())
+    own = [loaded.elements[c["element"]].tolerance.to_dict() for c in written["contacts"]]
+    assert [c["tolerance"] for c in written["contacts"]] == own
+    code, again, _ = _json(capsys, "rho", str(out))
+    assert again["robust"] == placed["robust"]
+    assert again.get("tolerance_shift", 0.0) == pytest.approx(placed.get("tolerance_shift", 0.0))

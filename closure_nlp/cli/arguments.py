@@ -18,8 +18,12 @@ MAX_WORKERS = 256  # a command's workers: threads, processes or local Dask worke
 
 
 def model_tolerance(args, given):
-    """The file's tolerance with the command line's values in place of its own."""
-    return given.merged(args.position_tolerance, args.normal_tolerance)
+    """The file's tolerance (one, or one per contact) with the command line's values in place
+    of its own."""
+    flags = args.position_tolerance, args.normal_tolerance
+    if isinstance(given, tuple):
+        return given if flags == (None, None) else tuple(t.merged(*flags) for t in given)
+    return given.merged(*flags)
 
 
 def value_list(text: str, flag: str, count: int, convert):

@@ -75,7 +75,11 @@ def cmd_characterize(args) -> None:
     from pathlib import Path
 
     from closure_nlp.base.files import write_atomic
-    from closure_nlp.model.characterize import characterize_mesh, drop_outward_as_read
+    from closure_nlp.model.characterize import (
+        characterize_mesh,
+        drop_outward_as_read,
+        worst_tolerance,
+    )
     from closure_nlp.model.elements import save_model
     from closure_nlp.model.scale import units_warning
 
@@ -125,8 +129,13 @@ def cmd_characterize(args) -> None:
         "repairs": list(found.repairs),
         "dropped": dropped,
         "tolerance": model.tolerance.to_dict(),
+        "element_tolerance": {
+            **worst_tolerance(e.tolerance for e in model.elements).to_dict(),
+            "exact": sum(not e.tolerance for e in model.elements),
+        },
     }
-    tol = model.tolerance
+    tol = model.tolerance or worst_tolerance(e.tolerance for e in model.elements)
+    exact = payload["element_tolerance"]["exact"]
     output.emit(
         args,
         payload,
@@ -134,5 +143,11 @@ def cmd_characterize(args) -> None:
         f"{len(model.adjacency)} neighbour pairs -> {output.shown(out)}"
         f"\n{output.shown(args.mesh)}: model accuracy: positions within "
         f"{tol.position:.3g}{' ' + model.units if model.units else ''}, normals within "
-        f"{tol.normal_deg:.3g} degrees of the mesh (verdicts are robust within it)",
+        f"{tol.normal_deg:.3g} degrees of the mesh"
+        + (
+            " (every element)"
+            if model.tolerance
+            else f" at worst; each element has its own, {exact} of {len(model)} exact"
+        )
+        + "; verdicts are robust within it",
     )

@@ -48,8 +48,17 @@ def model_eligibility(args, m: int, field: str = "--contacts", closure: bool = F
         with reading(args.model):
             require_closure_count(specs, field)
     only, exclude = getattr(args, "only", None), getattr(args, "exclude", None)
+    # the tolerance flags hold for every element, even at 0 (the model is then the part)
+    flagged = args.position_tolerance is not None or args.normal_tolerance is not None
     with reading(args.model):
-        eligibility = Eligibility(model, specs, scale.torque_scale, only=only, exclude=exclude)
+        eligibility = Eligibility(
+            model,
+            specs,
+            scale.torque_scale,
+            tolerance=model.tolerance if flagged else None,
+            only=only,
+            exclude=exclude,
+        )
     left = int(eligibility.model.usable.sum())
     if left == 0 or left < m <= int(model.usable.sum()):
         flag = "--exclude" if exclude else "--only"

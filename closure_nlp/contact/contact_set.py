@@ -227,15 +227,13 @@ class ContactSet:
     torque_scale: float = 1.0
     reference_point: np.ndarray | None = None  # torques are taken about it; None: the origin
     # how far the real contacts may lie from these (robust verdicts,
-    # closure_nlp.criterion.robustness)
-    tolerance: ModelTolerance = NO_TOLERANCE
+    # closure_nlp.criterion.robustness): one for all, or a tuple of one per contact
+    tolerance: ModelTolerance | tuple[ModelTolerance, ...] = NO_TOLERANCE
 
     def __post_init__(self) -> None:
         object.__setattr__(
             self, "reference_point", as_reference_point(self.reference_point, "reference_point")
         )
-        if not isinstance(self.tolerance, ModelTolerance):
-            raise TypeError(f"tolerance: expected a ModelTolerance, got {self.tolerance!r}")
         contacts = tuple(self.contacts)
         if not contacts:
             raise ValueError("contacts: at least one contact is needed, got an empty list")
@@ -243,6 +241,7 @@ class ContactSet:
         for i, c in enumerate(contacts):
             if not isinstance(c, Contact):
                 raise TypeError(f"contacts[{i}]: expected a Contact, got {type(c).__name__}")
+        object.__setattr__(self, "tolerance", _set_tolerance(self.tolerance, len(contacts)))
         object.__setattr__(self, "contacts", contacts)
         object.__setattr__(
             self,
@@ -267,9 +266,30 @@ class ContactSet:
         out = {"torque_scale": self.torque_scale}
         if self.reference_point.any():
             out["reference_point"] = self.reference_point.tolist()
-        if self.tolerance:
+        contacts = [c.to_dict() for c in self.contacts]
+        if isinstance(self.tolerance, tuple):
+            for entry, tolerance in zip(contacts, self.tolerance):
+                entry["tolerance"] = tolerance.to_dict()
+        elif self.tolerance:
             out["tolerance"] = self.tolerance.to_dict()
-        return {**out, "contacts": [c.to_dict() for c in self.contacts]}
+        return {**out, "contacts": contacts}
+
+
+def _set_tolerance(tolerance, count: int):
+    """A contact set's tolerance: one :class:`ModelTolerance`, or a tuple of one per contact
+    (``NO_TOLERANCE`` when none of them lets anything move)."""
+    if isinstance(tolerance, ModelTolerance):
+        return tolerance
+    if not isinstance(tolerance, (tuple, list)):
+        raise TypeError(
+            f"tolerance: expected a ModelTolerance or one per contact, got {tolerance!r}"
+        )
+    if len(tolerance) != count:
+        raise ValueError(f"tolerance: expected one per contact ({count}), got {len(tolerance)}")
+    for i, t in enumerate(tolerance):
+        if not isinstance(t, ModelTolerance):
+            raise TypeError(f"tolerance[{i}]: expected a ModelTolerance, got {t!r}")
+    return tuple(tolerance) if any(tolerance) else NO_TOLERANCE
 
 
 def as_reference_point(value, field: str) -> np.ndarray:
@@ -289,6 +309,7 @@ CONTACT_KEYS = {
     "element",
     "weights",
     "name",
+    "tolerance",
 }
 DEFAULT_KEYS = {"type", "mu", "mu_s", "f_max"}
 FILE_KEYS = {
@@ -318,7 +339,7 @@ def contact_set_from_dict(data) -> ContactSet:
     if not entries:
         raise ValueError("contacts: at least one contact is needed, got an empty list")
     as_count(len(entries), "contacts", MAX_SET_CONTACTS, "contacts")  # before building any
-    contacts = []
+    contacts, own = [], []
     for i, entry in enumerate(entries):
         name = f"contacts[{i}]"
         check_keys(entry, name, CONTACT_KEYS, required={"position", "inward_normal"})
@@ -342,11 +363,16 @@ def contact_set_from_dict(data) -> ContactSet:
                 name=name,
             )
         )
+        given = entry.get("tolerance")
+        own.append(None if given is None else tolerance_from_dict(given, f"{name}.tolerance"))
+    tolerance = tolerance_from_dict(data.get("tolerance"))
+    if any(t is not None for t in own):  # each contact's own; the file's for the others
+        tolerance = tuple(tolerance if t is None else t for t in own)
     return ContactSet(
         tuple(contacts),
         data.get("torque_scale", 1.0),
         data.get("reference_point"),
-        tolerance_from_dict(data.get("tolerance")),
+        tolerance,
     )
 
 

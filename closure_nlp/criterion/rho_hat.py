@@ -18,7 +18,7 @@ import numpy as np
 
 from closure_nlp.base.solver_cache import PerThread
 from closure_nlp.base.validation import as_flag, as_id_list, as_torque_scale
-from closure_nlp.contact.accuracy import ModelTolerance
+from closure_nlp.contact.accuracy import NO_TOLERANCE, ModelTolerance
 from closure_nlp.contact.contact_set import ContactSpec
 from closure_nlp.contact.wrenches import WrenchSlots, padded_rows
 from closure_nlp.criterion.robustness import with_robustness
@@ -112,7 +112,8 @@ class Eligibility:
     minimizer : SupportMinimizer, optional
         Holds the cached NLPs (one per shape) and the search options.
     tolerance : ModelTolerance, optional
-        The model's accuracy (default: the model's own): results carry ``robust``.
+        The accuracy of every element (even zero: the model is the part); default the model's
+        own when it sets one, else each element's own. Results carry ``robust``.
     only, exclude : region or list of regions, optional
         Where contacts may go (:mod:`closure_nlp.model.regions`: ``"ids:3,7,10-14"``,
         ``"facing:+z:10"``, ``"box:X0,Y0,Z0,X1,Y1,Z1"`` or a list of ids): the elements outside
@@ -146,10 +147,11 @@ class Eligibility:
         self.torque_scale = auto_torque_scale(model) if auto else as_torque_scale(torque_scale)
         self.minimizer = minimizer or SupportMinimizer()
         self._counts: PerThread[Counter] = PerThread(Counter)
-        tolerance = model.tolerance if tolerance is None else tolerance
-        if not isinstance(tolerance, ModelTolerance):
+        if tolerance is None and model.tolerance:
+            tolerance = model.tolerance
+        if not (tolerance is None or isinstance(tolerance, ModelTolerance)):
             raise TypeError(f"tolerance: expected a ModelTolerance, got {tolerance!r}")
-        self.tolerance = tolerance
+        self.tolerance = tolerance  # None: each element's own
         self._vertex_G = [e.grasp_matrices(self.torque_scale) for e in model.elements]
         self._all: dict[ContactSpec, WrenchSlots] = {}
 
@@ -180,11 +182,28 @@ class Eligibility:
             (self._vertex_G[e], spec.type, spec.mu, spec.mu_s, spec.f_max)
             for spec, e in zip(self.specs, elements)
         ]
-        # rho_hat does not depend on the slots' order: sorted by NLP size and type, the sets
-        # that differ only by order share one NLP shape (the solver cache holds each shape once;
-        # a study worker kept 78 shapes, about 10 MB each, after four pistol tasks).
-        rows.sort(key=lambda row: (padded_rows(len(row[0])), row[1].value, *row[2:]))
-        return WrenchSlots.build(rows)
+        return WrenchSlots.build([rows[i] for i in self._slot_order(elements)])
+
+    def _slot_order(self, elements) -> list[int]:
+        """The contacts in the order of their slots. rho_hat does not depend on the slots'
+        order: sorted by NLP size and type, the sets that differ only by order share one NLP
+        shape (the solver cache holds each shape once)."""
+        specs, vertices = self.specs, [len(self._vertex_G[e]) for e in elements]
+
+        def key(i):
+            s = specs[i]
+            return padded_rows(vertices[i]), s.type.value, s.mu, s.mu_s, s.f_max
+
+        return sorted(range(len(elements)), key=key)
+
+    def contact_tolerance(self, elements):
+        """How far each contact on ``elements`` may lie from the model: the tolerance the
+        eligibility was given (or the model's own), for every contact; otherwise a tuple of each
+        element's own (``NO_TOLERANCE`` when none has one)."""
+        if self.tolerance is not None:
+            return self.tolerance
+        own = tuple(self.model.elements[e].tolerance for e in elements)
+        return own if any(own) else NO_TOLERANCE
 
     def __call__(
         self,
@@ -214,7 +233,7 @@ class Eligibility:
         self._counts.get()["evaluations"] += 1
         if certify:
             found = certified_search(self.minimizer, slots, warm_start)
-            return self._result(elements, self._robust(found, slots))
+            return self._result(elements, self._robust(elements, found, slots))
         stop = None if stop_above is None else -float(stop_above)
         found = self.minimizer(slots, warm_start, stop)
         value = signed_distance(found, slots, self.minimizer.tolerances)
@@ -232,11 +251,14 @@ class Eligibility:
 
     def _certified(self, elements, slots, found) -> EligibilityResult:
         return self._result(
-            elements, self._robust(certified_rho(slots, found, self.minimizer), slots)
+            elements, self._robust(elements, certified_rho(slots, found, self.minimizer), slots)
         )
 
-    def _robust(self, result, slots):
-        return with_robustness(result, slots, self.tolerance, self.minimizer.tolerances)
+    def _robust(self, elements, result, slots):
+        tolerance = self.contact_tolerance(elements)
+        if not isinstance(tolerance, ModelTolerance):  # per contact: in the slots' order
+            tolerance = tuple(tolerance[i] for i in self._slot_order(elements))
+        return with_robustness(result, slots, tolerance, self.minimizer.tolerances)
 
     @staticmethod
     def _result(elements, r) -> EligibilityResult:

@@ -43,9 +43,30 @@ from closure_nlp.contact.accuracy import NO_TOLERANCE, ModelTolerance, tolerance
 from closure_nlp.contact.wrenches import WrenchSlots, as_slots
 
 
-def row_shifts(slots: WrenchSlots, tolerance: ModelTolerance) -> np.ndarray:
-    """``Delta`` of every row: the most its support value can move (K,)."""
-    eps = 2.0 * np.sin(np.radians(tolerance.normal_deg) / 2.0)
+def has_tolerance(tolerance) -> bool:
+    """Whether ``tolerance`` (one :class:`ModelTolerance`, or one per slot) lets anything move."""
+    if isinstance(tolerance, ModelTolerance):
+        return bool(tolerance)
+    return any(bool(t) for t in tolerance)
+
+
+def _per_row(slots: WrenchSlots, tolerance) -> tuple[np.ndarray, np.ndarray]:
+    """Position tolerance and ``2 sin(theta / 2)`` of every row (K,): one tolerance for all, or
+    one per slot (its rows share it)."""
+    if isinstance(tolerance, ModelTolerance):
+        tolerance = (tolerance,) * slots.m
+    if len(tolerance) != slots.m:
+        raise ValueError(f"tolerance: expected one per slot ({slots.m}), got {len(tolerance)}")
+    counts = slots.rows_per_slot
+    position = np.repeat([t.position for t in tolerance], counts)
+    degrees = np.repeat([t.normal_deg for t in tolerance], counts)
+    return position, 2.0 * np.sin(np.radians(degrees) / 2.0)
+
+
+def row_shifts(slots: WrenchSlots, tolerance) -> np.ndarray:
+    """``Delta`` of every row: the most its support value can move (K,). ``tolerance``: one
+    :class:`ModelTolerance` for every slot, or a sequence of one per slot."""
+    position, eps = _per_row(slots, tolerance)
     G = slots.G
     s = np.linalg.norm(G[:, 3:, 3], axis=1)  # the torque scale
     sx = np.linalg.norm(G[:, 3:, :3], axis=(1, 2)) / np.sqrt(2.0)  # s |x|
@@ -53,7 +74,7 @@ def row_shifts(slots: WrenchSlots, tolerance: ModelTolerance) -> np.ndarray:
     mu_s = np.sqrt(slots.pieces[:, :, 3].max(axis=1))
     g = slots.f_max * np.sqrt(1.0 + mu2)
     A = eps * g
-    B = g * (s * tolerance.position + sx * eps) + s * mu_s * slots.f_max * eps
+    B = g * (s * position + sx * eps) + s * mu_s * slots.f_max * eps
     return np.hypot(A, B)
 
 
@@ -62,7 +83,7 @@ def support_shift(slots, tolerance: ModelTolerance) -> float:
     :class:`WrenchSlots` or a contact set) has a support value further than this from theirs,
     in any direction."""
     slots = as_slots(slots)
-    if not tolerance:
+    if not has_tolerance(tolerance):
         return 0.0
     shifts = row_shifts(slots, tolerance)
     return float(np.maximum.reduceat(shifts, slots.starts).sum())
@@ -89,7 +110,7 @@ def with_robustness(result, slots: WrenchSlots, tolerance: ModelTolerance, toler
 
     from closure_nlp.criterion.certificate import tolerance_unit
 
-    if not tolerance or result.bounds is None:
+    if not has_tolerance(tolerance) or result.bounds is None:
         return result
     shift = support_shift(slots, tolerance)
     robust = is_robust(result, shift, tolerance_unit(slots), tolerances)
@@ -97,6 +118,7 @@ def with_robustness(result, slots: WrenchSlots, tolerance: ModelTolerance, toler
 
 
 __all__ = [
+    "has_tolerance",
     "with_robustness",
     "ModelTolerance",
     "NO_TOLERANCE",

@@ -230,9 +230,26 @@ def characterize_mesh(
     )
     drafts = [drafts[i] for i in order]
     drafts, dropped = _without_tiny(drafts)
+    measured = measured_tolerances(mesh, drafts, options)
+    folded = [d for d, t in zip(drafts, measured) if t is None]
+    if folded:
+        dropped.append(
+            f"{len(folded)} element(s) turned 90 degrees or more from the mesh faces they stood "
+            "for (folds or wrongly wound patches)"
+        )
+        kept = [(d, t) for d, t in zip(drafts, measured) if t is not None]
+        if not kept:
+            raise ValueError("every element turned 90 degrees or more from its mesh faces")
+        drafts, measured = (list(column) for column in zip(*kept))
     elements = tuple(
-        Element(d.element.kind, d.element.vertices, d.element.inward_normal, name=f"elements[{i}]")
-        for i, d in enumerate(drafts)
+        Element(
+            d.element.kind,
+            d.element.vertices,
+            d.element.inward_normal,
+            name=f"elements[{i}]",
+            tolerance=t,
+        )
+        for i, (d, t) in enumerate(zip(drafts, measured))
     )
     adjacency = _adjacency(arrays, drafts, curved)
     model = Model(
@@ -243,7 +260,6 @@ def characterize_mesh(
         mesh=mesh_ref,
         reference_point=point,
         up=up,
-        tolerance=measured_tolerance(mesh, drafts, options),
     )
     return Characterization(
         model,
@@ -379,16 +395,21 @@ class MeshArrays:
         return value
 
 
-def measured_tolerance(mesh, drafts: list[Draft], options: CharacterizeOptions) -> ModelTolerance:
-    """How far the elements deviate from the mesh they stand for (the largest over elements).
+# Relative deviation (of the part's radius; radians for normals) a mesh file's round-off makes.
+ROUND_OFF = 1e-6
+
+
+def measured_tolerances(mesh, drafts: list[Draft], options: CharacterizeOptions) -> list:
+    """How far each element deviates from the mesh it stands for: a :class:`ModelTolerance`
+    per draft, or None where the mesh faces it stands for turn 90 degrees or more from its
+    normal (it does not stand for them: a fold or a wrongly wound patch).
 
     ``normal_deg``: the largest angle between an element's normal and the (inward) normals of
     the mesh faces it stands for: a facet's own triangles; for a segment or a point, the faces
     around its vertices within its smooth region (normals within ``sharp_angle``), the span of
     normals the real surface may have there. ``position``: the largest distance of a facet's
-    mesh vertices from its plane (segments and points sit on mesh vertices). A flat face
-    merged from triangles within ``flat_angle`` of each other, or a tessellated sphere's
-    point, gets the angle the mesh cannot resolve.
+    mesh vertices from its plane (segments and points sit on mesh vertices). A flat face is
+    exact (0, 0) however faceted the rest of the part is.
     """
     from scipy.spatial import cKDTree
 
@@ -396,25 +417,43 @@ def measured_tolerance(mesh, drafts: list[Draft], options: CharacterizeOptions) 
     vertex_faces = np.asarray(mesh.vertex_faces)  # padded with -1
     tree = cKDTree(mesh.vertices)
     sharp = np.cos(np.radians(options.sharp_angle))
-    worst_cos, position = 1.0, 0.0
+    # below these, a deviation is the round-off of the mesh file (32-bit STL), not of the surface
+    noise = ROUND_OFF * part_radius(mesh.vertices, mesh.vertices.mean(axis=0))
+    out = []
     for draft in drafts:
         e = draft.element
         n = e.inward_normal
+        position = 0.0
         if e.kind is ElementKind.FACET:
             owned = np.fromiter(draft.owned, int)
             mask = np.zeros(len(mesh.vertices), bool)
             mask[owned] = True
             faces = np.flatnonzero(mask[mesh.faces].all(axis=1))
             if len(owned):
-                offsets = (mesh.vertices[owned] - e.vertices[0]) @ n
-                position = max(position, float(np.abs(offsets).max()))
+                position = float(np.abs((mesh.vertices[owned] - e.vertices[0]) @ n).max())
         else:
             faces = vertex_faces[tree.query(e.vertices)[1]].ravel()
             faces = faces[faces >= 0]
             faces = faces[inward[faces] @ n >= sharp]
-        if len(faces):
-            worst_cos = min(worst_cos, float(np.clip(inward[faces] @ n, -1.0, 1.0).min()))
-    return ModelTolerance(position, float(np.degrees(np.arccos(worst_cos))))
+        worst = float(np.clip(inward[faces] @ n, -1.0, 1.0).min()) if len(faces) else 1.0
+        angle = float(np.arccos(worst))
+        if angle >= np.pi / 2:
+            out.append(None)
+            continue
+        out.append(
+            ModelTolerance(
+                position if position > noise else 0.0,
+                float(np.degrees(angle)) if angle > ROUND_OFF else 0.0,
+            )
+        )
+    return out
+
+
+def worst_tolerance(tolerances) -> ModelTolerance:
+    """The largest position and normal deviation over elements' tolerances."""
+    tolerances = list(tolerances)
+    position = max((t.position for t in tolerances), default=0.0)
+    return ModelTolerance(position, max((t.normal_deg for t in tolerances), default=0.0))
 
 
 def _is_auto(value) -> bool:

@@ -60,6 +60,10 @@ class Element:
         Free text (e.g. ``"crown"``), kept through save and load.
     name : str
         How errors refer to this element, e.g. ``"elements[12]"``.
+    tolerance : ModelTolerance
+        How far the surface this element stands for leaves it (position and normal): 0 for a
+        flat face, about half the angle between neighbours for a facet of a faceted cylinder
+        (``characterize`` measures it). A contact on the element inherits it.
     """
 
     kind: ElementKind
@@ -67,6 +71,7 @@ class Element:
     inward_normal: np.ndarray
     label: str = ""
     name: str = field(default="element", compare=False)
+    tolerance: ModelTolerance = NO_TOLERANCE
     tolerances: Tolerances = field(default=DEFAULT_TOLERANCES, repr=False, compare=False)
     # The point torques are taken about (None: the origin); a Model gives its own to each element.
     reference_point: np.ndarray | None = field(default=None, repr=False, compare=False)
@@ -81,6 +86,10 @@ class Element:
         )
         if not isinstance(self.label, str):
             raise TypeError(f"{self.name}.label: expected text, got {self.label!r}")
+        if not isinstance(self.tolerance, ModelTolerance):
+            raise TypeError(
+                f"{self.name}.tolerance: expected a ModelTolerance, got {self.tolerance!r}"
+            )
         {
             ElementKind.FACET: _check_facet,
             ElementKind.SEGMENT: _check_segment,
@@ -115,6 +124,8 @@ class Element:
         }
         if self.label:
             out["label"] = self.label
+        if self.tolerance:
+            out["tolerance"] = self.tolerance.to_dict()
         return out
 
 
@@ -257,7 +268,7 @@ MODEL_KEYS = {
     "up",
     "tolerance",
 }
-ELEMENT_KEYS = {"kind", "vertices", "inward_normal", "label"}
+ELEMENT_KEYS = {"kind", "vertices", "inward_normal", "label", "tolerance"}
 
 
 @dataclass(frozen=True, eq=False)
@@ -475,6 +486,7 @@ def model_from_dict(data, base_dir=None, tolerances: Tolerances = DEFAULT_TOLERA
                 entry["inward_normal"],
                 entry.get("label", ""),
                 name=name,
+                tolerance=tolerance_from_dict(entry.get("tolerance"), f"{name}.tolerance"),
                 tolerances=tolerances,
             )
         )

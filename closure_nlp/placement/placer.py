@@ -213,7 +213,7 @@ class ExchangePlacer:
             ),
             self.eligibility.torque_scale,
             model.reference_point,
-            self.eligibility.tolerance,
+            self.eligibility.contact_tolerance(elements),
         )
 
     def optimise(

@@ -173,8 +173,11 @@ class PlacementResult:
             data["units"] = units
         verdict = "force closure" if self.force_closure else "not force closure"
         data["description"] = f"placed contacts: rho = {self.rho:.9g} ({verdict})"
+        as_file = self.contact_set.to_dict()  # its tolerance too: rho of it gives this verdict
+        if "tolerance" in as_file:
+            data["tolerance"] = as_file["tolerance"]
         data["contacts"] = [
-            {**c.to_dict(), "element": p.element, "weights": p.weights.tolist()}
-            for c, p in zip(self.contact_set.contacts, self.contacts)
+            {**c, "element": p.element, "weights": p.weights.tolist()}
+            for c, p in zip(as_file["contacts"], self.contacts)
         ]
         return data
