@@ -741,7 +741,7 @@ def certified_search(minimizer: SupportMinimizer, slots: WrenchSlots, warm_start
     nearest-point iteration is exact from any such direction (sets not in force closure: 3.2-3.4x
     less CPU, the local minimiser's runs were most of it).
     """
-    from closure_nlp.rho.certificate import tolerance_unit
+    from closure_nlp.rho.certificate import tolerance_unit, verdicts
 
     seed = minimizer.seeding()
     below = -minimizer.tolerances.certify * tolerance_unit(slots)
@@ -752,13 +752,17 @@ def certified_search(minimizer: SupportMinimizer, slots: WrenchSlots, warm_start
     if more.value >= -result.rho:
         return result
     lo, hi = -more.value, result.bounds[1]
-    gap = minimizer.tolerances.certify * max(abs(lo), tolerance_unit(slots))
+    unit = tolerance_unit(slots)
+    gap = minimizer.tolerances.certify * max(abs(lo), unit)
+    closure, marginal = verdicts(lo, hi, minimizer.tolerances.certify * unit)
     return replace(
         result,
         rho=lo,
+        force_closure=closure,
         direction=more.direction,
         support_point=more.support_point,
         bounds=(lo, hi),
+        marginal=marginal,
         converged=hi - lo <= gap,
     )
 
