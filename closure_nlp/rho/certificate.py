@@ -106,6 +106,12 @@ class CertifiedBounds:
     direction: np.ndarray = field(repr=False, compare=False, default=None)
     unit: float = 1.0
 
+    def __post_init__(self) -> None:
+        if isinstance(self.direction, np.ndarray):  # read-only, as in every certified result
+            direction = self.direction.copy()
+            direction.flags.writeable = False
+            object.__setattr__(self, "direction", direction)
+
     def __iter__(self):
         yield self.lo
         yield self.hi

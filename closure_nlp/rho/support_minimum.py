@@ -170,6 +170,9 @@ class SupportMinimum:
     support_point: np.ndarray
     stats: SolverStats
 
+    def __post_init__(self) -> None:
+        frozen_arrays(self)
+
 
 @dataclass(frozen=True, eq=False, kw_only=True)
 class Certificate:
@@ -183,6 +186,21 @@ class Certificate:
     robust: bool | None = None
     shift: float = 0.0
     timing: tuple[float, float] | None = None
+
+    def __post_init__(self) -> None:
+        frozen_arrays(self)
+
+
+def frozen_arrays(result) -> None:
+    """Every array field of the frozen ``result`` replaced by a read-only copy: a caller that
+    writes into ``result.direction`` would otherwise change a certified result (and whatever
+    else shares the array) behind its back."""
+    for f in fields(result):
+        value = getattr(result, f.name)
+        if isinstance(value, np.ndarray):
+            value = value.copy()
+            value.flags.writeable = False
+            object.__setattr__(result, f.name, value)
 
 
 def certificate_of(result) -> dict:
@@ -822,6 +840,7 @@ __all__ = [
     "certificate_keys",
     "certified_rho",
     "certified_search",
+    "frozen_arrays",
     "rho",
     "search_rho",
     "signed_distance",
