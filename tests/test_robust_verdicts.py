@@ -149,9 +149,8 @@ def test_each_element_carries_its_accuracy_into_the_contacts_file(tmp_path, caps
     )
     ids = ",".join(map(str, found["elements"]))
     out = tmp_path / "placed.contacts.json"
-    code, placed, _ = _json(
-        capsys, "place", str(model), "--elements", ids, "--mu", "0.5", "--no-bound", "--out", str(out)
-    )
+    argv = ["place", str(model), "--elements", ids, "--mu", "0.5", "--no-bound", "--out", str(out)]
+    code, placed, _ = _json(capsys, *argv)
     written = json.loads(out.read_text())
     own = [loaded.elements[c["element"]].tolerance.to_dict() for c in written["contacts"]]
     assert [c["tolerance"] for c in written["contacts"]] == own

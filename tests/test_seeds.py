@@ -134,7 +134,7 @@ def test_a_failed_or_marginal_seed_does_not_stop_the_plan(monkeypatch, workers):
         {"elements": [0, 1, 2, 4], "seeds": 1, "best_rho": 0.0, "ceiling": None},
     ]
     assert [r.get("capacity_bound") for r in spread["runs"]] == [0.6, None, None, 0.55, 0.7]
-    assert "; 3 force closure, 1 marginal, 1 failed;" in best.seeds.line()
+    assert "; 3 force closure, 1 marginal, 1 failed (seed 2);" in best.seeds.line()
 
 
 def test_every_seed_failing_raises_the_first_error(monkeypatch):

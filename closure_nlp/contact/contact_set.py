@@ -145,6 +145,16 @@ def frame_grasp_matrices(r: np.ndarray, frames: np.ndarray, torque_scale: float)
     return G
 
 
+def unmasked(value, field: str):
+    """``value``, or the data of a masked array without a masked entry: converting one to floats
+    drops its mask, so a masked coordinate would silently count with whatever its data holds."""
+    if isinstance(value, np.ma.MaskedArray):
+        if np.ma.getmaskarray(value).any():
+            raise ValueError(f"{field}: a masked array with masked entries; give every number")
+        return np.ma.getdata(value)
+    return value
+
+
 def _check_parameters(obj, name: str) -> None:
     """Validate and normalise the ``type, mu, mu_s, f_max`` fields of a frozen dataclass."""
     set_ = object.__setattr__
@@ -198,10 +208,9 @@ class Contact:
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
-        set_(self, "position", as_coordinates(self.position, f"{self.name}.position"))
-        set_(
-            self, "inward_normal", as_unit_vector(self.inward_normal, f"{self.name}.inward_normal")
-        )
+        position, normal = f"{self.name}.position", f"{self.name}.inward_normal"
+        set_(self, "position", as_coordinates(unmasked(self.position, position), position))
+        set_(self, "inward_normal", as_unit_vector(unmasked(self.inward_normal, normal), normal))
         _check_parameters(self, self.name)
 
     @property
@@ -294,7 +303,10 @@ def _set_tolerance(tolerance, count: int):
 
 def as_reference_point(value, field: str) -> np.ndarray:
     """The point torques are taken about: (3,) float, read-only; None means the origin."""
-    point = np.zeros(3) if value is None else np.array(as_coordinates(value, field), dtype=float)
+    if value is None:
+        point = np.zeros(3)
+    else:
+        point = np.array(as_coordinates(unmasked(value, field), field), dtype=float)
     point.flags.writeable = False
     return point
 

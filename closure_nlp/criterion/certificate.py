@@ -108,6 +108,12 @@ class CertifiedBounds:
     direction: np.ndarray = field(repr=False, compare=False, default=None)
     unit: float = 1.0
 
+    def __post_init__(self) -> None:
+        if isinstance(self.direction, np.ndarray):  # read-only, as in every certified result
+            direction = self.direction.copy()
+            direction.flags.writeable = False
+            object.__setattr__(self, "direction", direction)
+
     def __iter__(self):
         yield self.lo
         yield self.hi
@@ -178,7 +184,7 @@ def certified_bounds(
     budget = options.branch_bound
     if verdict is not None:
         # The set's own bracket would need cells finer than its anisotropy: a small budget
-        # (valid, usually unconverged bounds); the verdict is the whitened set's.
+        # (valid, usually unconverged bounds), tightened by the whitened set's bracket.
         cells = min(budget.max_cells, ANISOTROPIC_CELLS)
         budget = replace(budget, max_cells=cells, extended_cells=cells)
     unit = tolerance_unit(slots)
@@ -289,10 +295,11 @@ def _metric(slots: WrenchSlots) -> np.ndarray:
 
 
 def _whitened_verdict(slots, tol, options, tolerances):
-    """The verdicts (force closure, marginal) of a set whose torque rows are more than
-    :data:`WHITEN` times larger or smaller than its force rows, decided on the set with torques
-    rescaled to the forces' size: a linear map, which keeps the origin inside or outside, while
-    the set's own bracket would need cells finer than the anisotropy. None otherwise."""
+    """``(lo, hi, separating)`` for a set whose torque rows are more than :data:`WHITEN` times
+    larger or smaller than its force rows: bounds on its rho (``-inf``/``inf`` where none
+    follows) from the set with torques rescaled to the forces' size, a linear map, which keeps
+    the origin inside or outside, while the set's own bracket would need cells finer than the
+    anisotropy; ``separating`` a direction where ``p < 0``, or None. None for other sets."""
     force, torque = slots.row_scales(friction=False)
     if not (force > 0 and torque > 0) or max(force, torque) <= WHITEN * min(force, torque):
         return None
@@ -305,24 +312,43 @@ def _whitened_verdict(slots, tol, options, tolerances):
     separating = None
     if bounds.lo > 0 and not bounds.marginal:
         separating = bounds.direction * np.repeat([1.0, force / torque], 3)
-    return bounds.force_closure, bounds.marginal, separating
+    # The whitened bracket bounds the set's own: every unit v is D u / |D u| for a unit u, and
+    # p_W(v) = p_{DW}(u) / |D u| with |D u| <= max(1, f/t); so a whitened hi < 0 gives
+    # hi / max(1, f/t) for the set, a whitened lo > 0 likewise lo / max(1, f/t).
+    stretch = max(1.0, force / torque)
+    hi = bounds.hi / stretch if bounds.hi < 0 else np.inf
+    lo = bounds.lo / stretch if bounds.lo > 0 else -np.inf
+    return lo, hi, separating
+
+
+def verdicts(lo: float, hi: float, zero: float) -> tuple[bool, bool]:
+    """``(force_closure, marginal)`` of a certified bracket ``lo <= rho <= hi``: the only place
+    they are decided, so no verdict ever contradicts the bounds it is reported with.
+
+    Force closure (eligible) only when ``hi < -zero``: below zero beyond the numerical accuracy
+    ``zero``. Marginal when the bracket reaches within ``zero`` of zero (``hi >= -zero`` and
+    ``lo <= zero``): within that accuracy of a set without interior, never force closure. A
+    bracket with ``lo > zero`` is neither: certainly not force closure."""
+    closure = bool(hi < -zero)
+    return closure, bool(not closure and lo <= zero)
 
 
 def _result(lo, hi, converged, iterations, points, start_time, direction, tol, unit, verdict):
-    """Bounds of the unit-size set scaled back by ``unit``, with the verdicts (``verdict``
-    when decided on a whitened set)."""
+    """Bounds of the unit-size set scaled back by ``unit``, tightened by the whitened set's
+    (``verdict``) when there is one, with the verdicts of that bracket."""
     hi = max(hi, lo)  # roundoff of two exact bounds of the same number
     lo, hi = lo * unit, hi * unit
-    zero = tol * unit
-    closure, marginal = verdict[:2] if verdict else (hi < -zero, hi >= -zero and lo <= zero)
-    if closure:  # decided on the whitened set: rho < 0 whatever the bracket's own width
-        hi = min(hi, 0.0)
+    if verdict:
+        lo, hi = max(lo, verdict[0]), min(hi, verdict[1])
+        hi = max(hi, lo)
+        converged = converged or hi - lo <= tol * max(abs(lo), unit)
+    closure, marginal = verdicts(lo, hi, tol * unit)
     return CertifiedBounds(
         float(lo),
         float(hi),
         bool(converged),
-        bool(closure),
-        bool(marginal),
+        closure,
+        marginal,
         int(iterations),
         int(points),
         time.perf_counter() - start_time,
@@ -337,4 +363,5 @@ __all__ = [
     "certified_bounds",
     "min_norm_point",
     "tolerance_unit",
+    "verdicts",
 ]

@@ -38,6 +38,8 @@ def min_norm_point(points: np.ndarray, tol: float = 1e-15):
     points = as_shaped(points, "points", ("n", "d"))
     if len(points) == 0:  # the weights' first entry is written whatever the points
         raise ValueError(f"points: expected at least one point, got shape {points.shape}")
+    if not np.isfinite(points).all():  # the kernel would answer NaN without a word
+        raise ValueError("points: numbers must be finite (a NaN or infinite entry)")
     return kernels.min_norm_point(kernel_array(points), float(tol))
 
 

@@ -170,6 +170,9 @@ class SupportMinimum:
     support_point: np.ndarray
     stats: SolverStats
 
+    def __post_init__(self) -> None:
+        frozen_arrays(self)
+
 
 @dataclass(frozen=True, eq=False, kw_only=True)
 class Certificate:
@@ -184,6 +187,21 @@ class Certificate:
     robust: bool | None = None
     shift: float = 0.0
     timing: tuple[float, float] | None = None
+
+    def __post_init__(self) -> None:
+        frozen_arrays(self)
+
+
+def frozen_arrays(result) -> None:
+    """Every array field of the frozen ``result`` replaced by a read-only copy: a caller that
+    writes into ``result.direction`` would otherwise change a certified result (and whatever
+    else shares the array) behind its back."""
+    for f in fields(result):
+        value = getattr(result, f.name)
+        if isinstance(value, np.ndarray):
+            value = value.copy()
+            value.flags.writeable = False
+            object.__setattr__(result, f.name, value)
 
 
 def certificate_of(result) -> dict:
@@ -743,7 +761,7 @@ def certified_search(minimizer: SupportMinimizer, slots: WrenchSlots, warm_start
     nearest-point iteration is exact from any such direction (sets not in force closure: 3.2-3.4x
     less CPU, the local minimiser's runs were most of it).
     """
-    from closure_nlp.criterion.certificate import tolerance_unit
+    from closure_nlp.criterion.certificate import tolerance_unit, verdicts
 
     seed = minimizer.seeding()
     below = -minimizer.tolerances.certify * tolerance_unit(slots)
@@ -754,13 +772,17 @@ def certified_search(minimizer: SupportMinimizer, slots: WrenchSlots, warm_start
     if more.value >= -result.rho:
         return result
     lo, hi = -more.value, result.bounds[1]
-    gap = minimizer.tolerances.certify * max(abs(lo), tolerance_unit(slots))
+    unit = tolerance_unit(slots)
+    gap = minimizer.tolerances.certify * max(abs(lo), unit)
+    closure, marginal = verdicts(lo, hi, minimizer.tolerances.certify * unit)
     return replace(
         result,
         rho=lo,
+        force_closure=closure,
         direction=more.direction,
         support_point=more.support_point,
         bounds=(lo, hi),
+        marginal=marginal,
         converged=hi - lo <= gap,
     )
 
@@ -820,6 +842,7 @@ __all__ = [
     "certificate_keys",
     "certified_rho",
     "certified_search",
+    "frozen_arrays",
     "rho",
     "search_rho",
     "signed_distance",

@@ -18,13 +18,13 @@ from __future__ import annotations
 import math
 import multiprocessing
 import os
-import queue
 import threading
 import time
 from dataclasses import dataclass, replace
 
 import numpy as np
 
+from closure_nlp.base.errors import MethodError
 from closure_nlp.base.interrupts import leave_to_parent
 from closure_nlp.base.progress import Progress
 from closure_nlp.base.tolerances import DEFAULT_TOLERANCES
@@ -156,9 +156,14 @@ class SeedSpread:
         """One line of text: the spread, for the command line."""
         d = self.to_dict()
         cut = ""
+        lost = any((run.error or "").startswith("WorkerLost") for run in self.runs)
         if d["run"] < d["requested"]:
-            cut = f" of {d['requested']} (budget of {d['budget']:g} s spent)"
-        failed = f", {d['failed']} failed" if d["failed"] else ""
+            why = "a worker process ended" if lost else f"budget of {d['budget']:g} s spent"
+            cut = f" of {d['requested']} ({why})"
+        failed = ""
+        if d["failed"]:
+            which = ", ".join(str(run.seed) for run in self.runs if not run.ok)
+            failed = f", {d['failed']} failed (seed {which})"
         return (
             f"seeds: {d['run']}{cut} on {d['workers']} process(es): best rho = "
             f"{d['best_rho']:.6g} (seed {d['chosen_seed']}), median {d['median_rho']:.6g}, "
@@ -340,12 +345,52 @@ def _report(progress, outcomes) -> None:
 # A worker process's solvers and memo, made once by _start_worker and used by every seed it runs.
 _WORKER: dict = {}
 
+# How often a worker looks whether the process that started it is still there (where the
+# system cannot end it with its parent).
+ORPHAN_POLL = 0.5
 
-def _start_worker(eligibility, options, kwargs) -> None:
+
+def _start_worker(eligibility, options, kwargs, parent: int) -> None:
     leave_to_parent()  # Ctrl-C ends the parent's wait, which then ends the workers
+    die_with_parent(parent)
     _WORKER.update(
         eligibility=eligibility, placer=Placer(eligibility, options), memo={}, kwargs=kwargs
     )
+
+
+def die_with_parent(parent: int) -> None:
+    """End this worker, quietly, as soon as ``parent`` (the process that runs the seeds) ends:
+    a parent killed by SIGTERM, SIGHUP or SIGKILL runs no code that could stop its workers, and
+    a worker left behind ran its seed to the end (up to 15 s) and then printed a traceback of
+    the pipe it could no longer write to.
+
+    On Linux the kernel sends the worker SIGKILL when the process that forked it ends
+    (``PR_SET_PDEATHSIG``); that is the forkserver, not ``parent``, under forkserver or spawn,
+    so a daemon thread also checks every :data:`ORPHAN_POLL` seconds that ``parent`` is still
+    there."""
+    import ctypes
+    import signal
+
+    if os.getppid() == parent:
+        try:
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+        except (OSError, AttributeError):  # not Linux: the thread below alone
+            pass
+        if os.getppid() != parent:  # the parent ended before the request was made
+            os._exit(0)
+
+    def watch() -> None:
+        while True:
+            time.sleep(ORPHAN_POLL)
+            try:
+                os.kill(parent, 0)
+            except ProcessLookupError:
+                os._exit(0)  # no flush, no traceback: nobody reads this worker's output now
+            except PermissionError:  # the pid now belongs to another user's process
+                os._exit(0)
+
+    threading.Thread(target=watch, name="orphan-watch", daemon=True).start()
 
 
 def _worker_seed(k: int, seed: int, shared: dict):
@@ -374,44 +419,79 @@ def _context():
     return multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
 
 
+class WorkerLost(MethodError):
+    """A worker process ended while it ran seeds (killed, out of memory): those seeds' error."""
+
+
 def _in_processes(eligibility, options, kwargs, seed, seeds, workers, budget, t0, progress):
     """The seeds over ``workers`` processes, at most ``workers`` running at a time (so the
     budget stops new ones), gathered in seed order. An interrupt or error ends the workers at
-    once."""
+    once.
+
+    A worker that dies (killed, out of memory) breaks the pool: the seeds running then are
+    recorded as failed with the reason, no further seed starts, and the seeds that finished
+    are the answer (a pool that only replaced the worker left its seed's result unsent and
+    the wait without end)."""
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+    from concurrent.futures.process import BrokenProcessPool
+
     done: dict[int, tuple] = {}
     shared: dict = {}  # the steps the seeds computed, shipped to every seed started after
-    finished: queue.SimpleQueue = queue.SimpleQueue()
-    pool = _context().Pool(workers, _start_worker, (eligibility, options, kwargs))
+    pool = ProcessPoolExecutor(
+        workers,
+        mp_context=_context(),
+        initializer=_start_worker,
+        initargs=(eligibility, options, kwargs, os.getpid()),
+    )
+    running: dict = {}  # future -> k
+    broken = None
     try:
-        k = running = 0
+        k = 0
         while k < seeds or running:
-            while k < seeds and running < workers:
+            while broken is None and k < seeds and len(running) < workers:
                 # The first wave starts at once whatever the pool's start-up cost; after it,
                 # a spent budget starts no further seed.
                 if k >= workers and budget is not None and time.perf_counter() - t0 >= budget:
                     seeds = k
                     break
-                pool.apply_async(
-                    _worker_seed,
-                    (k, seed + k, dict(shared)),  # a copy: pickled later, in the pool's thread
-                    callback=finished.put,
-                    error_callback=finished.put,
-                )
-                k, running = k + 1, running + 1
+                # the shared steps as a copy: pickled later, in the pool's thread
+                running[pool.submit(_worker_seed, k, seed + k, dict(shared))] = k
+                k += 1
             if not running:
                 break
-            item = finished.get()
-            running -= 1
-            if isinstance(item, BaseException):  # the worker itself failed (not a seed's error)
-                raise item
-            done[item[0]] = item[1]
-            _share(shared, item[2])
+            finished, _ = wait(running, return_when=FIRST_COMPLETED)
+            for future in sorted(finished, key=running.get):
+                i = running.pop(future)
+                try:
+                    item = future.result()
+                except BrokenProcessPool as exc:
+                    broken = broken or exc
+                    lost = WorkerLost(
+                        f"a worker process ended abruptly while it ran seed {seed + i} "
+                        "(killed, or out of memory); the seeds that finished are kept"
+                    )
+                    run = SeedRun(seed + i, None, f"WorkerLost: {lost}", time.perf_counter() - t0)
+                    done[i] = (run, lost)
+                    continue
+                done[item[0]] = item[1]
+                _share(shared, item[2])
             _report(progress, [done[i] for i in sorted(done)])
-        pool.close()
+            if broken is not None and not running:
+                break
     finally:
-        pool.terminate()
-        pool.join()
+        _end_workers(pool)
     return [done[i] for i in sorted(done)]
+
+
+def _end_workers(pool) -> None:
+    """Stop every worker now (SIGTERM: a running seed is not waited for) and the pool."""
+    processes = dict(getattr(pool, "_processes", None) or {})
+    pool.shutdown(wait=False, cancel_futures=True)
+    for process in processes.values():
+        if process.is_alive():
+            process.terminate()
+    for process in processes.values():
+        process.join()
 
 
 __all__ = [
@@ -419,6 +499,7 @@ __all__ = [
     "DEFAULT_SEEDS",
     "SeedRun",
     "SeedSpread",
+    "WorkerLost",
     "available_cores",
     "best_index",
     "check_seed_options",
