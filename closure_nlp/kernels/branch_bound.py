@@ -29,33 +29,29 @@ CORNERS = 32
 ANCHOR_SCALES = np.array([1e-3, 1e-5, 1e-7])
 ANCHORS = 1 + 10 * len(ANCHOR_SCALES)
 # A cell's game first adds the support points of a cloud around its lowest sample, of this
-# share of the cell's radius, and those of its 32 corners only when it stays alive. Measured
-# against one game with the corners and clouds of 1/4 and 1/100 of the radius, 20 sets each:
-# fewer support points in all (4 SFCe 0.93M against 1.38M, 4 mixed 0.30M against 0.42M); the
-# cloud alone costs fewer still but leaves a continuum of minima (two opposite soft fingers)
-# a 4x wider bracket at the cell budget.
+# share of the cell's radius, and those of its 32 corners only when it stays alive: fewer
+# support points in all than one game with the corners and wider and narrower clouds; the cloud
+# alone costs fewer still but leaves a continuum of minima (two opposite soft fingers) a wider
+# bracket at the cell budget.
 REFINE_SCALE = 0.5
 REFINE_POINTS = 11
 MAX_PIVOTS = 300
 # Pivots of a cell's game (:func:`exact_bound`): its weights give a valid bound wherever it
-# stops. Measured on 22 force-closure 4-PCwF sets: 40 instead of 300 pivots, the same cells
-# (1,219 median) and brackets, 21% less time; the games that need more are those of cells that
-# stay alive anyway.
+# stops. A few pivots drop the same cells as many, in less time: the games that need more are
+# those of cells that stay alive anyway.
 CELL_PIVOTS = 40
 # Sets of at most this many slots (contacts or elements) give a cell that the cloud leaves alive
 # a game with one budget of weights per slot (:func:`slot_bound`) in place of its corners' support
-# points: measured (CPU, best of 2, load 7-8, against the corners) 6 SFCe round a cylinder
-# 1.16x, 4 SFCe 1.24x, 4 SFCe round a cylinder, 4 PCwF, 4 mixed and two opposite soft
-# fingers 0.99-1.02x. Its game grows with the slots: larger sets keep the corners.
+# points: cheaper on soft fingers, the same on the other families. Its game grows with the
+# slots: larger sets keep the corners.
 SLOT_GAME_SLOTS = 8
 # Rounds of columns a slot game adds at the direction of its rows' optimal mix: the game over
 # every slot point of the cell has the value of ``min p`` over the hull of the rows'
 # directions (LP duality), and the slots' support points at that mix are the columns that
-# raise it most. On cells that survive round a cylinder, from the lowest sample alone, 4-6
-# rounds reach the game over 180 directions' points in the cell. Measured (CPU, one process,
-# alternating with 0 rounds, min of 6): 4 SFCe 1.10x, 4 SFCe round a cylinder 1.06x (27%
-# fewer cells), 6 round a cylinder, 4 PCwF, 4 mixed 0.97-1.02x; 6 rounds cost the 6-contact
-# cylinder more games than the cells they save (0.84x).
+# raise it most. On cells that survive round a cylinder, from the lowest sample alone, a few
+# rounds reach the game over a dense grid of the cell's points. These rounds pay off on soft
+# fingers (fewer cells) and cost the other families nothing; more rounds cost the larger
+# cylinder sets more games than the cells they save.
 COLUMN_ROUNDS = 3
 # Corners a slot game starts with (the lowest under the cell's best combination so far); the
 # others join one by one while the game's weights leave one of them lower than its value.
@@ -69,14 +65,13 @@ GAME_HEADROOM = 0.5
 # A cell whose lowest sample lies within this many ``|target| delta^2`` of the target skips the
 # refinement's games (cloud, slot game, corners) and is halved: every linear bound over a cap
 # of radius ``delta`` loses about ``p delta^2 / 2`` to the sphere's curvature, so those games
-# rarely drop it there. Measured (CPU, alternating processes): 6 / 4 SFCe round a cylinder
-# 1.41-1.47 / 1.09-1.15x (shallow valleys), 4 SFCe 1.09x, 4 PCwF, 7 FPC, 4 mixed, two opposite
-# soft fingers and lamp rho_hat 0.97-1.07x (within the noise).
+# rarely drop it there. The shallow valleys of soft fingers round a cylinder gain most; the
+# other families are unchanged.
 HOPELESS = 1.0
 # A cell whose lowest sample lies within this many ``|target| delta^2`` of the target skips
 # the anchors' Frank-Wolfe bound too (a cap bound loses at least ``p (1 - cos delta)``): the
-# coarse cells of shallow valleys. Measured as :data:`COLUMN_ROUNDS`: 4 / 6 SFCe round a
-# cylinder 1.07 / 1.05x, 4 PCwF, 4 SFCe and 4 mixed 0.96-1.02x.
+# coarse cells of shallow valleys (soft fingers round a cylinder gain; the others are
+# unchanged).
 FLAT = 0.5
 # The steps of a round that :func:`advance` calls once each: compiled inside it (numba inlines
 # them) rather than as kernels of their own, which LLVM would optimise and compile to machine
@@ -648,8 +643,8 @@ def bound_cells(
     D = scratch(f)
     slot_dirs = np.empty((1 + REFINE_POINTS, 6))
     # sets of few slots, contacts or elements (each slot's point at a direction is its
-    # highest row's): with every cell refined, eligible sets of 4 lamp facets 1.1-1.2x less
-    # CPU than with the corners, 1.3-1.9x fewer cells
+    # highest row's): with every cell refined, the slot game costs less than the corners and
+    # leaves fewer cells
     slot_game = len(ends) <= SLOT_GAME_SLOTS + 1
     work = slot_work(f, ends, 1 + REFINE_POINTS if slot_game else 0)
     anchored = False
@@ -694,8 +689,8 @@ def bound_cells(
                 refine[0] = REFINE_SCALE * delta
                 cloud(U[n, low], refine, more)
                 # the game's columns: the points the cap bound's weights hold, then the
-                # cloud's (its pivots cost in proportion to its columns; all 43 samples and
-                # anchors drop the same cells within 2% at 1.08-1.11x the CPU)
+                # cloud's (its pivots cost in proportion to its columns; all the samples and
+                # anchors drop about the same cells, at more CPU)
                 have = 0
                 for i in range(size):
                     if lam[i] > 0.0:
@@ -757,8 +752,8 @@ def screen_centres(G, f, W, npc, ends, axis, sign, lo, hi, metric, floor, gap, m
     their bounds entered in ``tally[LOWER]``. The centres' values update the incumbent. The
     kept cells' geometry (given in ``geo``, :func:`geometry`, if ``cached``), centres' support
     points and values fill the first rows of ``geo``, ``centre_w`` and ``centre_v``, in order.
-    Measured on the first round of force-closure 4-PCwF sets: the centre alone drops 53-80% of
-    the 384 cells, the eleven samples and their games 78-92%."""
+    On force-closure sets the centre alone drops most of the cells that the eleven samples and
+    their games would."""
     D = scratch(f)
     keep = np.empty(len(axis), np.int64)
     alive = 0
@@ -952,14 +947,12 @@ def halve(axis, sign, lo, hi, cells_per_round):
     return axis, sign, lo, hi
 
 
-# Shells round the incumbent (:func:`shells`) shrink by this factor each. 4 PCwF's sampled
-# cells against halving alone: 2, 4, 8 +2%, -3%, -5% (cells under 0.1 rad); 4, 8, 16 -7%,
-# -8%, -9% (under 0.3 rad).
+# Shells round the incumbent (:func:`shells`) shrink by this factor each: against halving
+# alone, larger factors sample fewer cells at sharp minima.
 SHELL_SHRINK = 8.0
 # Cells under this angular radius that hold the incumbent are cut into shells round it, in
-# rounds that leave at most SHELL_ALIVE cells alive. Measured (CPU, one process, alternating
-# with plain halving, 30 sets a family): 4 PCwF 9% fewer cells, 1.05x; flat minima (4 SFCe,
-# many cells alive per level) 8% more cells in all rounds, the same with the alive cap.
+# rounds that leave at most SHELL_ALIVE cells alive: fewer cells at sharp minima; without the
+# cap, flat minima (many cells alive per level) would sample more.
 SHELL_BELOW = 0.6
 SHELL_ALIVE = 4
 # The inner box's angular radius, times ``sqrt(gap / |p*|)``: under the refinement's

@@ -63,8 +63,7 @@ def support_wrench(G, f, W, D, spin, out):
     """The chosen rows' support forces ``f (e_n + W[piece] d / sqrt(q))`` (from the terms
     :func:`set_value` left in ``D``) mapped to one wrench ``out`` (6,); the spin column only
     with ``spin`` (some row has spin friction: others have zero weights there), in a loop of
-    its own: inside the first one, its branch kept that loop out of SIMD lanes (2.2x slower
-    at 2,000 PCwF)."""
+    its own: inside the first one, its branch kept that loop out of SIMD lanes."""
     o0 = o1 = o2 = o3 = o4 = o5 = 0.0
     for r in range(D.shape[1]):
         q, second = D[D_Q, r], D[D_PIECE, r] > 0.0
@@ -107,9 +106,8 @@ def set_value(G, f, W, npc, ends, u, D, out, slots, rows):
 
     One flat function, no call per row: in numba a call that passes arrays costs more than a
     row's arithmetic (reference counts), and this runs for every direction of every search.
-    Its loops run over the rows, whose numbers lie contiguous (``G`` (6, 4, K)): SIMD lanes.
-    Measured against a loop over each row's (6, 4) matrix: 2.4x faster per direction at 200
-    and 2,000 PCwF, 1.6x at 4 contacts.
+    Its loops run over the rows, whose numbers lie contiguous (``G`` (6, 4, K)): SIMD lanes,
+    faster than a loop over each row's (6, 4) matrix, most of all for many contacts.
     """
     K = len(f)
     u0, u1, u2, u3, u4, u5 = u[0], u[1], u[2], u[3], u[4], u[5]

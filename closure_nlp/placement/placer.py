@@ -45,12 +45,11 @@ from closure_nlp.placement.sequential_lp import ExchangeSLP, ModelSLP
 from closure_nlp.selection.algorithms import SCREEN_SEARCH
 
 # Working-set sizes the exchange NLP is built for (unused directions masked out). An IPOPT
-# iteration costs about in proportion to the size (on the lamp's rounds, 40 directions 0.96 ms
-# against 64's 1.62 ms, the same optimum within 2e-12), so the sizes are close together; a run
-# grows its set by one direction a round, and one plan on the lamp builds 5 of them.
+# iteration costs about in proportion to the size (the same optimum at any size), so the sizes
+# are close together; a run grows its set by one direction a round.
 DIRECTION_BUCKETS = (16, 24, 32, 40, 48, 56, 64, 80, 96, 112, 128, 160, 192, 224, 256)
-# Exchange NLPs kept per cache: 8-30 MB each (40-128 directions, 4-7 contacts). Unbounded, the
-# fixture study's pistol 7-PCwF tasks run serially left 11 after the 7th, 275 MB of 440 MiB.
+# Exchange NLPs kept per cache: each holds tens of MB at most; unbounded, a worker running
+# task after task would keep every shape it ever built.
 MAX_EXCHANGE_PROBLEMS = 6
 # Weak directions of earlier exchange runs on the same elements that start a later run's working
 # set: with the random ones and one run's rounds (max_rounds 40) it stays within 128.
@@ -59,12 +58,10 @@ SHARED_DIRECTIONS = 64
 MIN_RADIUS = 1e-9
 # The search that judges each exchange round's weights: they lie within the trust region of the
 # best ones, whose weak directions the working set holds, so the WARM_DIRECTIONS of them weakest at
-# the new weights start it, besides a quarter of the default's samples. Against the default
-# search from the best direction alone, on 658 rounds of 12 placements (lamp, cup, pistol), each
-# also judged by the other search: it found the weaker direction on 102 rounds, the default on 48.
-# One smoothed descent: without it the exchange followed weaker directions less often and ended
-# worse on 28 of 147 PCwF fixture-study tasks with unchanged elements (better on 9; mean 1.3%,
-# up to 22%) for 1.2x less placement time.
+# the new weights start it, besides a quarter of the default's samples: it finds the weaker
+# direction more often than the default search from the best direction alone. One smoothed
+# descent: without it the exchange follows weaker directions less often and ends worse on more
+# fixture tasks than it saves in time.
 ROUND_SEARCH = SearchOptions(samples=32, smoothing=(0.03,), ipopt_starts=2, ipopt_polish=False)
 WARM_DIRECTIONS = 4
 
@@ -290,7 +287,7 @@ class ExchangePlacer:
                     warm = np.vstack([warm, np.array(U)[weakest]])
                 if self.options.screen:
                     # the light search alone: a certificate per screened round cost more than
-                    # the full search it was meant to spare (bench plan: fast mode 5-20x slower)
+                    # the full search it was meant to spare
                     found = search_rho(trial_slots, minimizer=light, warm_start=warm)
                     warm = found.direction
                 if not self.options.screen or found.rho < best.rho:
@@ -488,7 +485,7 @@ class ExchangePlacer:
         placement's W_c^M), so one direction ``u`` with ``-p_hat(u) >= best.rho - margin``
         proves it (rho >= -p(u) >= -p_hat(u)): a light search for a weak direction of the
         elements, from the placement's own, is enough, and it never rules out a trial wrongly.
-        On the lamp it ruled out 12 of 20 neighbour-move trials, which had cost 4.2 of 11.3 s.
+        A trial ruled out skips its exchange run, most of a neighbour move's cost.
         """
         minimizer = self.eligibility.minimizer.with_search(SCREEN_SEARCH)
         bar = best.rho - margin  # the search may stop as soon as it shows rho >= bar

@@ -13,7 +13,7 @@ from closure_nlp.placement.max_min_lp import max_min_lp
 from closure_nlp.placement.sequential_lp import restricted_model
 
 # Vertex rows above which a contact's position enters the exchange NLP through three variables
-# (:class:`ExchangeProblem`): 7 PCwF on the pistol, 24- and 18-vertex facets, 9.5x per solve.
+# (:class:`ExchangeProblem`): far cheaper solves on facets of many vertices.
 AFFINE_ROWS = 4
 
 
@@ -32,9 +32,9 @@ class ExchangeProblem:
     element with more than :data:`AFFINE_ROWS` vertex rows the position enters through three
     variables ``xi_i`` (offset from the centroid over the size, :class:`ElementFrame`) tied to
     the weights by the linear constraint ``xi_i = Xi_i^T c_i``: the curvature, most of a solve's
-    time, then sits in a 3 x 3 block instead of a dense block over all the rows (a pistol set
-    with 24- and 18-vertex facets, 7 PCwF: 482 -> 51 ms per solve). On smaller elements the
-    extra variables cost more than they save (segments and triangles: 10-35% slower).
+    time, then sits in a 3 x 3 block instead of a dense block over all the rows (many times
+    faster on facets of many vertices). On smaller elements the extra variables cost more than
+    they save (segments and triangles).
 
     Built once per shape; ``capacity`` directions, unused ones masked out by parameters and
     their rows left free.
@@ -42,8 +42,7 @@ class ExchangeProblem:
     pieces weigh (PCwF: the two tangential ones). A contact with none (no friction piece: FPC,
     or mu = mu_s = 0) has the linear term ``f_i d_n`` alone: the same value, and no curvature
     at all. The other components are left out of ``q``, the same
-    values to the bit with a smaller graph (its Hessian is most of a solve's time: on a pistol
-    7-PCwF placement's 30 restricted problems, the same weights to the bit in 1.5x less time).
+    values to the bit with a smaller graph (its Hessian is most of a solve's time).
     """
 
     EPS = 1e-9
