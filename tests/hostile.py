@@ -1600,7 +1600,6 @@ def _reliability_cases() -> list[Case]:
             ERROR,
             2,
             "--alternatives",
-            pending="the CLI raises ValueError, not InputError, for it: exit 3",
         )
     )
     return cases

@@ -12,6 +12,7 @@ from closure_nlp.base.validation import (
 from closure_nlp.cli.output import InputError
 from closure_nlp.placement.options import PlacementOptions
 
+MAX_ALTERNATIVES = 1000  # further element sets a plan places: each is a full placement
 MAX_STARTS = 100  # placement start weights per run: each is a full exchange method
 
 MAX_WORKERS = 256  # a command's workers: threads, processes or local Dask workers
@@ -174,12 +175,6 @@ def add_margin_option(p) -> None:
         help="keep every contact at least D (model units) from its element's boundary "
         "(default 0); the ceiling covers the same region",
     )
-
-
-def alternatives_flag(value: int) -> int:
-    if value < 0:
-        raise ValueError(f"--alternatives: expected an integer >= 0, got {value}")
-    return value
 
 
 def number_value(text: str) -> float:

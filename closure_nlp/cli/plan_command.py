@@ -53,7 +53,7 @@ def add_plan(sub, common) -> None:
     arguments.add_placement_options(p)
     p.add_argument(
         "--alternatives",
-        type=arguments.int_value,
+        type=arguments.bounded_int(0, arguments.MAX_ALTERNATIVES, "the number of alternatives"),
         default=4,
         metavar="N",
         help="further element sets placed when placement fails (default 4)",
@@ -91,7 +91,7 @@ def cmd_plan(args) -> None:
             seed=args.seed,
             placement=placement_options,
             progress=progress,
-            alternatives=arguments.alternatives_flag(args.alternatives),
+            alternatives=args.alternatives,
             **several,
             **({"budget": args.budget} if several else {}),
         )
