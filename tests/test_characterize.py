@@ -182,7 +182,10 @@ def test_box_with_a_missing_triangle_is_repaired():
     box = trimesh.creation.box((1.0, 1.0, 1.0))
     open_box = trimesh.Trimesh(box.vertices, box.faces[1:], process=False)
     assert not open_box.is_watertight
-    assert characterize(open_box).counts()["facet"] == 6
+    # Half of a face of a 12-triangle box: longer than the part's radius, an opening.
+    with pytest.raises(ValueError, match="opening of the part.*--close-holes"):
+        characterize(open_box)
+    assert characterize(open_box, close_holes=True).counts()["facet"] == 6
 
 
 def test_box_with_a_flipped_triangle_is_repaired():
@@ -221,7 +224,8 @@ def test_large_flat_hole_is_capped():
     cyl = trimesh.creation.cylinder(radius=1.0, height=2.0, sections=16)
     keep = cyl.face_normals[:, 2] < 0.5  # no top cap: a 16-edge hole
     repairs = []
-    model = characterize_mesh(trimesh.Trimesh(cyl.vertices, cyl.faces[keep]), segment_spacing=0)
+    opened = trimesh.Trimesh(cyl.vertices, cyl.faces[keep])
+    model = characterize_mesh(opened, segment_spacing=0, close_holes=True)
     repairs = model.repairs
     assert model.model.counts() == {"facet": 2, "segment": 16, "point": 0}
     assert repairs == ("filled 1 hole(s) bounded by 16 edges",)

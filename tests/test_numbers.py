@@ -28,7 +28,6 @@ def test_a_value_rounding_to_zero_has_no_sign():
         ((-0.5249791, -0.5249786), -0.5249791, "-0.524979"),  # width 5e-7: six decimals
         ((-3.0001e-5, -2.9999e-5), -3.0001e-5, "-0.00003000"),  # never -0.0000
         ((-0.31, -0.27), -0.31, "-0.3"),  # an unconverged bracket says little
-        ((1.2, 1.2), 1.2, "1.20000000000"),  # exact: capped, not endless
     ],
 )
 def test_a_certified_value_shows_the_digits_its_bracket_pins_down(bounds, value, text):

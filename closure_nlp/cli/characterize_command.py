@@ -49,6 +49,12 @@ def add_characterize(sub, common) -> None:
         help="hold a mesh of several separate bodies as one rigid part (default: refuse it)",
     )
     p.add_argument(
+        "--close-holes",
+        action="store_true",
+        help="cap openings too: holes whose boundary is longer than the part's radius, such as "
+        "a cup's mouth (default: refuse such a mesh; smaller holes are always filled)",
+    )
+    p.add_argument(
         "--reference-point",
         type=arguments.point3_value,
         metavar="X,Y,Z",
@@ -68,6 +74,7 @@ CHARACTERIZE_FLAGS = (
     "reference_point",
     "up",
     "merge_bodies",
+    "close_holes",
 )
 
 
@@ -81,6 +88,7 @@ def cmd_characterize(args) -> None:
         worst_tolerance,
     )
     from closure_nlp.model.elements import save_model
+    from closure_nlp.model.meshes import bodies_held, holes_filled
     from closure_nlp.model.scale import units_warning
 
     with output.reading(args.out):
@@ -111,6 +119,13 @@ def cmd_characterize(args) -> None:
         raise output.OutputFault(args.out, f"cannot write: {exc.strerror or exc}") from None
     for line in dropped:
         sys.stderr.write(f"warning: {output.shown(args.mesh)}: dropped {line}\n")
+    holes, bodies = holes_filled(found.repairs), bodies_held(found.repairs)
+    if holes:  # the part is not the file's surface: say so where warnings go, as one line
+        sys.stderr.write(
+            f"warning: {output.shown(args.mesh)}: "
+            + next(r for r in found.repairs if getattr(r, "holes", ()))
+            + "\n"
+        )
     warning = units_warning(model.radius, model.units)
     if warning:
         sys.stderr.write(f"warning: {output.shown(args.mesh)}: {warning}\n")
@@ -127,6 +142,8 @@ def cmd_characterize(args) -> None:
         "segment_spacing": found.segment_spacing,
         "point_spacing": found.point_spacing,
         "repairs": list(found.repairs),
+        "holes_filled": holes,
+        "merged_bodies": bodies,
         "dropped": dropped,
         "tolerance": model.tolerance.to_dict(),
         "element_tolerance": {
@@ -135,13 +152,21 @@ def cmd_characterize(args) -> None:
         },
     }
     tol = model.tolerance or worst_tolerance(e.tolerance for e in model.elements)
-    exact = payload["element_tolerance"]["exact"]
+    exact, name = payload["element_tolerance"]["exact"], output.shown(args.mesh)
+    held = (
+        f"\n{name}: {bodies} separate bodies held as one rigid part (--merge-bodies)"
+        if bodies
+        else ""
+    )
+    # Verdicts are judged robust only within a tolerance: none set and every element exact
+    # claims nothing.
+    robust = "; verdicts are robust within it" if tol else ""
     output.emit(
         args,
         payload,
-        f"{output.shown(args.mesh)}: {found.text()}\n{output.shown(args.mesh)}: {summary}, "
+        f"{name}: {found.text()}{held}\n{name}: {summary}, "
         f"{len(model.adjacency)} neighbour pairs -> {output.shown(out)}"
-        f"\n{output.shown(args.mesh)}: model accuracy: positions within "
+        f"\n{name}: model accuracy: positions within "
         f"{tol.position:.3g}{' ' + model.units if model.units else ''}, normals within "
         f"{tol.normal_deg:.3g} degrees of the mesh"
         + (
@@ -149,5 +174,5 @@ def cmd_characterize(args) -> None:
             if model.tolerance
             else f" at worst; each element has its own, {exact} of {len(model)} exact"
         )
-        + "; verdicts are robust within it",
+        + robust,
     )

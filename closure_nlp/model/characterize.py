@@ -163,6 +163,7 @@ def characterize_mesh(
     reference_point=None,
     up: str = "z",
     merge_bodies: bool = False,
+    close_holes: bool = False,
 ) -> Characterization:
     """Describe a closed mesh by convex facets, line segments and discrete points.
 
@@ -190,6 +191,9 @@ def characterize_mesh(
         The model's up axis for pictures (x, y or z).
     merge_bodies : bool
         Hold several disjoint bodies as one rigid part (default: refuse such a mesh).
+    close_holes : bool
+        Cap openings too (holes whose boundary is longer than the part's radius, such as a cup's
+        mouth; default: refuse such a mesh). Smaller holes are always filled and reported.
 
     Returns
     -------
@@ -206,7 +210,7 @@ def characterize_mesh(
     if units not in UNITS:
         raise ValueError(f"units: expected one of {', '.join(UNITS)}, got {units!r}")
     repairs: list[str] = []
-    mesh = load_mesh(mesh_or_path, None, repairs, merge_bodies)
+    mesh = load_mesh(mesh_or_path, None, repairs, merge_bodies, close_holes)
     if reference_point is not None:
         point, source = as_reference_point(reference_point, "reference_point"), "given"
     elif mesh.is_volume:

@@ -5,16 +5,22 @@ overlap or touch face to face), texture seams and stray triangles. :func:`repair
 closed, consistently wound surface with outward normals, or says why it cannot:
 
 1. the mesh with its vertices merged, when that is closed (most files);
-2. else its bodies: connected pieces, each closed on its own once its holes of any size are
-   filled (trimesh's repair for 3-4 edges, an ear-cut cap of the hole's boundary for larger
-   ones, kept only when the piece is then closed and consistently wound); stray open sheets
-   with almost no area are dropped;
+2. else its bodies: connected pieces as the file gives them (or, when those do not close, as
+   the merged vertices join them), each closed on its own once its holes are filled (trimesh's
+   repair for 3-4 edges, then a cap of each remaining boundary loop: ear-cut on the loop's
+   best-fit plane, or a fan from its centroid when that projection folds over), kept only when
+   the piece is then closed and consistently wound; stray open sheets with almost no area are
+   dropped. A hole whose boundary is longer than the part's radius is an opening (a cup's
+   mouth), not a defect: capping it makes another part, so it is capped only when the caller
+   says so (``close_holes``);
 3. several closed bodies are merged by a boolean union (manifold3d), so no element lies inside
    the part. Bodies that stay apart after the union (200 separate boxes in one file) are one
    part only when the caller says so (``merge_bodies``): a file of several objects is refused,
    naming how many there are.
 
-Every repair is described in the ``repairs`` list the caller passes. Every threshold (merging
+Every repair is described in the ``repairs`` list the caller passes, as a :class:`Repair`: its
+words, and the facts a report counts (the edge counts of the holes filled, the bodies held as
+one part). Every threshold (merging
 vertices, degenerate triangles) is relative to the part's size: the repairs run on a copy moved
 and scaled to unit size, and the result is scaled back, so the same part at 1e-3, 1 and 1e11
 is repaired alike.
@@ -33,6 +39,35 @@ from closure_nlp.base.validation import MAX_COORDINATE
 STRAY_AREA = 1e-3  # an open piece with less than this share of the area is dropped as debris
 # A body at unit size (the repairs run there) enclosing less is flat: two faces back to back.
 MIN_VOLUME = 1e-12
+# A hole whose boundary is longer than this many part radii is an opening of the part, not a
+# defect of its mesh (a unit-free rule: the radius is the largest distance from the bounding
+# box's centre to a vertex).
+LARGE_HOLE = 1.0
+
+
+class Repair(str):
+    """One repair in words (it is a ``str``: JSON and text take it as one), with the facts a
+    report counts: ``holes`` (edge counts of the holes filled) and ``bodies`` (separate bodies
+    held as one rigid part, 0 when none are)."""
+
+    holes: tuple[int, ...] = ()
+    bodies: int = 0
+
+    def __new__(cls, text: str, holes=(), bodies: int = 0):
+        self = super().__new__(cls, text)
+        self.holes = tuple(int(h) for h in holes)
+        self.bodies = int(bodies)
+        return self
+
+
+def holes_filled(repairs) -> list[int]:
+    """Edge counts of every hole the ``repairs`` filled, smallest first."""
+    return sorted(h for r in repairs for h in getattr(r, "holes", ()))
+
+
+def bodies_held(repairs) -> int:
+    """How many separate bodies the ``repairs`` hold as one rigid part (0: one body)."""
+    return max((getattr(r, "bodies", 0) for r in repairs), default=0)
 
 
 def load_mesh(
@@ -40,6 +75,7 @@ def load_mesh(
     source: str | None = None,
     repairs: list | None = None,
     merge_bodies: bool = False,
+    close_holes: bool = False,
 ):
     """A closed, consistently wound ``trimesh.Trimesh`` with outward normals.
 
@@ -53,12 +89,16 @@ def load_mesh(
         Receives one line per repair made.
     merge_bodies : bool
         Hold bodies that stay apart after the union as one rigid part (default: refuse them).
+    close_holes : bool
+        Cap openings too: holes whose boundary is longer than the part's radius (default:
+        refuse them; smaller holes are always filled).
 
     Raises
     ------
     ValueError
         Unreadable file, no triangles, a mesh that stays open (the message names the holes'
-        sizes) or inconsistently wound, or several disjoint bodies without ``merge_bodies``.
+        sizes) or inconsistently wound, an opening without ``close_holes``, or several disjoint
+        bodies without ``merge_bodies``.
     """
     import trimesh
 
@@ -74,7 +114,7 @@ def load_mesh(
             mesh = raw  # the file's own vertices: touching pieces stay apart until merged
     else:
         raise TypeError(f"mesh: expected a trimesh.Trimesh or a path, got {mesh_or_path!r}")
-    return repair_mesh(mesh, source, repairs, merge_bodies)
+    return repair_mesh(mesh, source, repairs, merge_bodies, close_holes)
 
 
 def _read_unmerged(path: Path):
@@ -89,14 +129,19 @@ def _read_unmerged(path: Path):
 
 
 def repair_mesh(
-    mesh, source: str = "mesh", repairs: list | None = None, merge_bodies: bool = False
+    mesh,
+    source: str = "mesh",
+    repairs: list | None = None,
+    merge_bodies: bool = False,
+    close_holes: bool = False,
 ):
     """One closed, consistently wound surface with outward normals (see the module's steps).
 
     Raises
     ------
     ValueError
-        When the mesh stays open, inconsistently wound or encloses no volume, or has several
+        When the mesh stays open, inconsistently wound or encloses no volume, has an opening
+        (a hole longer than the part's radius) and ``close_holes`` is not set, or has several
         disjoint bodies and ``merge_bodies`` is not set.
     """
     import trimesh
@@ -112,7 +157,7 @@ def repair_mesh(
     if not size > 0:
         raise ValueError(f"{source}: every vertex of the mesh is at one point")
     unit = trimesh.Trimesh((vertices - centre) / size, faces, process=False)
-    out = _repair_unit(unit, source, repairs, merge_bodies)
+    out = _repair_unit(unit, source, repairs, merge_bodies, close_holes)
     out.vertices = out.vertices * size + centre
     return out
 
@@ -137,7 +182,7 @@ def process_at_unit_scale(mesh):
     return mesh
 
 
-def _repair_unit(mesh, source: str, repairs: list, merge_bodies: bool):
+def _repair_unit(mesh, source: str, repairs: list, merge_bodies: bool, close_holes: bool):
     """:func:`repair_mesh` on a mesh at unit size."""
     import trimesh
 
@@ -148,26 +193,96 @@ def _repair_unit(mesh, source: str, repairs: list, merge_bodies: bool):
         raise ValueError(f"{source}: every triangle of the mesh is degenerate")
     if merged.is_watertight and merged.body_count == 1:
         return _oriented(merged, source, repairs)
-    # Pieces as the file gives them (vertices shared between touching pieces would join them).
+    # The unit frame's centre is the bounding box's: openings are judged against this radius.
+    hole = _Holes(float(np.linalg.norm(vertices[np.unique(faces)], axis=1).max()), close_holes)
+    # Pieces as the file gives them first (vertices shared between touching pieces would join
+    # them); when one of those does not close (a file of loose triangles whose vertices only
+    # meet once merged), the pieces of the merged mesh.
     raw = trimesh.Trimesh(vertices, faces, process=False)
-    pieces = [_clean(p) for p in raw.split(only_watertight=False)]
-    bodies, problems = [], []
+    found = _bodies(raw, repairs, hole)
+    if isinstance(found, _Refused) and len(raw.vertices) != len(merged.vertices):
+        found = _bodies(merged, repairs, hole)
+    if isinstance(found, _Refused):
+        raise ValueError(f"{source}: {found.message}")
+    if not found:
+        raise ValueError(f"{source}: the mesh encloses no volume")
+    if len(found) == 1:
+        return _oriented(found[0], source, repairs)
+    return _union(found, source, repairs, merge_bodies)
+
+
+class _Holes:
+    """What may be filled: holes up to ``LARGE_HOLE`` x ``radius`` long, any with ``close``."""
+
+    def __init__(self, radius: float, close: bool):
+        self.radius, self.close = radius, close
+
+    def opening(self, mesh, loops) -> tuple[int, float] | None:
+        """(edges, length / radius) of the longest loop that is an opening, or None."""
+        if self.close or not loops or not self.radius > 0:
+            return None
+        lengths = [_loop_length(mesh, loop) for loop in loops]
+        k = int(np.argmax(lengths))
+        ratio = lengths[k] / self.radius
+        return (len(loops[k]), ratio) if ratio > LARGE_HOLE else None
+
+
+class _Opening(Exception):
+    """A hole to fill is an opening: (edges, length / radius)."""
+
+
+class _Refused:
+    """Why a mesh's pieces do not make closed bodies."""
+
+    def __init__(self, message: str):
+        self.message = message
+
+
+def _bodies(mesh, repairs: list, hole: _Holes):
+    """The closed bodies of ``mesh``'s connected pieces (debris dropped), their repairs added to
+    ``repairs``; or a :class:`_Refused` (``repairs`` unchanged)."""
+    # repair=False: trimesh's split would fill small holes silently, and every fill is reported.
+    pieces = [_clean(p) for p in mesh.split(only_watertight=False, repair=False)]
+    bodies, problems, made = [], [], []
     total = sum(p.area for p in pieces)
     for piece in pieces:
-        closed = _closed(piece.copy(), repairs)
+        try:
+            closed = _closed(piece.copy(), made, hole)
+        except _Opening as opening:
+            if piece.area >= STRAY_AREA * total:
+                return _Refused(_opening_message(*opening.args))
+            closed = None
         if closed is not None:
             bodies.append(closed)
         elif piece.area < STRAY_AREA * total:
-            repairs.append(f"dropped a stray open piece of {len(piece.faces)} triangle(s)")
+            debris = Repair(f"dropped a stray open piece of {len(piece.faces)} triangle(s)")
+            debris.stray = len(piece.faces)
+            made.append(debris)
         else:
             problems.append(piece)
     if problems:
-        raise ValueError(f"{source}: {_open_message(problems)}")
-    if not bodies:
-        raise ValueError(f"{source}: the mesh encloses no volume")
-    if len(bodies) == 1:
-        return _oriented(bodies[0], source, repairs)
-    return _union(bodies, source, repairs, merge_bodies)
+        return _Refused(_open_message(problems))
+    repairs += _merged_fills(made)
+    return bodies
+
+
+def _merged_fills(made: list) -> list:
+    """``made`` with every hole filling as one line, every debris piece as one line, each other
+    line once (a file of 600 pieces gives a few lines, not 600)."""
+    holes = holes_filled(made)
+    stray = [r.stray for r in made if getattr(r, "stray", 0)]
+    rest = [r for r in dict.fromkeys(made) if not r.holes and not getattr(r, "stray", 0)]
+    lines = [_filled(holes)] if holes else []
+    if stray:
+        dropped = Repair(
+            f"dropped {len(stray)} stray open piece(s) of {_sizes(sorted(stray))} triangle(s)"
+        )
+        lines.append(dropped)
+    return lines + rest
+
+
+def _filled(holes) -> Repair:
+    return Repair(f"filled {len(holes)} hole(s) bounded by {_sizes(sorted(holes))} edges", holes)
 
 
 def _clean(mesh):
@@ -179,36 +294,43 @@ def _clean(mesh):
     return mesh
 
 
-def _closed(piece, repairs: list):
+def _closed(piece, repairs: list, hole: _Holes | None = None):
     """The piece closed and consistently wound (holes filled), or None."""
     # trimesh divides by the zero areas of degenerate caps while it tries: the outcome is judged
     # by the checks below, not by its warnings.
     with np.errstate(all="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        return _close(piece, repairs)
+        return _close(piece, repairs, hole)
 
 
-def _close(piece, repairs: list):
+def _close(piece, repairs: list, hole: _Holes | None):
     import trimesh
 
+    opening = None
     if not piece.is_watertight and _split_t_junctions(piece):
-        repairs.append("closed cracks at T-junctions (a vertex on another triangle's edge)")
+        repairs.append(Repair("closed cracks at T-junctions (a vertex on another triangle's edge)"))
     if not piece.is_watertight:
         loops = _boundary_loops(piece)
+        # After the cracks: a T-junction crack is as long as the edge it runs along.
+        opening = hole.opening(piece, loops) if hole is not None else None
         trimesh.repair.fill_holes(piece)
         if not piece.is_watertight:
             _cap_holes(piece)
         if not piece.is_watertight:
             return None
-        sizes = sorted(len(loop) for loop in loops) if loops else []
-        repairs.append(f"filled {len(sizes)} hole(s) bounded by {_sizes(sizes)} edges")
+        repairs.append(_filled([len(loop) for loop in loops]))
     if not piece.is_winding_consistent:
         trimesh.repair.fix_winding(piece)
         if not piece.is_winding_consistent:
             return None
-        repairs.append("made the triangles' winding consistent")
+        repairs.append(Repair("made the triangles' winding consistent"))
     trimesh.repair.fix_normals(piece)
-    return piece if piece.volume > MIN_VOLUME else None
+    if not piece.volume > MIN_VOLUME:
+        return None
+    # Judged once the caps close a body: a sheet that no cap closes (a fin) is not an opening.
+    if opening is not None:
+        raise _Opening(*opening)
+    return piece
 
 
 def _oriented(mesh, source: str, repairs: list):
@@ -248,20 +370,61 @@ def _union(bodies, source: str, repairs: list, merge_bodies: bool):
             "rigid part, or split the file"
         )
     repairs.append(
-        f"merged {len(bodies)} bodies by boolean union (manifold3d)"
-        + (f": {pieces} disjoint pieces remain, held as one rigid part" if pieces > 1 else "")
+        Repair(
+            f"merged {len(bodies)} bodies by boolean union (manifold3d)"
+            + (f": {pieces} disjoint pieces remain, held as one rigid part" if pieces > 1 else ""),
+            bodies=pieces if pieces > 1 else 0,
+        )
     )
     return union
 
 
 def _boundary_loops(mesh) -> list[list[int]]:
-    """Vertex loops of the mesh's boundary (edges used by one triangle), in their direction."""
+    """Simple vertex loops of the mesh's boundary (edges used by one triangle), in their
+    direction; a boundary that passes a vertex twice (two holes meeting at a corner) is cut
+    there into simple loops. [] when an edge has more than two triangles (not holes)."""
     edges = mesh.edges  # directed, from the faces' winding
     key = np.sort(edges, axis=1)
     _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
     if np.any(counts > 2):
         return []  # non-manifold: not holes
-    return simple_loops(edges[counts[inverse.ravel()] == 1])
+    return boundary_cycles(edges[counts[inverse.ravel()] == 1])
+
+
+def boundary_cycles(directed_edges: np.ndarray) -> list[list[int]]:
+    """Simple vertex loops covering a set of directed boundary edges: closed walks along them,
+    each cut at a vertex it passes twice ([] if an edge leads nowhere)."""
+    out: dict[int, list[int]] = {}
+    for a, b in directed_edges.tolist():
+        out.setdefault(a, []).append(b)
+    loops: list[list[int]] = []
+    for start in list(out):
+        while out.get(start):
+            path, where = [start], {start: 0}
+            v = start
+            while True:
+                if not out.get(v):
+                    return []  # an open chain: not a boundary of holes
+                v = out[v].pop()
+                if v in where:  # a loop closes: cut it off the walk
+                    k = where[v]
+                    loops.append(path[k:])
+                    for u in path[k + 1 :]:
+                        del where[u]
+                    del path[k + 1 :]
+                    if v == start and len(path) == 1 and not out.get(start):
+                        break
+                    continue
+                where[v] = len(path)
+                path.append(v)
+            if len(path) > 1:
+                return []
+    return loops
+
+
+def _loop_length(mesh, loop) -> float:
+    pts = mesh.vertices[loop]
+    return float(np.linalg.norm(pts - np.roll(pts, -1, axis=0), axis=1).sum())
 
 
 def _split_t_junctions(mesh) -> bool:
@@ -294,31 +457,37 @@ def _split_t_junctions(mesh) -> bool:
 
 
 def _cap_holes(mesh) -> None:
-    """Cap every boundary loop by an ear-cut triangulation of its projection on its best-fit
-    plane (mapbox_earcut), wound against the boundary so that the result is consistent."""
+    """Cap every boundary loop, each on its own: an ear-cut triangulation of its projection on
+    its best-fit plane (mapbox_earcut), or, where that projection folds over (a hole around a
+    corner), a fan from a new vertex at the loop's centroid; wound against the boundary so that
+    the result is consistent."""
     import mapbox_earcut
 
-    loops = _boundary_loops(mesh)
-    if not loops:
-        return
-    new_faces = []
-    for loop in loops:
-        pts = mesh.vertices[loop]
+    vertices = np.asarray(mesh.vertices, dtype=float)
+    new_vertices, new_faces = [], []
+    for loop in _boundary_loops(mesh):
+        pts = vertices[loop]
         centred = pts - pts.mean(axis=0)
         _, _, vt = np.linalg.svd(centred, full_matrices=False)
         xy = centred @ vt[:2].T
         tri = mapbox_earcut.triangulate_float64(xy, np.array([len(loop)], dtype=np.uint32))
         tri = np.asarray(tri, dtype=np.int64).reshape(-1, 3)
-        if len(tri) != len(loop) - 2:
-            return  # not a simple polygon in that plane: leave the hole
-        faces = np.asarray(loop)[tri]
+        if len(tri) == len(loop) - 2:
+            faces = np.asarray(loop)[tri]
+        else:  # not a simple polygon in that plane
+            centre = len(vertices) + len(new_vertices)
+            new_vertices.append(pts.mean(axis=0))
+            faces = np.array([[a, b, centre] for a, b in zip(loop, loop[1:] + loop[:1])])
         # The boundary runs a -> b in the mesh; the cap must run b -> a.
         a, b = loop[0], loop[1]
         runs = [(f[k], f[(k + 1) % 3]) for f in faces.tolist() for k in range(3)]
         if (a, b) in runs:
             faces = faces[:, ::-1]
         new_faces.append(faces)
-    mesh.faces = np.vstack([mesh.faces, *new_faces])
+    if new_faces:
+        if new_vertices:
+            mesh.vertices = np.vstack([vertices, new_vertices])
+        mesh.faces = np.vstack([mesh.faces, *new_faces])
 
 
 def simple_loops(directed_edges: np.ndarray) -> list[list[int]]:
@@ -348,6 +517,15 @@ def simple_loops(directed_edges: np.ndarray) -> list[list[int]]:
 def _sizes(sizes: list[int]) -> str:
     values, counts = np.unique(sizes, return_counts=True)
     return ", ".join(f"{v}" + (f" (x{c})" if c > 1 else "") for v, c in zip(values, counts))
+
+
+def _opening_message(edges: int, ratio: float) -> str:
+    return (
+        f"the mesh is open: a hole bounded by {edges} edges, its boundary {ratio:.2g} x the "
+        "part's radius long, is an opening of the part (a cup's mouth), not a defect of its "
+        "mesh; capping it makes another part: --close-holes (close_holes=True) caps it, or close "
+        "it in a mesh editor"
+    )
 
 
 def _open_message(pieces) -> str:
