@@ -582,7 +582,11 @@ def _mesh_cases() -> list[Case]:
     huge.apply_translation([1e13, 0, 0])
     char_case("cube_at_1e13.stl", "far.stl", trimesh.exchange.stl.export_stl(huge), ERROR)
     opened = trimesh.Trimesh(tet.vertices, tet.faces[:-4])
-    char_case("open_box.stl", "open.stl", trimesh.exchange.stl.export_stl(opened), ANSWER)  # filled
+    # two faces gone: an opening of the part, refused unless the user asks to close it
+    char_case("open_box.stl", "open.stl", trimesh.exchange.stl.export_stl(opened), ERROR)
+    closing = ("--close-holes",)
+    opened_stl = trimesh.exchange.stl.export_stl(opened)
+    char_case("open_box.stl_closed", "open.stl", opened_stl, ANSWER, closing)
     torn = trimesh.Trimesh(tet.vertices, tet.faces[::2])  # every other face: no small holes
     char_case("torn_box.stl", "torn.stl", trimesh.exchange.stl.export_stl(torn), ERROR)
     flat = trimesh.Trimesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])

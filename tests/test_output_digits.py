@@ -94,4 +94,4 @@ def test_characterize_claims_robust_verdicts_only_with_a_tolerance(tmp_path, cap
     assert "positions within 0 m" in text and "robust" not in text
     argv = ["characterize", str(mesh), "--out", str(out), "--position-tolerance", "0.001"]
     assert main(argv) == 0
-    assert "(verdicts are robust within it)" in capsys.readouterr().out
+    assert "verdicts are robust within it" in capsys.readouterr().out

@@ -21,7 +21,7 @@ from tests.test_seeds import OUTCOMES, hand, patch_plan
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def dying_plan(eligibility, *, seed, **kwargs):
+def dying_plan(eligibility, placer, seed, **kwargs):
     """Seed 0 ends at once; seed 1, in its worker, kills that worker; the others take long."""
     if seed == 0:
         return OUTCOMES[0]
@@ -46,7 +46,7 @@ def test_a_killed_worker_ends_the_plan_with_the_seeds_that_finished(monkeypatch)
     assert "(a worker process ended)" in spread.line() and "failed (seed 1" in spread.line()
 
 
-def killed(eligibility, *, seed, **kwargs):
+def killed(eligibility, placer, seed, **kwargs):
     os.kill(os.getpid(), signal.SIGKILL)
 
 
