@@ -124,3 +124,16 @@ def test_rho_hat_many_is_each_sets_rho_hat_whatever_the_workers():
         assert one.rho_hat[k] == hand(ids).rho_hat
     with pytest.raises(ValueError, match="element_sets"):
         rho_hat_many(hand, [[0, 1]])
+
+
+def test_one_contact_set_from_arrays():
+    sets, P, U = _arrays(1, m=3, seed=7)
+    made = ContactSet.from_arrays(P[0], U[0], type=["pcwf", "sfce", "fpc"], mu=0.5, mu_s=0.1)
+    assert [c.type.value for c in made.contacts] == ["pcwf", "sfce", "fpc"]
+    assert np.allclose([c.position for c in made.contacts], P[0]) and made.torque_scale == 1.0
+    with pytest.raises(ValueError, match="mu"):
+        ContactSet.from_arrays(P[0], U[0], mu=[0.5, 0.5])
+    with pytest.raises(ValueError, match="shape"):
+        ContactSet.from_arrays(P[0], U[0][:2])
+    with pytest.raises(ValueError, match="inward_normal"):
+        ContactSet.from_arrays(P[0], np.zeros((3, 3)))

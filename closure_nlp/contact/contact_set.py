@@ -258,6 +258,54 @@ class ContactSet:
             as_torque_scale(self.torque_scale),
         )
 
+    @classmethod
+    def from_arrays(
+        cls,
+        positions,
+        inward_normals,
+        *,
+        type=ContactType.PCWF,
+        mu=DEFAULT_MU,
+        mu_s=DEFAULT_MU_S,
+        f_max=DEFAULT_F_MAX,
+        torque_scale: float = 1.0,
+        reference_point=None,
+        tolerance=NO_TOLERANCE,
+        name: str = "contacts",
+    ) -> ContactSet:
+        """One contact set from arrays.
+
+        Parameters
+        ----------
+        positions, inward_normals : (m, 3) float
+        type, mu, mu_s, f_max : one value, or (m,) values (one per contact)
+        torque_scale, reference_point, tolerance
+            As the fields of the same names.
+        name : str
+            How errors name the contacts (``name[i].position``...).
+        """
+        P = np.asarray(unmasked(positions, f"{name}.positions"))
+        U = np.asarray(unmasked(inward_normals, f"{name}.inward_normals"))
+        if P.ndim != 2 or P.shape[-1:] != (3,) or U.shape != P.shape:
+            raise ValueError(
+                f"{name}: expected positions and inward_normals of one shape (m, 3), "
+                f"got {P.shape} and {U.shape}"
+            )
+        m = len(P)
+        columns = []
+        for key, value in (("type", type), ("mu", mu), ("mu_s", mu_s), ("f_max", f_max)):
+            if isinstance(value, (str, ContactType)) or np.ndim(value) == 0:
+                columns.append([value] * m)
+            elif len(value) == m:
+                columns.append(list(value))
+            else:
+                raise ValueError(f"{key}: expected one value or {m} (one per contact)")
+        contacts = tuple(
+            Contact(P[i], U[i], *(column[i] for column in columns), name=f"{name}[{i}]")
+            for i in range(m)
+        )
+        return cls(contacts, torque_scale, reference_point, tolerance)
+
     def __len__(self) -> int:
         return len(self.contacts)
 

@@ -23,9 +23,7 @@ from closure_nlp.contact.contact_set import (
     DEFAULT_F_MAX,
     DEFAULT_MU,
     DEFAULT_MU_S,
-    Contact,
     ContactSet,
-    ContactType,
 )
 from closure_nlp.criterion.support_minimum import rho
 
@@ -224,7 +222,7 @@ def _workers(workers, count: int) -> int:
     return max(1, min(int(workers), -(-count // CHUNK)))
 
 
-def _contact_sets(positions, normals, type, mu, mu_s, f_max, torque_scale, reference_point):
+def _contact_sets(positions, normals, kind, mu, mu_s, f_max, torque_scale, reference_point):
     """The N ContactSets the arguments describe (see :func:`rho_many`)."""
     if normals is None:
         sets = list(positions) if isinstance(positions, (list, tuple)) else None
@@ -245,35 +243,27 @@ def _contact_sets(positions, normals, type, mu, mu_s, f_max, torque_scale, refer
         )
     N, m, _ = P.shape
     as_count(N, "positions", sys.maxsize, "contact sets")
-    kinds = _per_contact(type, N, m, "type", object)
+    kinds = _per_contact(kind, N, m, "type", object)
     columns = {name: _per_contact(value, N, m, name, float)
                for name, value in (("mu", mu), ("mu_s", mu_s), ("f_max", f_max))}  # fmt: skip
     scales = _per_set(torque_scale, N, "torque_scale", ())
     points = (
         None if reference_point is None else _per_set(reference_point, N, "reference_point", (3,))
     )
-    parsed = {}
-    sets = []
-    for k in range(N):
-        contacts = []
-        for i in range(m):
-            kind = kinds[k, i]
-            if kind not in parsed:
-                parsed[kind] = kind if isinstance(kind, ContactType) else ContactType.parse(kind)
-            contacts.append(
-                Contact(
-                    P[k, i],
-                    U[k, i],
-                    parsed[kind],
-                    columns["mu"][k, i],
-                    columns["mu_s"][k, i],
-                    columns["f_max"][k, i],
-                    name=f"sets[{k}].contacts[{i}]",
-                )
-            )
-        point = None if points is None else points[k]
-        sets.append(ContactSet(tuple(contacts), float(scales[k]), point))
-    return sets
+    return [
+        ContactSet.from_arrays(
+            P[k],
+            U[k],
+            type=kinds[k],
+            mu=columns["mu"][k],
+            mu_s=columns["mu_s"][k],
+            f_max=columns["f_max"][k],
+            torque_scale=float(scales[k]),
+            reference_point=None if points is None else points[k],
+            name=f"sets[{k}].contacts",
+        )
+        for k in range(N)
+    ]
 
 
 def _array3(value, field: str) -> np.ndarray:
