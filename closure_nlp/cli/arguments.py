@@ -135,6 +135,15 @@ def add_contact_options(parser) -> None:
     add_mesh_option(parser)
 
 
+def add_placing_options(parser) -> None:
+    """The options of the commands that place contacts (place, plan): margin, ceiling, where
+    contacts may go, contact options."""
+    add_margin_option(parser)
+    add_bound_options(parser)
+    add_region_options(parser)
+    add_contact_options(parser)
+
+
 def add_region_options(parser) -> None:
     g = parser.add_argument_group(
         "where contacts may go (repeatable: --only regions united, then --exclude regions removed)"

@@ -21,10 +21,7 @@ def add_place(sub, common) -> None:
         "--seed", type=arguments.seed_value, default=0, help="random start weights after the first"
     )
     p.add_argument("--out", metavar="FILE", help="write the placed contacts as a contact-set file")
-    arguments.add_margin_option(p)
-    arguments.add_bound_options(p)
-    arguments.add_region_options(p)
-    arguments.add_contact_options(p)
+    arguments.add_placing_options(p)
     p.set_defaults(run=cmd_place)
 
 

@@ -64,10 +64,7 @@ def add_plan(sub, common) -> None:
     p.add_argument(
         "--up", choices=["x", "y", "z"], help="model axis drawn upwards (default: the model's)"
     )
-    arguments.add_margin_option(p)
-    arguments.add_bound_options(p)
-    arguments.add_region_options(p)
-    arguments.add_contact_options(p)
+    arguments.add_placing_options(p)
     p.set_defaults(run=cmd_plan)
 
 
