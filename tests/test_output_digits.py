@@ -95,3 +95,17 @@ def test_characterize_claims_robust_verdicts_only_with_a_tolerance(tmp_path, cap
     argv = ["characterize", str(mesh), "--out", str(out), "--position-tolerance", "0.001"]
     assert main(argv) == 0
     assert "verdicts are robust within it" in capsys.readouterr().out
+
+
+def test_a_plans_total_says_what_the_first_compile_took(monkeypatch, capsys):
+    """The plan's own total leaves the kernels' compile out; a cold start says it beside."""
+    from closure_nlp.criterion import warm_up
+
+    monkeypatch.setattr(warm_up, "warm_up", lambda *args, **kwargs: 12.3)
+    lamp = Path(__file__).resolve().parents[1] / "models" / "lamp.model.json"
+    argv = ["plan", str(lamp), "--contacts", "4", "--seeds", "1", "--starts", "1", "--no-bound"]
+    assert main([*argv, "--quiet"]) == 0
+    assert "(and 12.3 s compiling the kernels, once)" in capsys.readouterr().out
+    monkeypatch.setattr(warm_up, "warm_up", lambda *args, **kwargs: None)  # from the cache
+    assert main([*argv, "--quiet"]) == 0
+    assert "compiling" not in capsys.readouterr().out

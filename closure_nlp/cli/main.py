@@ -160,7 +160,9 @@ def _compile_kernels(args) -> None:
 
     shown = not args.quiet and sys.stderr.isatty()
     notify = (lambda text: sys.stderr.write(f"{text}\n")) if shown else None
-    warm_up(notify, rho_only=args.run is cmd_rho, capacity=_frictionless_placements(args))
+    args.compile_seconds = warm_up(
+        notify, rho_only=args.run is cmd_rho, capacity=_frictionless_placements(args)
+    )
 
 
 def _frictionless_placements(args) -> bool:
