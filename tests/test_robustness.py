@@ -153,3 +153,31 @@ def test_tolerance_input_is_checked():
         tolerance_from_dict({"position": "1mm"})
     with pytest.raises(TypeError, match="tolerance"):
         tolerance_from_dict([0.1, 1.0])
+
+
+def test_robust_rho_bounds_every_set_within_the_tolerance():
+    """``robust_rho = hi + shift``: no contact set whose points and normals lie within the
+    tolerance of the file's has a larger rho (checked on random such sets, by rho itself)."""
+    import numpy as np
+
+    from closure_nlp import Contact, ContactSet, ModelTolerance, rho
+    from closure_nlp.contact.random_sets import random_contact_set
+
+    rng = np.random.default_rng(11)
+    tolerance = ModelTolerance(0.02, 3.0)
+    for k in range(6):
+        base = random_contact_set(rng, ["pcwf", "sfce", "pcwf", "fpc"], mu=0.5)
+        given = rho(base, tolerance=tolerance)
+        assert given.robust_rho == given.bounds[1] + given.shift
+        assert given.to_dict()["robust_rho"] == given.robust_rho
+        for _ in range(5):
+            moved = []
+            for c in base.contacts:
+                step = rng.normal(size=3)
+                step *= rng.uniform(0, tolerance.position) / np.linalg.norm(step)
+                axis = np.cross(c.inward_normal, rng.normal(size=3))
+                axis /= np.linalg.norm(axis)
+                angle = np.radians(rng.uniform(0, tolerance.normal_deg))
+                n = np.cos(angle) * c.inward_normal + np.sin(angle) * axis
+                moved.append(Contact(c.position + step, n, c.type, c.mu, c.mu_s, c.f_max))
+            assert rho(ContactSet(tuple(moved))).bounds[0] <= given.robust_rho + 1e-9, k

@@ -174,6 +174,14 @@ class SupportMinimum:
         frozen_arrays(self)
 
 
+def robust_rho(result) -> float | None:
+    """The capacity left within the tolerance, certified: every contact set within it has
+    ``rho <= hi + shift`` (its support function moves by at most ``shift``), so a negative value
+    is a load capacity every such set has. ``hi`` without a tolerance; None without bounds."""
+    bounds = getattr(result, "bounds", None)
+    return None if bounds is None else float(bounds[1]) + float(getattr(result, "shift", 0.0))
+
+
 @dataclass(frozen=True, eq=False, kw_only=True)
 class Certificate:
     """The fields a certified result adds to its search's (:class:`RhoResult`,
@@ -190,6 +198,11 @@ class Certificate:
 
     def __post_init__(self) -> None:
         frozen_arrays(self)
+
+    @property
+    def robust_rho(self) -> float | None:
+        """:func:`robust_rho` of this result."""
+        return robust_rho(self)
 
 
 def frozen_arrays(result) -> None:
@@ -286,6 +299,7 @@ def certificate_keys(result) -> dict:
         "marginal": result.marginal,
         "converged": result.converged,
         "robust": robust,
+        "robust_rho": robust_rho(result),
     }
     if getattr(result, "shift", 0.0):
         keys["tolerance_shift"] = float(result.shift)

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from closure_nlp.contact.contact_set import ContactSet
-from closure_nlp.criterion.support_minimum import certificate_keys
+from closure_nlp.criterion.support_minimum import certificate_keys, robust_rho
 
 
 @dataclass(frozen=True)
@@ -126,6 +126,11 @@ class PlacementResult:
     @property
     def elements(self) -> tuple[int, ...]:
         return tuple(c.element for c in self.contacts)
+
+    @property
+    def robust_rho(self) -> float | None:
+        """The capacity left within the tolerance, certified (``hi + shift``)."""
+        return robust_rho(self)
 
     def to_dict(self) -> dict:
         return {
