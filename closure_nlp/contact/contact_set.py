@@ -155,6 +155,18 @@ def unmasked(value, field: str):
     return value
 
 
+def per_contact(value, count: int, key: str) -> list:
+    """``value`` for each of ``count`` contacts: one value for all, or a sequence of ``count``
+    values (a list, tuple or array; a string is one value)."""
+    if not isinstance(value, (list, tuple, np.ndarray)):
+        return [value] * count
+    if len(value) != count:
+        raise ValueError(
+            f"{key}: expected one value or {count} values (one per contact), got {len(value)}"
+        )
+    return list(value)
+
+
 def _check_parameters(obj, name: str) -> None:
     """Validate and normalise the ``type, mu, mu_s, f_max`` fields of a frozen dataclass."""
     set_ = object.__setattr__
@@ -292,14 +304,10 @@ class ContactSet:
                 f"got {P.shape} and {U.shape}"
             )
         m = len(P)
-        columns = []
-        for key, value in (("type", type), ("mu", mu), ("mu_s", mu_s), ("f_max", f_max)):
-            if isinstance(value, (str, ContactType)) or np.ndim(value) == 0:
-                columns.append([value] * m)
-            elif len(value) == m:
-                columns.append(list(value))
-            else:
-                raise ValueError(f"{key}: expected one value or {m} (one per contact)")
+        columns = [
+            per_contact(value, m, key)
+            for key, value in (("type", type), ("mu", mu), ("mu_s", mu_s), ("f_max", f_max))
+        ]
         contacts = tuple(
             Contact(P[i], U[i], *(column[i] for column in columns), name=f"{name}[{i}]")
             for i in range(m)

@@ -11,8 +11,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
-
 from closure_nlp.base.validation import MAX_ELEMENT_CONTACTS, UNITS, as_count, as_torque_scale
 from closure_nlp.contact.contact_set import (
     DEFAULT_F_MAX,
@@ -20,6 +18,7 @@ from closure_nlp.contact.contact_set import (
     DEFAULT_MU_S,
     ContactSpec,
     ContactType,
+    per_contact,
 )
 from closure_nlp.model.elements import Model
 
@@ -174,17 +173,10 @@ def contact_specs(
     count = as_count(count, "contacts", MAX_ELEMENT_CONTACTS, "contacts of an element set")
     if isinstance(mu_s, str) and is_auto(mu_s):
         mu_s = DEFAULT_MU_S if model is None else default_mu_s(model)
-    columns = {}
-    for key, value in (("type", type), ("mu", mu), ("mu_s", mu_s), ("f_max", f_max)):
-        if isinstance(value, (list, tuple, np.ndarray)):
-            if len(value) != count:
-                raise ValueError(
-                    f"{key}: expected one value or {count} values (one per contact), "
-                    f"got {len(value)}"
-                )
-            columns[key] = list(value)
-        else:
-            columns[key] = [value] * count
+    columns = {
+        key: per_contact(value, count, key)
+        for key, value in (("type", type), ("mu", mu), ("mu_s", mu_s), ("f_max", f_max))
+    }
     return tuple(
         ContactSpec(**{k: v[i] for k, v in columns.items()}, name=f"contacts[{i}]")
         for i in range(count)
