@@ -166,9 +166,9 @@ def rho_many(
     workers = _workers(workers, len(sets))
     if pool not in POOLS:
         raise ValueError(f"pool: expected one of {', '.join(POOLS)}, got {pool!r}")
-    chunks = [sets[k : k + CHUNK] for k in range(0, len(sets), CHUNK)]
     if workers == 1:
-        return RhoColumns.from_results([rho(s) for s in sets])
+        return RhoColumns.from_results(_certify_chunk(sets))
+    chunks = [sets[k : k + CHUNK] for k in range(0, len(sets), CHUNK)]
     if pool == "processes" and "fork" in multiprocessing.get_all_start_methods():
         rho(sets[0])  # kernels loaded before the fork: the workers inherit them
         context = multiprocessing.get_context("fork")

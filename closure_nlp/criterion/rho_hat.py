@@ -35,7 +35,7 @@ from closure_nlp.criterion.support_minimum import (
     timing_keys,
 )
 from closure_nlp.model.elements import Model
-from closure_nlp.model.regions import excluded_elements, with_exclusions
+from closure_nlp.model.regions import excluded_elements, marked_unusable
 from closure_nlp.model.scale import AUTO, auto_torque_scale
 
 
@@ -141,7 +141,7 @@ class Eligibility:
             if not isinstance(s, ContactSpec):
                 raise TypeError(f"specs[{i}]: expected a ContactSpec, got {type(s).__name__}")
         self.excluded = excluded_elements(model, only, exclude)
-        self.model = with_exclusions(model, only, exclude)
+        self.model = marked_unusable(model, self.excluded)
         self.specs = specs
         auto = isinstance(torque_scale, str) and torque_scale == AUTO
         self.torque_scale = auto_torque_scale(model) if auto else as_torque_scale(torque_scale)

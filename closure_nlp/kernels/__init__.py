@@ -167,11 +167,6 @@ def _drop_damaged(error: Exception, notify=None) -> None:
     )
 
 
-def _cache_folder() -> Path | None:
-    """Where numba caches the kernels (None: nowhere, they compile in memory)."""
-    return CACHE_FOLDER
-
-
 _HERE = Path(__file__).resolve().parent
 _MODULES = frozenset(source.stem for source in _HERE.glob("*.py"))
 _DIGEST = sources_digest(_HERE)

@@ -60,10 +60,14 @@ def excluded_elements(model: Model, only=(), exclude=()) -> tuple[int, ...]:
 def with_exclusions(model: Model, only=(), exclude=()) -> Model:
     """``model`` with the elements :func:`excluded_elements` names marked unusable (beside those
     it already has)."""
-    excluded = excluded_elements(model, only, exclude)
-    if not excluded:
+    return marked_unusable(model, excluded_elements(model, only, exclude))
+
+
+def marked_unusable(model: Model, ids) -> Model:
+    """``model`` with the elements ``ids`` marked unusable too (itself when there are none)."""
+    if not ids:
         return model
-    return replace(model, unusable=tuple(sorted(set(model.unusable) | set(excluded))))
+    return replace(model, unusable=tuple(sorted(set(model.unusable) | set(ids))))
 
 
 def _specs(value, field: str) -> tuple:
@@ -96,9 +100,7 @@ def _ids(model: Model, text: str, field: str) -> set[int]:
 
 
 def _facing(model: Model, text: str, field: str) -> set[int]:
-    axis_text, _, degrees_text = text.rpartition(":") if text.count(":") else (text, "", "")
-    if not axis_text:
-        axis_text, degrees_text = text, ""
+    axis_text, _, degrees_text = text.partition(":")  # no axis form holds a colon
     axis = _axis(axis_text, field)
     degrees = DEFAULT_FACING_DEG
     if degrees_text:
@@ -147,4 +149,4 @@ def _box(model: Model, text: str, field: str) -> set[int]:
 _KINDS = {"ids": _ids, "facing": _facing, "box": _box}
 
 
-__all__ = ["excluded_elements", "region", "with_exclusions"]
+__all__ = ["excluded_elements", "marked_unusable", "region", "with_exclusions"]
