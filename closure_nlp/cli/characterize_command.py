@@ -131,6 +131,8 @@ def cmd_characterize(args) -> None:
         sys.stderr.write(f"warning: {output.shown(args.mesh)}: {warning}\n")
     counts = model.counts()
     summary = ", ".join(f"{n} {kind}s" for kind, n in counts.items())
+    worst = worst_tolerance(e.tolerance for e in model.elements)
+    exact = sum(not e.tolerance for e in model.elements)
     payload = {
         "file": args.mesh,
         "elements": counts,
@@ -147,12 +149,11 @@ def cmd_characterize(args) -> None:
         "dropped": dropped,
         "tolerance": model.tolerance.to_dict(),
         "element_tolerance": {
-            **worst_tolerance(e.tolerance for e in model.elements).to_dict(),
-            "exact": sum(not e.tolerance for e in model.elements),
+            **worst.to_dict(),
+            "exact": exact,
         },
     }
-    tol = model.tolerance or worst_tolerance(e.tolerance for e in model.elements)
-    exact, name = payload["element_tolerance"]["exact"], output.shown(args.mesh)
+    tol, name = model.tolerance or worst, output.shown(args.mesh)
     held = (
         f"\n{name}: {bodies} separate bodies held as one rigid part (--merge-bodies)"
         if bodies
