@@ -285,7 +285,8 @@ def _draw_points(ax, model: Model, chosen: set[int]) -> None:
     if not ids:
         return
     pts = _shown(ax, np.array([model.elements[i].vertices[0] for i in ids]))
-    colours = np.array([HIGHLIGHT_COLOUR if i in chosen else POINT_COLOUR for i in ids])
+    unusable = set(model.unusable)
+    colours = np.array([_colour(i, POINT_COLOUR, chosen, set(), unusable) for i in ids])
     sizes = [30.0 if i in chosen else 6.0 for i in ids]
     ax.scatter(pts[:, 0], pts[:, 1], pts[:, 2], c=colours, s=sizes, depthshade=False)
 
