@@ -1,0 +1,102 @@
+"""Certified load factors against an independent SOCP on the forces, and analytic cases."""
+
+import numpy as np
+import pytest
+
+from closure_nlp.contact.contact_set import Contact, ContactSet
+from closure_nlp.contact.loads import as_loads
+from closure_nlp.contact.random_sets import random_contact_set, random_load
+from closure_nlp.contact.wrenches import WrenchSlots
+from closure_nlp.criterion.crosscheck import load_factor_cvxpy
+from closure_nlp.criterion.load_factor import load_factor
+
+TYPES = ["fpc", "pcwf", "sfcl", "sfce"]
+SETS = 50
+AGREE = 1e-6  # relative, on factors that are not marginal
+SOCP_ACCURACY = 1e-7  # the SOCP's own, relative to max(factor, the set's natural factor)
+
+
+def random_case(kind, seed):
+    """A contact set and a load, inside the wrench set for even seeds (:func:`random_load`)."""
+    rng = np.random.default_rng(seed)
+    m = {"fpc": 7, "mixed": 5}.get(kind, 4)
+    types = list(rng.choice(TYPES, m)) if kind == "mixed" else [kind] * m
+    cs = random_contact_set(rng, types, mu=0.5, mu_s=0.3, tilt=0.25)
+    return cs, random_load(rng, cs, inside=seed % 2 == 0)
+
+
+@pytest.mark.parametrize("kind", [*TYPES, "mixed"])
+def test_agrees_with_the_socp(kind):
+    worst, held = 0.0, 0
+    for seed in range(SETS):
+        cs, load = random_case(kind, seed)
+        result = load_factor(cs, load)
+        reference, status = load_factor_cvxpy(cs, load)
+        assert status == "optimal", (seed, status)
+        lo, hi = result.bounds
+        natural = max(WrenchSlots.from_contacts(cs).row_scales()) / np.linalg.norm(load)
+        slack = SOCP_ACCURACY * max(reference, natural)
+        assert lo - slack <= reference <= hi + slack, (seed, lo, hi, reference)
+        assert result.converged, seed
+        if not result.marginal:
+            held += 1
+            assert hi - lo <= AGREE * hi, (seed, lo, hi)
+            worst = max(worst, abs(result.load_factor - reference) / reference)
+        else:
+            assert hi <= 1e-6 * natural
+    assert worst <= AGREE
+    assert held >= SETS // 2  # the comparison is not only of zeros
+
+
+def opposite_pair(f_max, scale=1.0):
+    """Two frictionless contacts on the x axis pushing towards each other."""
+    return ContactSet(
+        (
+            Contact([scale, 0, 0], [-1, 0, 0], "fpc", f_max=f_max),
+            Contact([-scale, 0, 0], [1, 0, 0], "fpc", f_max=f_max),
+        )
+    )
+
+
+def test_opposite_frictionless_pair_holds_f_max_over_the_load():
+    cs = opposite_pair(3.0)
+    for force in ([-5.0, 0, 0], [0.25, 0, 0]):
+        result = load_factor(cs, [*force, 0, 0, 0])
+        expected = 3.0 / abs(force[0])
+        assert result.bounds[0] <= expected <= result.bounds[1]
+        assert result.load_factor == pytest.approx(expected, rel=1e-9)
+        assert not result.marginal
+    # a sideways force or a twist: nothing can push against it
+    for load in ([0, 1.0, 0, 0, 0, 0], [0, 0, 0, 0, 0, 1.0]):
+        result = load_factor(cs, load)
+        assert result.marginal and result.bounds[1] <= 1e-9
+
+
+def test_same_part_in_metres_and_millimetres():
+    rng = np.random.default_rng(7)
+    cs = random_contact_set(rng, ["pcwf"] * 4, mu=0.5, tilt=0.25)
+    points = WrenchSlots.from_contacts(cs).support_points(rng.standard_normal((3, 6)))
+    in_mm = ContactSet(
+        tuple(
+            Contact(c.position * 1000, c.inward_normal, c.type, c.mu, c.mu_s, c.f_max)
+            for c in cs.contacts
+        ),
+        torque_scale=1e-3,
+    )
+    wrench = -points.mean(axis=0)  # inside the set: a factor above 1
+    point = np.array([0.1, -0.2, 0.3])
+    force, torque = wrench[:3], wrench[3:] - np.cross(point, wrench[:3])  # about the origin
+
+    def case(unit):  # the same load written in metres (unit 1) or millimetres (unit 1000)
+        entry = {"name": "a", "force": force.tolist(), "point": (unit * point).tolist()}
+        return as_loads([{**entry, "torque": (unit * torque).tolist()}])
+
+    k_m = load_factor(cs, case(1).wrenches(cs.reference_point, cs.torque_scale)[0])
+    k_mm = load_factor(in_mm, case(1000).wrenches(in_mm.reference_point, in_mm.torque_scale)[0])
+    assert k_m.load_factor > 1.0
+    assert k_mm.load_factor == pytest.approx(k_m.load_factor, rel=1e-6)
+
+
+def test_zero_load_is_refused():
+    with pytest.raises(ValueError, match="load"):
+        load_factor(opposite_pair(1.0), np.zeros(6))
