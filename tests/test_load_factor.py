@@ -100,3 +100,20 @@ def test_same_part_in_metres_and_millimetres():
 def test_zero_load_is_refused():
     with pytest.raises(ValueError, match="load"):
         load_factor(opposite_pair(1.0), np.zeros(6))
+
+
+def test_ring_of_frictional_contacts_holds_its_friction_against_gravity():
+    # four horizontal pushes on a ring: only friction holds a vertical load, at most mu f_max
+    # each; the optimum needs all four at f_max, balanced exactly (the LP's point alone leaves
+    # a residual the verification must cancel)
+    mu, f_max, weight = 0.3, 2.0, 1.7
+    angles = np.arange(4) * np.pi / 2 + 0.1
+    ring = np.stack([np.cos(angles), np.sin(angles), np.zeros(4)], axis=1) * 42.4
+    cs = ContactSet(
+        tuple(Contact(p, -p, "pcwf", mu=mu, f_max=f_max) for p in ring), torque_scale=1 / 60
+    )
+    result = load_factor(cs, [0, 0, -weight, 0, 0, 0])
+    expected = 4 * mu * f_max / weight
+    assert result.converged and result.bounds[0] <= expected * (1 + 1e-12)
+    assert result.bounds[1] >= expected * (1 - 1e-12)
+    assert result.load_factor == pytest.approx(expected, rel=1e-6)

@@ -26,6 +26,7 @@ accuracy of zero: reported ``marginal``, with its bracket.
 
 from __future__ import annotations
 
+import os
 import time
 from dataclasses import dataclass, field
 
@@ -33,9 +34,13 @@ import numpy as np
 
 # highspy.Highs, its subclass, prints a banner on stdout when it is made: the plain class
 from highspy import HighsModelStatus, _Highs, kHighsInf
+from scipy.optimize import linprog
 
+from closure_nlp.base.formatting import certain
 from closure_nlp.base.tolerances import DEFAULT_TOLERANCES, Tolerances
 from closure_nlp.base.validation import as_vector
+from closure_nlp.contact.contact_set import ContactSet
+from closure_nlp.contact.loads import as_loads, load_loads
 from closure_nlp.contact.wrenches import WrenchSlots, as_slots
 
 RESIDUAL = 1e-13  # a wrench sum's distance to the ray, relative to the set's wrench scale
@@ -163,34 +168,44 @@ class _Master:
         return float(x[0]), x[1:], u
 
 
-def _verified_lower(A, B, lam, t):
-    """The factor (along ``t``, scaled units) of a wrench sum of the columns on the ray within
-    ``RESIDUAL``, from the LP's weights ``lam``; 0 if it cannot be brought there."""
+def _feasible(A: np.ndarray, B: np.ndarray, lam: np.ndarray) -> np.ndarray:
+    """``lam`` made a point of ``W`` exactly: no negative weight, no slot's total above 1."""
     lam = np.maximum(lam, 0.0)
+    sums = B @ lam
+    return lam / (B.T @ np.maximum(sums, 1.0))
+
+
+def _verified_lower(A: np.ndarray, B: np.ndarray, lam: np.ndarray, t: np.ndarray) -> float:
+    """The factor (along ``t``, scaled units) of a wrench sum of the columns that lies on the
+    ray within ``RESIDUAL``, from the LP's weights ``lam``; 0 if none is found.
+
+    The LP leaves its equations satisfied to its feasibility tolerance only; the residual is
+    cancelled by a correction LP scaled by the residual's size (weights still >= 0, each slot's
+    total still <= 1, the factor as high as it can stay): its own tolerance then acts on the
+    residual, not on the wrench, and one or two corrections reach round-off."""
+    lam = _feasible(A, B, lam)
     for _ in range(3):
-        sums = B @ lam
-        over = sums > 1.0
-        if over.any():  # clip each slot's total weight to 1: every column then counts in W
-            lam = lam / np.maximum(B.T @ np.where(over, sums, 1.0), 1.0)
         v = A @ lam
         k = float(v @ t)
         r = v - k * t
-        if np.linalg.norm(r) <= RESIDUAL:
+        size = float(np.linalg.norm(r))
+        if size <= RESIDUAL:
             return max(k, 0.0)
-        used = np.flatnonzero(lam > 0)
-        if not used.size:
+        n = len(lam)
+        # max dk s.t. A mu - dk t = -r / size, mu >= -lam / size, B (lam / size + mu) <= 1 / size
+        res = linprog(
+            np.append(np.zeros(n), -1.0),
+            A_ub=np.hstack([B, np.zeros((len(B), 1))]),
+            b_ub=(1.0 - B @ lam) / size,
+            A_eq=np.hstack([A, -t[:, None]]),
+            b_eq=-r / size,
+            bounds=[*((-x / size, None) for x in lam), (None, None)],
+            method="highs",
+        )
+        if res.status != 0:
             return 0.0
-        # move the used weights (and k) to cancel the residual, least norm
-        M = np.hstack([A[:, used], -t[:, None]])
-        step = np.linalg.lstsq(M, -r, rcond=None)[0]
-        lam = lam.copy()
-        lam[used] += step[:-1]
-        lam = np.maximum(lam, 0.0)
-    sums = B @ lam
-    lam = lam / np.maximum(B.T @ np.maximum(sums, 1.0), 1.0)
-    v = A @ lam
-    k = float(v @ t)
-    return max(k, 0.0) if np.linalg.norm(v - k * t) <= RESIDUAL else 0.0
+        lam = _feasible(A, B, lam + size * res.x[:-1])
+    return 0.0
 
 
 def _next_directions(u: np.ndarray, best: np.ndarray) -> np.ndarray:
@@ -247,6 +262,12 @@ def load_factor(
     converged = False
     iteration = 0
     rng = np.random.default_rng(0)  # the same answer every run
+
+    def target(iteration: int) -> float:
+        # aim 10x inside the width asked; accept the width asked once progress is slow (small
+        # factors, where the LP's absolute tolerances are felt)
+        return (0.1 if iteration < SLOW else 1.0) * tolerances.certify
+
     for iteration in range(1, max_iterations + 1):
         k, lam, u = master.solve()
         if u is None or not u @ w > 0:
@@ -255,20 +276,20 @@ def load_factor(
         bound = float(support_values(slots, u[None])[0]) / float(u @ w) / size
         if bound < hi or iteration == 1:
             hi, best_u = bound, u
-        if k * scale / size > lo:
+        # verify the LP's point only once it would close the bracket (a correction LP each)
+        if hi - k * scale / size <= target(iteration) * hi and k * scale / size > lo:
             lo = max(lo, _verified_lower(*master.matrices(), lam, w) * scale / size)
         if hi * size <= tolerances.certify * scale:  # marginal: no need for more
             break
-        # aim 10x inside the width asked; accept the width asked once progress is slow (small
-        # factors, where the LP's absolute tolerances are felt)
-        if hi - lo <= (0.1 if iteration < SLOW else 1.0) * tolerances.certify * hi:
+        if hi - lo <= target(iteration) * hi:
             converged = True
             break
         if not master.add(slots, _next_directions(u, best_u), scale) and not any(
             master.add(slots, _around(u, spread, rng), scale) for spread in SPREADS
         ):
-            converged = hi - lo <= tolerances.certify * hi
             break
+    if k * scale / size > lo and not converged:  # the last LP's point, verified
+        lo = max(lo, _verified_lower(*master.matrices(), lam, w) * scale / size)
     # within the bracket's accuracy of zero, measured against the factor at which one contact's
     # largest wrench matches the load
     marginal = hi * size <= tolerances.certify * scale
@@ -283,3 +304,99 @@ def load_factor(
         iteration,
         time.perf_counter() - t0,
     )
+
+
+@dataclass(frozen=True, eq=False)
+class LoadFactors:
+    """The certified factor of every load case, and the least.
+
+    Attributes
+    ----------
+    names : tuple of str
+        The cases, in the file's order.
+    factors : tuple of LoadFactor
+        One per case.
+    """
+
+    names: tuple[str, ...]
+    factors: tuple[LoadFactor, ...]
+
+    @property
+    def load_factor(self) -> float:
+        """The least certified factor over the cases: the contacts hold every case that many
+        times."""
+        return min(f.load_factor for f in self.factors)
+
+    @property
+    def bounds(self) -> tuple[float, float]:
+        """Bounds on the least ``k*`` over the cases."""
+        return min(f.bounds[0] for f in self.factors), min(f.bounds[1] for f in self.factors)
+
+    @property
+    def weakest(self) -> str:
+        """The case with the least factor (the first of equal ones)."""
+        return self.names[int(np.argmin([f.load_factor for f in self.factors]))]
+
+    def to_dict(self) -> dict:
+        """``loads``: per case ``name``, ``load_factor``, ``bounds``, ``marginal``;
+        ``load_factor``: the least."""
+        cases = [
+            {
+                "name": n,
+                "load_factor": f.load_factor,
+                "bounds": list(f.bounds),
+                "marginal": f.marginal,
+            }
+            for n, f in zip(self.names, self.factors)
+        ]
+        return {"loads": cases, "load_factor": self.load_factor}
+
+    def text(self) -> str:
+        """One line: the least factor, its case, and every case's bracket."""
+        parts = ", ".join(
+            f"{n} {certain(f.load_factor, f.bounds)}" + (" (marginal)" if f.marginal else "")
+            for n, f in zip(self.names, self.factors)
+        )
+        return f"load factor {certain(self.load_factor, self.bounds)} ({self.weakest}); {parts}"
+
+
+def load_factors(
+    contact_set,
+    loads,
+    *,
+    reference_point=None,
+    torque_scale: float | None = None,
+    tolerances: Tolerances = DEFAULT_TOLERANCES,
+) -> LoadFactors:
+    """Certified load factors of load cases on a contact set.
+
+    Each case's factor ``k*`` is the largest ``k`` such that forces in the contacts' exact cones
+    with ``0 <= f_n <= f_max`` balance ``k`` times the case; ``f_max`` is read in the loads' force
+    unit (the numbers are used as given).
+
+    Parameters
+    ----------
+    contact_set : ContactSet or WrenchSlots
+        For slots (elements), ``reference_point`` and ``torque_scale`` say how their torques
+        were taken (default: the origin and 1).
+    loads : Loads, dict, list or path
+        The cases: a LOADS.json file, its parsed content, or its list of cases.
+    reference_point, torque_scale
+        Override the contact set's own (only for slots).
+    tolerances : Tolerances
+        ``certify``: each bracket's relative width.
+
+    Returns
+    -------
+    LoadFactors
+    """
+    if isinstance(loads, (str, os.PathLike)):
+        loads = load_loads(loads)
+    loads = as_loads(loads)
+    if isinstance(contact_set, ContactSet):
+        reference_point = contact_set.reference_point
+        torque_scale = contact_set.torque_scale
+    slots = as_slots(contact_set)
+    wrenches = loads.wrenches(reference_point, 1.0 if torque_scale is None else torque_scale)
+    factors = tuple(load_factor(slots, w, tolerances=tolerances) for w in wrenches)
+    return LoadFactors(tuple(c.name for c in loads.cases), factors)

@@ -1,0 +1,46 @@
+"""A plan steered by load factors (``objective="loads"``): its element sets re-placed for the
+largest least load factor.
+
+The plan selects element sets by rho_hat and places contacts by rho (every seed alike). Each
+distinct element set its seeds ended on is then placed again with the load objective
+(:mod:`~closure_nlp.placement.load_objective`), started from that set's rho placement, and the
+set whose placement holds the loads most times is kept. A placement never ends below its start
+(certified factors), and the plan's own set is among those re-placed, so steering by loads never
+ends below steering by rho on the same seeds.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+from closure_nlp.base.progress import Progress
+from closure_nlp.contact.wrenches import WrenchSlots
+from closure_nlp.criterion.rho_hat import Eligibility
+from closure_nlp.placement.options import PlacementOptions
+from closure_nlp.placement.place import Placer
+from closure_nlp.planning.single import PlanResult
+
+
+def steer_by_loads(
+    eligibility: Eligibility,
+    result: PlanResult,
+    loads,
+    options: PlacementOptions = PlacementOptions(),
+    progress: Progress | None = None,
+) -> PlanResult:
+    """``result`` with its placement replaced by the best load-steered placement over the
+    element sets of its seeds (force-closure placements first, the plan's own when none is)."""
+    runs = [run.result for run in result.seeds.runs if run.ok] if result.seeds else [result]
+    placements = [r.placement for r in runs if r.placement.force_closure] or [result.placement]
+    starts: dict[tuple, object] = {}
+    for placement in [result.placement, *placements]:  # the plan's own first
+        starts.setdefault(placement.elements, placement)
+    placer = Placer(eligibility, options, loads=loads)
+    best = None
+    for elements, placement in starts.items():
+        weights = [c.weights for c in placement.contacts]
+        found = placer(list(elements), weights, progress=progress)
+        least = placer.objective(WrenchSlots.from_contacts(found.contact_set)).rho  # -factor
+        if best is None or least < best[0]:
+            best = (least, found)
+    return dataclasses.replace(result, placement=best[1])
