@@ -83,3 +83,16 @@ def test_steering_by_loads_holds_at_least_as_much_as_steering_by_rho(loads_file,
     assert by_rho["objective"] == "rho" and by_loads["objective"] == "loads"
     assert by_loads["load_factor"] >= by_rho["load_factor"]
     assert by_loads["load_factor"] > 1.1 * by_rho["load_factor"]  # it gains here, measurably
+
+
+def test_the_keys_loads_bring_are_in_formats_md(loads_file, capsys):
+    from tests.test_formats_contract import FORMATS, code_spans, keys, missing
+
+    spans = code_spans(FORMATS.read_text(encoding="utf-8"))
+    found = set()
+    code, out, _ = run(["rho", str(BOX), "--loads", loads_file, "--json"], capsys)
+    keys(json.loads(out), found)
+    argv = ["place", str(LAMP), "--elements", "36,10,40,14", "--type", "pcwf", "--starts", "1"]
+    code, out, _ = run([*argv, "--loads", loads_file, "--json", "--no-bound"], capsys)
+    keys(json.loads(out), found)
+    assert not missing(found, spans)
