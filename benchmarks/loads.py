@@ -1,4 +1,5 @@
-"""Load factors against the independent SOCP: ``python -m benchmarks.loads [--sets N]``.
+"""Load factors against the independent SOCP: ``python -m benchmarks.loads [--sets N]``; plans
+steered by rho and by load factors: ``python -m benchmarks.loads --steering [--seeds N]``.
 
 Per contact type, ``N`` random sets with a load each (half inside the wrench set, half random
 wrenches): the certified factor's agreement with cvxpy's SOCP on the forces, the bracket's
@@ -69,13 +70,78 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks.loads", description=__doc__)
     parser.add_argument("--sets", type=int, default=50)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--steering", action="store_true", help="plans steered by rho and by loads instead"
+    )
+    parser.add_argument("--seeds", type=int, default=4, help="seeds of each plan (--steering)")
     args = parser.parse_args(argv)
     from closure_nlp.criterion.warm_up import warm_up
 
     warm_up()
     load_factor(random_contact_set(np.random.default_rng(0), ["pcwf"] * 4), np.ones(6))
-    write_report(bench_loads(args.sets, args.seed), load_before)
+    if args.steering:
+        write_report(bench_steering(seeds=args.seeds), load_before)
+    else:
+        write_report(bench_loads(args.sets, args.seed), load_before)
     return 0
+
+
+# Load cases of the steering comparison, in each model's frame (mm, N).
+STEERING_LOADS = {
+    "lamp": {
+        "loads": [
+            {"name": "gravity", "force": [0, 0, -1], "point": [0, 0, -20]},
+            {"name": "push_x", "force": [0.5, 0, 0], "point": [0, 0, 10]},
+            {"name": "twist", "force": [0, 0, 0], "torque": [0, 0, 5]},
+        ]
+    },
+    "cup": {
+        "loads": [
+            {"name": "gravity", "force": [0, 0, -1], "point": [0, 0, 40]},
+            {"name": "tilt", "force": [0.4, 0, 0], "point": [0, 0, 100]},
+            {"name": "stir", "force": [0, 0, 0], "torque": [0, 0, 4]},
+        ]
+    },
+}
+
+
+def bench_steering(names=("lamp", "cup"), seeds: int = 4) -> dict:
+    """Each example's plan over ``seeds`` seeds, steered by rho, then the same plan re-placed by
+    the least load factor (:func:`closure_nlp.planning.load_steering.steer_by_loads`): both
+    placements' least load factor and rho, and the steering's seconds."""
+    from benchmarks.bench import PAPER_EXAMPLES, paper_eligibility
+    from closure_nlp.criterion.load_factor import load_factors
+    from closure_nlp.planning.load_steering import steer_by_loads
+    from closure_nlp.planning.plan import plan
+
+    out = {}
+    for name in names:
+        eligibility = paper_eligibility(name)
+        loads = STEERING_LOADS[name]
+        t0 = time.perf_counter()
+        by_rho = plan(eligibility, seed=0, seeds=seeds, workers=1)
+        t1 = time.perf_counter()
+        by_loads = steer_by_loads(eligibility, by_rho, loads)
+        t2 = time.perf_counter()
+        rows = {}
+        for label, result in (("rho", by_rho), ("loads", by_loads)):
+            factors = load_factors(result.placement.contact_set, loads)
+            rows[label] = {
+                "load_factor": factors.load_factor,
+                "cases": {n: f.load_factor for n, f in zip(factors.names, factors.factors)},
+                "rho": result.placement.rho,
+                "elements": list(result.placement.elements),
+            }
+        out[name] = {
+            "type": PAPER_EXAMPLES[name]["type"],
+            "seeds": seeds,
+            "by_rho": rows["rho"],
+            "by_loads": rows["loads"],
+            "ratio": rows["loads"]["load_factor"] / rows["rho"]["load_factor"],
+            "plan_seconds": t1 - t0,
+            "steering_seconds": t2 - t1,
+        }
+    return {"benchmark": "load_steering", "models": out}
 
 
 if __name__ == "__main__":
