@@ -96,3 +96,25 @@ def test_the_keys_loads_bring_are_in_formats_md(loads_file, capsys):
     code, out, _ = run([*argv, "--loads", loads_file, "--json", "--no-bound"], capsys)
     keys(json.loads(out), found)
     assert not missing(found, spans)
+
+
+@pytest.mark.slow
+def test_steering_does_not_depend_on_the_loads_size():
+    """The same cases 100 times larger steer the same way: factors 100 times smaller."""
+    import closure_nlp as c
+    from closure_nlp.criterion.load_factor import load_factors
+    from closure_nlp.placement.place import Placer
+
+    model = c.load_model(LAMP)
+    eligibility = c.Eligibility(model, c.contact_specs(4, type="pcwf"), torque_scale="auto")
+    options = c.PlacementOptions(bound=False, starts=1, neighbour_moves=0)
+    big = {"loads": [{**case} for case in LOADS["loads"]]}
+    for case in big["loads"]:
+        case["force"] = [100 * x for x in case["force"]]
+        if "torque" in case:
+            case["torque"] = [100 * x for x in case["torque"]]
+    least = []
+    for loads in (LOADS, big):
+        placed = Placer(eligibility, options, loads=loads)([36, 10, 40, 14])
+        least.append(load_factors(placed.contact_set, loads).load_factor)
+    assert least[1] * 100 == pytest.approx(least[0], rel=1e-4)

@@ -9,8 +9,10 @@ load factor's own dual direction (the weakest case's, scaled so) is the next one
 restricted model sums the pushing contacts' values (the largest alone when none pushes): at most
 ``h(u)``, so whatever it promises the contacts hold.
 
-The exchange compares values as it compares rho, lower better: a result here carries ``rho =
--k`` (minus the least certified factor).
+The exchange compares values as it compares rho, lower better, with gaps relative to
+``max(1, |rho|)``: a result here carries ``rho = -k * unit``, the least certified factor in
+units of the largest case over the largest ``f_max`` (a factor of about 1 when the contacts can
+hold about their own capacity), so that loads of any size in any force unit steer alike.
 """
 
 from __future__ import annotations
@@ -32,9 +34,11 @@ class LoadFound:
     Attributes
     ----------
     rho : float
-        Minus the least certified load factor (lower is better).
+        Minus the least certified load factor, times the objective's ``unit`` (lower is
+        better).
     direction : (6,) float
-        The weakest case's dual direction ``u / u.w``: ``p(direction) >= k`` is its constraint.
+        The weakest case's dual direction ``u / u.w`` (``w`` over ``unit``): ``p(direction) >=
+        -rho`` is its constraint.
     force_closure : bool
         The least factor is positive (every case is held to some degree).
     factors : LoadFactors
@@ -48,31 +52,33 @@ class LoadFound:
 
 class LoadObjective:
     """The least load factor of the cases ``loads`` on slots of contacts or elements, the torques
-    taken about ``reference_point`` times ``torque_scale`` (the eligibility's)."""
+    taken about ``reference_point`` times ``torque_scale`` (the eligibility's); ``f_max`` the
+    contacts' largest."""
 
-    def __init__(self, loads, reference_point, torque_scale: float):
+    def __init__(self, loads, reference_point, torque_scale: float, f_max: float = 1.0):
         self.loads = as_loads(loads)
         # the wrenches the contacts must produce, one per case
         self.targets = -self.loads.wrenches(reference_point, torque_scale)
+        self.unit = float(np.linalg.norm(self.targets, axis=1).max()) / f_max
 
     def __call__(self, slots: WrenchSlots) -> LoadFound:
         factors = tuple(load_factor(slots, -w) for w in self.targets)
         weakest = int(np.argmin([f.load_factor for f in factors]))
-        u, w = factors[weakest].direction, self.targets[weakest]
+        u, w = factors[weakest].direction, self.targets[weakest] / self.unit
         found = LoadFactors(tuple(c.name for c in self.loads.cases), factors)
         least = found.load_factor
-        return LoadFound(-least, u / float(u @ w), least > 0, found)
+        return LoadFound(-least * self.unit, u / float(u @ w), least > 0, found)
 
     def upper_bound(self, slots: WrenchSlots) -> float:
-        """The least certified upper bound over the cases on ``slots``: of elements, no placement
-        on them holds more (their wrench set holds every placement's)."""
-        return min(load_factor(slots, -w).bounds[1] for w in self.targets)
+        """The least certified upper bound over the cases on ``slots``, times ``unit``: of
+        elements, no placement on them holds more (their wrench set holds every placement's)."""
+        return self.unit * min(load_factor(slots, -w).bounds[1] for w in self.targets)
 
     def directions(self, count: int) -> list:
         """A first working set: ``+-e_k`` and ``count`` pseudo-random directions, each case's
         ``u / u.w`` where ``u.w > 0``."""
         out = []
-        for w in self.targets:
+        for w in self.targets / self.unit:
             unit = w / np.linalg.norm(w)
             U = sphere_samples(count, seed=1)
             dots = U @ unit

@@ -145,7 +145,10 @@ class ExchangePlacer:
         self.objective = None
         if loads is not None:
             model = eligibility.model
-            self.objective = LoadObjective(loads, model.reference_point, eligibility.torque_scale)
+            f_max = max(spec.f_max for spec in eligibility.specs)
+            self.objective = LoadObjective(
+                loads, model.reference_point, eligibility.torque_scale, f_max
+            )
 
     def _search(self, contacts, minimizer, warm_start=None):
         """The exchange's value of contacts (a ContactSet or its slots): the rho search's
