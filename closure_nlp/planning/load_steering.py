@@ -4,9 +4,11 @@ largest least load factor.
 The plan selects element sets by rho_hat and places contacts by rho (every seed alike). Each
 distinct element set its seeds ended on is then placed again with the load objective
 (:mod:`~closure_nlp.placement.load_objective`), started from that set's rho placement, and the
-set whose placement holds the loads most times is kept. A placement never ends below its start
-(certified factors), and the plan's own set is among those re-placed, so steering by loads never
-ends below steering by rho on the same seeds.
+set whose placement holds the loads most times is kept; the sets go in the order of their
+elements' own load factor (an upper bound on any placement's on them), and a set that cannot beat
+the best placement so far is left out. A placement never ends below its start (certified
+factors), and the plan's own set is re-placed or bounded below the best, so steering by loads
+never ends below steering by rho on the same seeds.
 """
 
 from __future__ import annotations
@@ -36,11 +38,17 @@ def steer_by_loads(
     for placement in [result.placement, *placements]:  # the plan's own first
         starts.setdefault(placement.elements, placement)
     placer = Placer(eligibility, options, loads=loads)
+    objective = placer.objective
+    # most promising first: no placement on a set holds more than the set's elements do, so a
+    # set whose elements cannot beat the best placement so far is not placed again
+    ceilings = {e: -objective.upper_bound(eligibility.slots(e)) for e in starts}
     best = None
-    for elements, placement in starts.items():
-        weights = [c.weights for c in placement.contacts]
+    for elements in sorted(starts, key=ceilings.get):
+        if best is not None and ceilings[elements] >= best[0]:
+            break
+        weights = [c.weights for c in starts[elements].contacts]
         found = placer(list(elements), weights, progress=progress)
-        least = placer.objective(WrenchSlots.from_contacts(found.contact_set)).rho  # -factor
-        if best is None or least < best[0]:
-            best = (least, found)
+        value = objective(WrenchSlots.from_contacts(found.contact_set)).rho  # -factor * unit
+        if best is None or value < best[0]:
+            best = (value, found)
     return dataclasses.replace(result, placement=best[1])
