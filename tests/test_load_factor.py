@@ -1,5 +1,7 @@
 """Certified load factors against an independent SOCP on the forces, and analytic cases."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -117,3 +119,32 @@ def test_ring_of_frictional_contacts_holds_its_friction_against_gravity():
     assert result.converged and result.bounds[0] <= expected * (1 + 1e-12)
     assert result.bounds[1] >= expected * (1 - 1e-12)
     assert result.load_factor == pytest.approx(expected, rel=1e-6)
+
+
+def test_element_sets_agree_with_the_socp():
+    """Slots of several rows (the lamp's facets, every vertex a row): the factor of the elements'
+    wrench set, which bounds every placement's on them."""
+    import closure_nlp as c
+
+    model = c.load_model(Path(__file__).resolve().parents[1] / "models" / "lamp.model.json")
+    eligibility = c.Eligibility(model, c.contact_specs(4, type="pcwf"), torque_scale="auto")
+    rng = np.random.default_rng(3)
+    held = 0
+    for j in range(12):
+        slots = eligibility.slots(rng.integers(0, len(model.elements), 4).tolist())
+        U = rng.standard_normal((3, 6))
+        load = (
+            -(rng.dirichlet(np.ones(3)) @ slots.support_points(U))
+            if j % 2
+            else rng.standard_normal(6)
+        )
+        result = load_factor(slots, load)
+        reference, status = load_factor_cvxpy(slots, load)
+        assert status == "optimal"
+        natural = max(slots.row_scales()) / np.linalg.norm(load)
+        slack = SOCP_ACCURACY * max(reference, natural)
+        assert result.bounds[0] - slack <= reference <= result.bounds[1] + slack, j
+        if not result.marginal:
+            held += 1
+            assert result.load_factor == pytest.approx(reference, rel=AGREE)
+    assert held >= 4

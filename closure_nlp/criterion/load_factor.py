@@ -15,13 +15,18 @@ program over support wrenches already found, per slot a convex combination of th
 origin, gives a force distribution holding ``lo`` times the load (every column is a support
 wrench of its slot, inside ``W`` by construction); its dual direction ``u`` gives
 ``hi = h(u) / (u.w)`` by the exact support function, and the support wrenches at ``u`` are the
-new columns. The loop stops when ``hi - lo <= certify * hi``.
+new columns (and, where a support set is a face and the LP's direction adds nothing new, the
+support wrenches at directions near it). The loop stops when ``hi - lo <= certify * hi`` (aiming
+10x inside it at first).
 
-The lower end is verified against round-off: the combination is recomputed from the clipped
-weights, refined by least squares on the columns it uses until the wrench it sums lies on the
-load's ray within the accuracy of a wrench sum (``RESIDUAL`` times the set's wrench scale), and
-``lo`` is that point's factor. A load no contact can push against at all has ``hi`` within
-accuracy of zero: reported ``marginal``, with its bracket.
+The lower end is verified against round-off: the LP meets its equations only to its feasibility
+tolerance, so the combination is recomputed from the clipped weights (every weight >= 0, every
+slot's total <= 1: a point of ``W`` exactly), and its residual off the load's ray is cancelled
+by a correction LP scaled by the residual's size, until the wrench it sums lies on the ray
+within ``RESIDUAL`` times the set's wrench scale (round-off of a wrench sum); ``lo`` is that
+point's factor. The bound is certified to that round-off, as the support values of the rho
+engine are. A load no contact can push against at all has ``hi`` within accuracy of zero:
+reported ``marginal``, with its bracket.
 """
 
 from __future__ import annotations
