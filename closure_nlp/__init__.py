@@ -44,6 +44,13 @@ _PUBLIC = {
     "eligibility": "closure_nlp.criterion.rho_hat",
     "force_closure_cvxpy": "closure_nlp.criterion.crosscheck",
     "distance_cvxpy": "closure_nlp.criterion.crosscheck",
+    # loads the part must hold
+    "Loads": "closure_nlp.contact.loads",
+    "load_loads": "closure_nlp.contact.loads",
+    "LoadFactor": "closure_nlp.criterion.load_factor",
+    "LoadFactors": "closure_nlp.criterion.load_factor",
+    "load_factors": "closure_nlp.criterion.load_factor",
+    "load_factor_cvxpy": "closure_nlp.criterion.crosscheck",
     "warm_up": "closure_nlp.criterion.warm_up",
     "rho_many": "closure_nlp.criterion.many",
     "RhoColumns": "closure_nlp.criterion.many",
@@ -86,6 +93,9 @@ __all__ = [
     "ElementKind",
     "Eligibility",
     "EligibilityResult",
+    "LoadFactor",
+    "LoadFactors",
+    "Loads",
     "MethodError",
     "Model",
     "ModelTolerance",
@@ -111,6 +121,9 @@ __all__ = [
     "heuristic",
     "iterative",
     "load_contact_set",
+    "load_factor_cvxpy",
+    "load_factors",
+    "load_loads",
     "load_model",
     "load_study",
     "local_cluster",
@@ -152,7 +165,13 @@ if TYPE_CHECKING:  # what static tools see; at run time the names load on first 
         ContactType,
         load_contact_set,
     )
-    from closure_nlp.criterion.crosscheck import distance_cvxpy, force_closure_cvxpy
+    from closure_nlp.contact.loads import Loads, load_loads
+    from closure_nlp.criterion.crosscheck import (
+        distance_cvxpy,
+        force_closure_cvxpy,
+        load_factor_cvxpy,
+    )
+    from closure_nlp.criterion.load_factor import LoadFactor, LoadFactors, load_factors
     from closure_nlp.criterion.many import RhoColumns, RhoHatColumns, rho_hat_many, rho_many
     from closure_nlp.criterion.rho_hat import Eligibility, EligibilityResult, eligibility
     from closure_nlp.criterion.support_minimum import RhoResult, SearchOptions, rho

@@ -8,6 +8,7 @@ from closure_nlp.base.files import (
     write_json,
 )
 from closure_nlp.cli import arguments, output, setup
+from closure_nlp.cli.loads_option import add_loads_option, loads_answer, read_loads
 from closure_nlp.contact.count import require_closure_count
 from closure_nlp.placement.place import Placer
 
@@ -22,6 +23,7 @@ def add_place(sub, common) -> None:
     )
     p.add_argument("--out", metavar="FILE", help="write the placed contacts as a contact-set file")
     arguments.add_placing_options(p)
+    add_loads_option(p, objective=True)
     p.set_defaults(run=cmd_place)
 
 
@@ -32,13 +34,15 @@ def cmd_place(args) -> None:
     eligibility = setup.model_eligibility(args, len(ids), "--elements")
     original = eligibility.model
     intent = setup.intent_keys(args, eligibility)
+    loads = read_loads(args)
     with output.reading(args.model):
         ids = eligibility.check_elements(ids, "--elements")
         require_closure_count(eligibility.specs, "--elements")
         eligibility = setup.with_margin(args, eligibility, ids)
     options, progress, close = setup.placement_setup(args, True, check_output_file)
     try:
-        result = Placer(eligibility, options)(ids, progress=progress)
+        steer = loads if args.objective == "loads" else None
+        result = Placer(eligibility, options, loads=steer)(ids, progress=progress)
     finally:
         close()
     if args.margin:
@@ -48,6 +52,9 @@ def cmd_place(args) -> None:
     payload["margin"] = args.margin
     payload.update(intent)
     text += setup.margin_text(args, eligibility.model)
+    factors, factors_text = loads_answer(result.contact_set, loads, args.objective)
+    payload.update(factors)
+    text += factors_text
     if args.out:
         output.check_finite(payload, args.model)  # before anything is written
         model = eligibility.model

@@ -15,6 +15,7 @@ from closure_nlp.base.validation import (
     MAX_SEED,
 )
 from closure_nlp.cli import arguments, output, setup
+from closure_nlp.cli.loads_option import add_loads_option, loads_answer, read_loads
 from closure_nlp.planning.plan import plan
 from closure_nlp.planning.seeds import DEFAULT_BUDGET, DEFAULT_SEEDS, MAX_PLAN_SEEDS
 from closure_nlp.report.plan_report import write_report
@@ -65,6 +66,7 @@ def add_plan(sub, common) -> None:
         "--up", choices=["x", "y", "z"], help="model axis drawn upwards (default: the model's)"
     )
     arguments.add_placing_options(p)
+    add_loads_option(p, objective=True)
     p.set_defaults(run=cmd_plan)
 
 
@@ -74,6 +76,7 @@ def cmd_plan(args) -> None:
     eligibility = setup.model_eligibility(args, args.contacts, closure=True)
     original = eligibility.model
     intent = setup.intent_keys(args, eligibility)
+    loads = read_loads(args)
     with output.reading(args.model):
         eligibility = setup.with_margin(args, eligibility)
     placement_options, progress, close = setup.placement_setup(args, False, check_output_dir)
@@ -92,6 +95,10 @@ def cmd_plan(args) -> None:
             **several,
             **({"budget": args.budget} if several else {}),
         )
+        if args.objective == "loads":
+            from closure_nlp.planning.load_steering import steer_by_loads
+
+            result = steer_by_loads(eligibility, result, loads, placement_options, progress)
     finally:
         close()
     if args.margin:  # contacts' weights on the file's elements: the same positions
@@ -99,6 +106,8 @@ def cmd_plan(args) -> None:
     payload = result.to_dict()
     payload["margin"] = args.margin
     payload.update(intent)
+    factors, factors_text = loads_answer(result.placement.contact_set, loads, args.objective)
+    payload.update(factors)
     output.check_finite(payload, args.model)  # before anything is written
     if args.out:
         options = {
@@ -131,7 +140,7 @@ def cmd_plan(args) -> None:
             for a in result.attempts[1:]
         )
         + f"{setup.placement_text(result.placement, original)}"
-        + f"{setup.margin_text(args, eligibility.model)}\n"
+        + f"{setup.margin_text(args, eligibility.model)}{factors_text}\n"
         + ("" if result.seeds is None else result.seeds.line() + "\n")
         + f"total {result.seconds:.2f} s"
         + _compile_text(args)

@@ -7,6 +7,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 from closure_nlp.base.formatting import certain
 from closure_nlp.cli import arguments, output
+from closure_nlp.cli.loads_option import add_loads_option, loads_answer, read_loads
 from closure_nlp.criterion.support_minimum import rho
 from closure_nlp.report.plan_report import load_contacts
 
@@ -29,11 +30,13 @@ def add_rho(sub, common) -> None:
         help="files certified at once, in threads (default 1); the answers and their order "
         "do not depend on it",
     )
+    add_loads_option(p)
     p.set_defaults(run=cmd_rho)
 
 
 def cmd_rho(args) -> None:
     loaded = output.load_each(args.files, load_contacts)
+    args.loads = read_loads(args)  # before any work
     if args.workers == 1:
         answers = (_answer(args, path, contact_set) for path, contact_set in loaded)
         for payload, text in answers:
@@ -48,11 +51,13 @@ def _answer(args, path, contact_set) -> tuple[dict, str]:
     """One file's JSON answer and its line of text."""
     t0 = time.perf_counter()
     result = rho(contact_set, tolerance=arguments.model_tolerance(args, contact_set.tolerance))
-    payload = {"file": path, **result.to_dict(), **output.whole_cost(result, t0)}
+    payload = {"file": path, **result.to_dict()}
+    loads, loads_text = loads_answer(contact_set, args.loads)
+    payload.update(loads, **output.whole_cost(result, t0))
     direction = " ".join(f"{x:+.4f}" for x in result.direction)
     text = (
         f"{output.shown(path)}: rho = {certain(result.rho, result.bounds)} "
         f"({output.verdict_text(result, result.force_closure)}); "
-        f"weakest direction u* = [{direction}]" + output.bounds_text(result, "rho")
+        f"weakest direction u* = [{direction}]" + output.bounds_text(result, "rho") + loads_text
     )
     return payload, text

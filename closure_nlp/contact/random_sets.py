@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from closure_nlp.contact.contact_set import Contact, ContactSet, ContactType
+from closure_nlp.contact.wrenches import WrenchSlots
 
 
 def random_contact_set(
@@ -40,3 +41,13 @@ BENCH_CASES = {
     "7 FPC": ["fpc"] * 7,
     "4 mixed": ["fpc", "pcwf", "sfcl", "sfce"],
 }
+
+
+def random_load(rng: np.random.Generator, contact_set: ContactSet, inside: bool) -> np.ndarray:
+    """A load (6,) for load-factor comparisons: ``inside``, minus a point inside the contacts'
+    wrench set times 0.3 to 2 (a factor of about 1 or more); otherwise a random wrench (often
+    one the contacts cannot hold at all)."""
+    if not inside:
+        return rng.standard_normal(6)
+    points = WrenchSlots.from_contacts(contact_set).support_points(rng.standard_normal((3, 6)))
+    return -(rng.dirichlet(np.ones(3)) @ points) * rng.uniform(0.3, 2.0)

@@ -343,6 +343,51 @@ def distance_cvxpy(slots_or_contact_set) -> float:
     return ball_minimum(slots_or_contact_set).distance
 
 
+# --- load factor as an SOCP ------------------------------------------------------------------
+
+
+def load_factor_cvxpy(contact_set_or_slots, load) -> tuple[float, str]:
+    """``max k`` such that forces in the exact cones, ``0 <= f_n <= f_max``, balance ``k``
+    times ``load`` (6,): the load factor by an SOCP on the forces themselves (no support
+    function). A slot of several rows (an element's vertices) is the hull of the origin and its
+    rows' sets: row ``r`` carries ``f_n <= theta_r f_max`` with the ``theta`` of a slot summing
+    to at most 1 (their perspective). Returns ``(k, status)``; ``(nan, status)`` on failure.
+    Forces are normalised by the largest ``f_max`` and the grasp map by its largest entry, so
+    the solver's tolerances act relative to the set's scale."""
+    slots = as_slots(contact_set_or_slots)
+    load = np.asarray(load, dtype=float)
+    size = float(np.linalg.norm(load))
+    layout, G = ForceClosureProblem.layout_and_matrix(slots)
+    g0, f0 = float(np.abs(G).max()), float(slots.f_max.max())
+    f = cp.Variable(G.shape[1])
+    k = cp.Variable()
+    theta = cp.Variable(len(layout), nonneg=True)
+    constraints = [(G / g0) @ f == k * (-load / size), k >= 0]
+    constraints += [
+        cp.sum(theta[start : start + rows]) <= 1
+        for start, rows in zip(slots.starts, slots.rows_per_slot)
+    ]
+    col = 0
+    for r, (n_friction, cone) in enumerate(layout):
+        fn, g = f[col], f[col + 1 : col + 1 + n_friction]
+        constraints += [fn >= 0, fn <= theta[r] * (slots.f_max[r] / f0)]
+        if cone == "soc":
+            constraints.append(cp.SOC(fn, g))
+        elif cone == "sfcl":
+            a = cp.Variable()
+            constraints += [cp.SOC(a, g[:2]), a + cp.abs(g[2]) <= fn]
+        col += 1 + n_friction
+    problem = cp.Problem(cp.Maximize(k), constraints)
+    try:
+        problem.solve(solver=SOLVER)
+    except cp.error.SolverError:
+        return float("nan"), "solver_error"
+    status = str(problem.status)
+    if k.value is None or status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE):
+        return float("nan"), status
+    return float(k.value) * g0 * f0 / size, status
+
+
 __all__ = [
     "BallMinProblem",
     "BallMinimum",
@@ -353,4 +398,5 @@ __all__ = [
     "distance_cvxpy",
     "force_closure_check",
     "force_closure_cvxpy",
+    "load_factor_cvxpy",
 ]

@@ -24,14 +24,20 @@ class Placer(ExchangePlacer):
         options ask for one (a plan computes it once, for the placement it returns)."""
         t0 = time.perf_counter()
         result = super().__call__(elements, weights, progress)
-        if not (self.options.bound and ceiling):
-            return result
+        if not (self.options.bound and ceiling) or self.objective is not None:
+            return result  # the ceiling bounds rho, not load factors
         start = tuple(self.eligibility.check_elements(elements))
         return bounded(self, start, result, t0, progress)
 
 
 def place(
-    eligibility: Eligibility, elements, weights=None, options: PlacementOptions = PlacementOptions()
+    eligibility: Eligibility,
+    elements,
+    weights=None,
+    options: PlacementOptions = PlacementOptions(),
+    loads=None,
 ) -> PlacementResult:
-    """Place one contact on each of ``elements`` (and their neighbours) for the best rho."""
-    return Placer(eligibility, options)(elements, weights)
+    """Place one contact on each of ``elements`` (and their neighbours) for the best rho, or,
+    with ``loads`` (a LOADS.json's cases, :func:`closure_nlp.load_loads`), for the largest least
+    load factor (no certified ceiling then: it bounds rho)."""
+    return Placer(eligibility, options, loads=loads)(elements, weights)

@@ -38,6 +38,7 @@ from closure_nlp.criterion.rho_hat import Eligibility
 from closure_nlp.criterion.sphere_search import sphere_samples
 from closure_nlp.criterion.support_minimum import SearchOptions, rho, search_rho
 from closure_nlp.model.elements import nearest_weights, simplex_weights
+from closure_nlp.placement.load_objective import LoadObjective
 from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.placement.restricted import ExchangeLP, ExchangeProblem
 from closure_nlp.placement.result import Move, PlacedContact, PlacementResult
@@ -117,6 +118,10 @@ class ExchangePlacer:
     """Contact placement on element sets of one model by the exchange method, solvers reused
     across calls (:class:`~closure_nlp.placement.place.Placer` adds the certified ceiling).
 
+    ``loads`` (optional, as :func:`~closure_nlp.contact.loads.as_loads` takes them): the exchange
+    maximises the least certified load factor of these cases instead of ``-rho``
+    (:mod:`~closure_nlp.placement.load_objective`); the result still reports the placement's rho.
+
     ``problems`` (optional) is a cache of exchange NLPs to share between placers: they depend
     on the shape only (vertex rows per contact, working-set size, IPOPT tolerance and subset
     margin); the model, mu, f_max and torque scale are parameters, so a study worker builds
@@ -129,6 +134,7 @@ class ExchangePlacer:
         eligibility: Eligibility,
         options: PlacementOptions = PlacementOptions(),
         problems: PerThread[dict] | None = None,
+        loads=None,
     ):
         require_closure_count(eligibility.specs)
         if not (problems is None or isinstance(problems, PerThread)):
@@ -136,6 +142,24 @@ class ExchangePlacer:
         self.eligibility = eligibility
         self.options = options
         self._caches: PerThread[dict] = PerThread(dict) if problems is None else problems
+        self.objective = None
+        if loads is not None:
+            model = eligibility.model
+            f_max = max(spec.f_max for spec in eligibility.specs)
+            self.objective = LoadObjective(
+                loads, model.reference_point, eligibility.torque_scale, f_max
+            )
+
+    def _search(self, contacts, minimizer, warm_start=None):
+        """The exchange's value of contacts (a ContactSet or its slots): the rho search's
+        answer, or the load objective's (``rho`` = minus the least load factor)."""
+        if self.objective is not None:
+            return self.objective(
+                WrenchSlots.from_contacts(contacts)
+                if isinstance(contacts, ContactSet)
+                else contacts
+            )
+        return search_rho(contacts, minimizer=minimizer, warm_start=warm_start)
 
     @property
     def _problems(self) -> dict[tuple, ExchangeProblem]:
@@ -246,8 +270,11 @@ class ExchangePlacer:
         rows = tuple(len(frame.G) for frame in frames)
         f_max = np.array([spec.f_max for spec in specs])
         best_w = [np.asarray(w, float) for w in weights]
-        best = initial or search_rho(self.contact_set(elements, best_w), minimizer=minimizer)
-        U = list(sphere_samples(self.options.random_directions, seed=1))
+        best = initial or self._search(self.contact_set(elements, best_w), minimizer)
+        if self.objective is not None:  # each case's directions u / u.w
+            U, directions = self.objective.directions(self.options.random_directions), None
+        else:
+            U = list(sphere_samples(self.options.random_directions, seed=1))
         if directions is not None:
             U += directions[-SHARED_DIRECTIONS:]
         U.append(best.direction)
@@ -278,7 +305,9 @@ class ExchangePlacer:
                 w = [_unpadded(ci, k) for ci, k in zip(c, counts)]
                 trial_slots = WrenchSlots.from_contacts(self.contact_set(elements, w))
                 warm = best.direction
-                if self.options.round_search:
+                if self.objective is not None:
+                    found = self.objective(trial_slots)
+                elif self.options.round_search:
                     values = trial_slots.support(np.array(U))
                     if self.options.lp_centre:  # ties in index order, in any unit
                         weakest = lowest_first(values, float(f_max.sum()), WARM_DIRECTIONS)
@@ -290,7 +319,7 @@ class ExchangePlacer:
                     # the full search it was meant to spare
                     found = search_rho(trial_slots, minimizer=light, warm_start=warm)
                     warm = found.direction
-                if not self.options.screen or found.rho < best.rho:
+                if self.objective is None and (not self.options.screen or found.rho < best.rho):
                     found = search_rho(trial_slots, minimizer=judge, warm_start=warm)
                 U.append(found.direction)
                 if found.rho < best.rho:
@@ -308,7 +337,7 @@ class ExchangePlacer:
             # The exchange keeps the weights that the round search values lowest, so it seeks
             # out that search's misses: before the run ends, the default search checks the
             # best weights, and a weaker direction it finds resumes the run from the truer value.
-            if checked or not self.options.validate or best.rho >= bar:
+            if checked or not self.options.validate or best.rho >= bar or self.objective:
                 break
             again, checked = self._validated(at_best, best), True
             if again is best:
@@ -336,7 +365,7 @@ class ExchangePlacer:
         start_elements, start_set = tuple(elements), self.contact_set(elements, weights)
         # The start's search value is never above its certified rho (a found support value), so
         # the start is certified only when the final result does not beat that value (below).
-        start = search_rho(start_set, minimizer=self.eligibility.minimizer)
+        start = self._search(start_set, self.eligibility.minimizer)
         shared = [] if self.options.share_directions else None
         rng = np.random.default_rng(self.options.seed)
         probe = self.options.probe_rounds if self.options.starts > 1 else 0
@@ -388,10 +417,15 @@ class ExchangePlacer:
         contact_set = self.contact_set(elements, best_w)
         if progress:
             progress("certification", 0, best.rho)
-        final = rho(contact_set, minimizer=self.eligibility.minimizer, warm_start=best.direction)
-        if final.rho > start.rho:
+        if self.objective is not None:  # certified load factors: keep the start if better
+            if best.rho > start.rho:
+                elements, best_w, moves, contact_set = list(start_elements), weights, [], start_set
+            start = rho(start_set, minimizer=self.eligibility.minimizer)  # its rho, reported
+        warm = None if self.objective is not None else best.direction  # a load's is not unit
+        final = rho(contact_set, minimizer=self.eligibility.minimizer, warm_start=warm)
+        if self.objective is None and final.rho > start.rho:
             start = rho(start_set, minimizer=self.eligibility.minimizer)
-        if final.rho > start.rho:
+        if self.objective is None and final.rho > start.rho:
             # The exchange steered by the search's values, which can miss; certified, the start
             # is better: keep it, so that the result is never worse than the start it reports.
             elements, best_w, moves, contact_set, final = (
@@ -487,8 +521,10 @@ class ExchangePlacer:
         elements, from the placement's own, is enough, and it never rules out a trial wrongly.
         A trial ruled out skips its exchange run, most of a neighbour move's cost.
         """
-        minimizer = self.eligibility.minimizer.with_search(SCREEN_SEARCH)
         bar = best.rho - margin  # the search may stop as soon as it shows rho >= bar
+        if self.objective is not None:  # no placement holds more than the elements do
+            return -self.objective.upper_bound(self.eligibility.slots(elements)) >= bar
+        minimizer = self.eligibility.minimizer.with_search(SCREEN_SEARCH)
         found = minimizer(self.eligibility.slots(elements), best.direction, -bar)
         return -found.value >= bar
 
