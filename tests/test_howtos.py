@@ -16,22 +16,22 @@ from . import doc_blocks
 
 ROOT = Path(__file__).resolve().parents[1]
 HOWTOS = sorted((ROOT / "docs").glob("howto-*.md"))
-COMMANDS = [
-    pytest.param(page, i, marks=[pytest.mark.slow] if "plan" in code else [], id=f"{page.stem}-{i}")
+PAGES = [
+    pytest.param(page, marks=[pytest.mark.slow] if "closure-nlp plan" in page.read_text() else [])
     for page in HOWTOS
-    for i, (code, _) in enumerate(doc_blocks.shown(page, "sh"))
 ]
 
 
-def _outputs(argv: list[str], tmp_path: Path) -> dict[str, Path]:
-    """Point every ``--out`` at a fresh place under ``tmp_path``; the page's name -> that place."""
-    renamed = {}
-    for k, flag in enumerate(argv[:-1]):
-        if flag == "--out":
-            given = argv[k + 1]
-            renamed[given] = tmp_path / Path(given).name
-            argv[k + 1] = str(renamed[given])
-    return renamed
+def _redirect(argv: list[str], renamed: dict[str, Path], tmp_path: Path) -> None:
+    """Every ``--out`` to a fresh place under ``tmp_path`` (recorded in ``renamed``), and every
+    argument under an earlier command's output to where that output went."""
+    for k, arg in enumerate(argv):
+        for given, actual in renamed.items():
+            if arg == given or arg.startswith(given + "/"):
+                argv[k] = str(actual) + arg[len(given) :]
+        if k and argv[k - 1] == "--out":
+            renamed[arg] = tmp_path / f"{len(renamed)}-{Path(arg).name}"
+            argv[k] = str(renamed[arg])
 
 
 def test_there_are_howtos_with_commands():
@@ -42,21 +42,23 @@ def test_there_are_howtos_with_commands():
         assert all(c.strip().startswith("closure-nlp ") for c, _ in commands), page
 
 
-@pytest.mark.parametrize(("page", "index"), COMMANDS)
-def test_howto_command_prints_what_the_page_shows(page, index, monkeypatch, tmp_path, capsys):
-    command, expected = doc_blocks.shown(page, "sh")[index]
-    argv = shlex.split(command.strip())[1:]
-    renamed = _outputs(argv, tmp_path)
+@pytest.mark.parametrize("page", PAGES)
+def test_howto_commands_print_what_the_page_shows(page, monkeypatch, tmp_path, capsys):
+    """The page's commands in order (a later one may read what an earlier one wrote)."""
     monkeypatch.chdir(ROOT)
-    assert main(argv) == 0
-    printed = capsys.readouterr().out
-    for given, actual in renamed.items():
-        printed = printed.replace(str(actual), given)
-        assert actual.exists(), given
-    if "plan" in argv:
-        assert doc_blocks.same_plan(doc_blocks.normal(printed), doc_blocks.normal(expected))
-    else:
-        assert doc_blocks.normal(printed) == doc_blocks.normal(expected)
+    renamed: dict[str, Path] = {}
+    for command, expected in doc_blocks.shown(page, "sh"):
+        argv = shlex.split(command.strip())[1:]
+        _redirect(argv, renamed, tmp_path)
+        assert main(argv) == 0, command
+        printed = capsys.readouterr().out
+        for given, actual in renamed.items():
+            printed = printed.replace(str(actual), given)
+            assert actual.exists(), given
+        if "plan" in argv:
+            assert doc_blocks.same_plan(doc_blocks.normal(printed), doc_blocks.normal(expected))
+        else:
+            assert doc_blocks.normal(printed) == doc_blocks.normal(expected), command
 
 
 @pytest.mark.parametrize("page", HOWTOS, ids=lambda p: p.stem)
