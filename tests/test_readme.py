@@ -14,24 +14,14 @@ import pytest
 
 from closure_nlp.cli.main import main
 
+from . import doc_blocks
+
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
-SECONDS = re.compile(r"\d+(\.\d+)? s\b")
-
-
-def fenced_blocks(text: str) -> list[tuple[str, str]]:
-    """``(language, body)`` of every fenced block, in order."""
-    return re.findall(r"^```(\w*)\n(.*?)^```\s*$", text, flags=re.S | re.M)
 
 
 def shown(language: str) -> list[tuple[str, str]]:
-    """``(code, output)``: each ``language`` block followed at once by a ``text`` block."""
-    blocks = fenced_blocks(README.read_text())
-    return [
-        (code, out)
-        for (lang, code), (next_lang, out) in zip(blocks, blocks[1:])
-        if lang == language and next_lang == "text"
-    ]
+    return doc_blocks.shown(README, language)
 
 
 COMMANDS = [code.strip() for code, _ in shown("sh")]
@@ -48,30 +38,7 @@ def _slow_if_plan(items, key):
 
 
 def _normal(text: str, out_dir: Path | None = None) -> list[str]:
-    """Lines without the seconds (they depend on the machine) and with the output folder named
-    as in the README."""
-    if out_dir is not None:
-        text = text.replace(str(out_dir), "out/lamp")
-    return [SECONDS.sub("<s>", line).rstrip() for line in text.strip().splitlines()]
-
-
-NUMBER = re.compile(r"-?\d+\.\d+")
-
-
-def _same_plan(printed: list[str], expected: list[str]) -> bool:
-    """A plan's lines against the README's: the same words and integers (elements, counts);
-    decimals within 2% or 0.6 (mm on the 60 mm lamp). The placement is a local search: another
-    CPU rounds the compiled kernels' and BLAS's sums differently in the last bits, and it can end
-    at a nearby optimum (README: -0.516038 on one machine, -0.514620 on another)."""
-    if len(printed) != len(expected):
-        return False
-    for got, want in zip(printed, expected):
-        if NUMBER.sub("#", got) != NUMBER.sub("#", want):
-            return False
-        for a, b in zip(map(float, NUMBER.findall(got)), map(float, NUMBER.findall(want))):
-            if abs(a - b) > max(0.02 * abs(b), 0.6):
-                return False
-    return True
+    return doc_blocks.normal(text, out_dir, "out/lamp")
 
 
 def test_the_readme_shows_commands_and_snippets():
@@ -92,7 +59,7 @@ def test_command_prints_what_the_readme_shows(index, monkeypatch, tmp_path, caps
     assert main(argv) == 0
     printed = capsys.readouterr().out
     if "plan" in argv:
-        assert _same_plan(_normal(printed, out_dir), _normal(expected))
+        assert doc_blocks.same_plan(_normal(printed, out_dir), _normal(expected))
     else:
         assert _normal(printed, out_dir) == _normal(expected)
     if out_dir is not None:  # the summary: no float noise, no mu_s for point contacts
@@ -110,7 +77,7 @@ def test_snippet_prints_what_the_readme_shows(index, monkeypatch):
     with contextlib.redirect_stdout(buffer):
         exec(compile(code, f"README snippet {index}", "exec"), {"__name__": "readme"})
     if "plan(" in code:
-        assert _same_plan(_normal(buffer.getvalue()), _normal(expected))
+        assert doc_blocks.same_plan(_normal(buffer.getvalue()), _normal(expected))
     else:
         assert _normal(buffer.getvalue()) == _normal(expected)
 

@@ -302,7 +302,10 @@ def _draw_points(ax, model: Model, chosen: set[int]) -> None:
     pts = _shown(ax, np.array([model.elements[i].vertices[0] for i in ids]))
     picked = np.array([i in chosen for i in ids])
     plain = ~picked
-    ax.scatter(*pts[plain].T, c=POINT_COLOUR, s=6.0, depthshade=False)
+    unusable = set(model.unusable)
+    colours = np.array([_colour(i, POINT_COLOUR, set(), set(), unusable) for i in ids])
+    if plain.any():
+        ax.scatter(*pts[plain].T, c=colours[plain], s=6.0, depthshade=False)
     if picked.any():  # a ring around each chosen point
         ax.scatter(
             *pts[picked].T,
