@@ -1,6 +1,6 @@
 """Benchmarks that print JSON: ``python -m benchmarks.bench WHAT`` (``rho``, ``rho-hat``,
 ``certify``, ``engine``, ``batch``, ``startup``, ``select``, ``plan``, ``plans``, ``seeds``,
-``gap``, ``characterize``).
+``gap``, ``characterize``, ``real-meshes``).
 
 Timings are medians over seeded random cases with every solver built and warmed up first, and
 each is compared in the same process with a paper-style baseline: scipy SLSQP started from the
@@ -1158,6 +1158,115 @@ def bench_units(
     return report
 
 
+# pybullet_data's meshes (metres) that ``bench real-meshes`` plans on, with the characterize
+# flags each needs; and the contact mixes planned on each.
+REAL_MESHES = {
+    "duck": ("duck.obj", []),
+    "bunny": ("bunny.obj", []),
+    "soccerball": ("soccerball.obj", []),
+    "cube": ("cube.obj", []),
+    "sphere_smooth": ("sphere_smooth.obj", []),
+    "teddy": ("teddy2_VHACD_CHs.obj", ["--merge-bodies"]),
+}
+REAL_MIXES = {
+    "4 pcwf": ["--contacts", "4", "--type", "pcwf", "--mu", "0.5"],
+    "3 sfce": ["--contacts", "3", "--type", "sfce", "--mu", "0.5"],
+}
+
+
+def _cli_json(argv: list) -> tuple[int, dict | None, float, float]:
+    """``closure-nlp ARGV --json --quiet`` in this process: exit status, its JSON (None when it
+    printed none), wall seconds and CPU seconds of this process (what the load of a shared
+    machine moves least)."""
+    import contextlib
+    import io
+
+    from closure_nlp.cli.main import main as cli_main
+
+    out, err = io.StringIO(), io.StringIO()
+    t, cpu = time.perf_counter(), time.process_time()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        status = cli_main([*argv, "--json", "--quiet"])
+    wall, cpu = time.perf_counter() - t, time.process_time() - cpu
+    text = out.getvalue().strip()
+    found = json.loads(text.splitlines()[-1]) if text else None
+    if found is None and err.getvalue():
+        found = {"error": err.getvalue().strip().splitlines()[-1][:200]}
+    return status, found, wall, cpu
+
+
+def bench_real_meshes(names=None, seed: int = 0, seeds: int = 1, data_path=None, extra=()) -> dict:
+    """Characterize and plan on pybullet's meshes as a new user would: ``closure-nlp
+    characterize MESH`` (default options; :data:`REAL_MESHES` gives the flags each needs), then
+    ``closure-nlp plan`` of each contact mix of :data:`REAL_MIXES` (``seeds`` seeds from
+    ``seed``, ``extra`` flags), in this process (kernels compiled before). Per mesh: the
+    elements and repairs; per plan: its exit status, verdicts, rho, robust_rho, gap, the plan's
+    own seconds, the wall time of the command and this process's CPU seconds in it (a shared
+    machine's load moves the wall time by a factor of several, the CPU time far less). Meshes
+    it cannot find are listed under ``skipped`` (pybullet's data is not a dependency:
+    ``data_path``, or ``pybullet_data``)."""
+    import tempfile
+
+    if data_path is None:
+        try:
+            import pybullet_data
+        except ImportError:
+            return {"benchmark": "real-meshes", "skipped": "pybullet_data is not installed"}
+        data_path = pybullet_data.getDataPath()
+    report = {"benchmark": "real-meshes", "seed": seed, "seeds": seeds, "meshes": {}, "runs": {}}
+    report["skipped"] = []
+    with tempfile.TemporaryDirectory() as folder:
+        for name in names or REAL_MESHES:
+            file, flags = REAL_MESHES[name]
+            path = Path(data_path) / file
+            if not path.is_file():
+                report["skipped"].append(name)
+                continue
+            model = str(Path(folder) / f"{name}.model.json")
+            status, found, wall, _ = _cli_json(["characterize", str(path), "--out", model, *flags])
+            report["meshes"][name] = {"exit": status, "seconds": wall, **(found or {})}
+            if status != 0:
+                continue
+            for mix, argv in REAL_MIXES.items():
+                status, found, wall, cpu = _cli_json(
+                    ["plan", model, *argv, "--seed", str(seed), "--seeds", str(seeds), *extra]
+                )
+                placed = (found or {}).get("placement", {})
+                report["runs"][f"{name}, {mix}"] = {
+                    "exit": status,
+                    "force_closure": placed.get("force_closure"),
+                    "robust": placed.get("robust"),
+                    "rho": placed.get("rho"),
+                    "robust_rho": placed.get("robust_rho"),
+                    "gap": placed.get("gap"),
+                    "seconds": (found or {}).get("seconds"),
+                    "wall_seconds": wall,
+                    "cpu_seconds": cpu,
+                    "elements": placed.get("contacts")
+                    and [c["element"] for c in placed["contacts"]],
+                    **(
+                        {"to_be_robust": placed["to_be_robust"]} if "to_be_robust" in placed else {}
+                    ),
+                    **({"error": found["error"]} if found and "error" in found else {}),
+                }
+                print(
+                    json.dumps({f"{name}, {mix}": report["runs"][f"{name}, {mix}"]}),
+                    file=sys.stderr,
+                    flush=True,
+                )  # a long run's progress
+    runs = report["runs"].values()
+    held = sum(bool(r["force_closure"] and r["robust"]) for r in runs)
+    report["robust_force_closure"] = f"{held}/{len(runs)}"
+    for key in ("seconds", "cpu_seconds"):
+        times = [r[key] for r in runs if r[key] is not None]
+        report[f"plan_{key}"] = {"max": max(times, default=None), "median": _median(times)}
+    return report
+
+
+def _median(values):
+    return float(np.median(values)) if values else None
+
+
 def cpu_model() -> str:
     """The CPU's model name from /proc/cpuinfo (empty where there is none)."""
     try:
@@ -1300,6 +1409,11 @@ def main(argv=None) -> int:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--cells", type=int, default=200, help="cells of each ceiling (default 200)")
     p.add_argument("--lp-centre", action="store_true", help="PlacementOptions(lp_centre=True)")
+    p = sub.add_parser("real-meshes", help="characterize and plan on pybullet's meshes")
+    p.add_argument("--meshes", default=",".join(REAL_MESHES), help="e.g. duck,cube")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seeds", type=int, default=1, help="seeds per plan (default 1)")
+    p.add_argument("--flags", default="", help="further plan flags, e.g. '--no-bound'")
     args = parser.parse_args(argv)
     if args.what == "startup":  # its own processes and caches: nothing to warm up here
         report = bench_startup(args.repeats, args.baseline, command=args.command)
@@ -1335,6 +1449,10 @@ def main(argv=None) -> int:
         report = bench_throughput(args.sets, args.seed, counts)
     elif args.what == "units":
         report = bench_units(seed=args.seed, cells=args.cells, lp_centre=args.lp_centre)
+    elif args.what == "real-meshes":
+        report = bench_real_meshes(
+            args.meshes.split(","), args.seed, args.seeds, extra=args.flags.split()
+        )
     elif args.what == "gap":
         names = args.models.split(",")
         budgets = {name: args.budget for name in names} if args.budget else None

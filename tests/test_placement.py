@@ -377,7 +377,7 @@ def test_neighbour_trials_ruled_out_only_when_no_placement_can_win():
         for n in model.neighbours(e):
             trial = list(elements)
             trial[i] = n
-            if placer._cannot_beat(trial, best, margin):
+            if placer._cannot_beat(trial, best.rho - margin, best.direction):
                 skipped += 1
                 assert eligibility(trial).bounds[0] >= best.rho - margin
             else:

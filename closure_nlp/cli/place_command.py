@@ -74,5 +74,6 @@ def cmd_place(args) -> None:
     if result.robust is False:
         raise MethodError(
             f"{args.model}: the placed contacts are not robust within the model's tolerance "
-            f"(support shift {result.shift:.3g} against -hi = {-result.bounds[1]:.3g})"
+            f"(support shift {result.shift:.3g} against -hi = {-result.bounds[1]:.3g}); "
+            + result.to_be_robust_text(eligibility.model.units)
         )

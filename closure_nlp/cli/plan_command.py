@@ -153,7 +153,8 @@ def cmd_plan(args) -> None:
         raise MethodError(
             f"{args.model}: no robust placement found: the placed contacts are force closure by "
             f"the file but not within the model's tolerance (support shift "
-            f"{result.placement.shift:.3g} against -hi = {-result.placement.bounds[1]:.3g})"
+            f"{result.placement.shift:.3g} against -hi = {-result.placement.bounds[1]:.3g}); "
+            + result.placement.to_be_robust_text(eligibility.model.units)
         )
 
 

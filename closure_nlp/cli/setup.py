@@ -84,7 +84,9 @@ def read_model(args, marked: list | None = None):
     from closure_nlp.model.model_mesh import check_normals, outward_elements, read_model_mesh
 
     [(_, model)] = load_each([args.model], load_model)
-    model = replace(model, tolerance=model_tolerance(args, model.tolerance))
+    tolerance = model_tolerance(args, model.tolerance)
+    if tolerance != model.tolerance:  # a copy checks the whole model again
+        model = replace(model, tolerance=tolerance)
     if getattr(args, "allow_outside_mesh", False):
         model = replace(model, allow_outside_mesh=True)
     with reading(args.model):

@@ -21,7 +21,7 @@ from closure_nlp.base.validation import as_flag, as_id_list, as_torque_scale
 from closure_nlp.contact.accuracy import NO_TOLERANCE, ModelTolerance
 from closure_nlp.contact.contact_set import ContactSpec
 from closure_nlp.contact.wrenches import WrenchSlots, padded_rows
-from closure_nlp.criterion.robustness import with_robustness
+from closure_nlp.criterion.robustness import has_tolerance, row_shifts, with_robustness
 from closure_nlp.criterion.support_minimum import (
     Certificate,
     SolverStats,
@@ -154,6 +154,7 @@ class Eligibility:
         self.tolerance = tolerance  # None: each element's own
         self._vertex_G = [e.grasp_matrices(self.torque_scale) for e in model.elements]
         self._all: dict[ContactSpec, WrenchSlots] = {}
+        self._shifts: dict[ContactSpec, np.ndarray] = {}
 
     @property
     def evaluations(self) -> int:
@@ -266,14 +267,40 @@ class Eligibility:
             elements, r.rho, r.force_closure, r.direction, r.stats, **certificate_of(r)
         )
 
-    def element_values(self, spec_index: int, u: np.ndarray) -> np.ndarray:
-        """``max_j p_{W_ij}(u)`` of every element of the model for contact ``spec_index``: (n,)."""
-        spec = self.specs[spec_index]
+    def _every_element(self, spec: ContactSpec) -> WrenchSlots:
+        """One slot per element of the model for a contact of ``spec``."""
         if spec not in self._all:
             self._all[spec] = WrenchSlots.build(
                 (G, spec.type, spec.mu, spec.mu_s, spec.f_max) for G in self._vertex_G
             )
-        return self._all[spec].slot_values(np.asarray(u, dtype=float)[None])[0]
+        return self._all[spec]
+
+    def element_values(self, spec_index: int, u: np.ndarray) -> np.ndarray:
+        """``max_j p_{W_ij}(u)`` of every element of the model for contact ``spec_index``: (n,)."""
+        slots = self._every_element(self.specs[spec_index])
+        return slots.slot_values(np.asarray(u, dtype=float)[None])[0]
+
+    def element_shifts(self, spec_index: int) -> np.ndarray:
+        """How far a contact ``spec_index`` on each element can move the support function
+        within its tolerance (:func:`~closure_nlp.criterion.robustness.support_shift` of that
+        one slot): (n,), zeros without a tolerance."""
+        spec = self.specs[spec_index]
+        if spec not in self._shifts:
+            slots = self._every_element(spec)
+            tolerance = self.tolerance
+            if tolerance is None:  # each element's own
+                tolerance = tuple(e.tolerance for e in self.model.elements)
+            shifts = np.zeros(slots.m)
+            if has_tolerance(tolerance):
+                shifts = np.maximum.reduceat(row_shifts(slots, tolerance), slots.starts)
+            self._shifts[spec] = shifts
+        return self._shifts[spec]
+
+    def shift(self, elements) -> float:
+        """The support shift of an element set (or its first contacts) within the tolerance:
+        the ``shift`` its certified result carries, a sum over its contacts, so selection can
+        steer by ``rho_hat + shift`` without a certificate."""
+        return float(sum(self.element_shifts(i)[e] for i, e in enumerate(elements)))
 
 
 def check_usable(model: Model, ids: tuple[int, ...], field: str) -> tuple[int, ...]:

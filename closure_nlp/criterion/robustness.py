@@ -89,6 +89,14 @@ def support_shift(slots, tolerance: ModelTolerance) -> float:
     return float(np.maximum.reduceat(shifts, slots.starts).sum())
 
 
+def robust_value(value: float, shift: float) -> float:
+    """What selection, placement and plans steer by: rho (or rho_hat, the search's value or the
+    certified ``hi``) plus the support shift within the tolerance, so that of two sets the one
+    with more capacity left within the tolerance wins; rho itself without a tolerance (shift
+    0). Certified (``hi + shift``) it is ``robust_rho``."""
+    return float(value) + float(shift)
+
+
 def is_robust(result, shift: float, unit: float, tolerances) -> bool:
     """Robust force closure: ``hi + shift`` below zero by more than the certificate's tolerance
     (``force_closure`` alone when ``shift`` is 0)."""
@@ -101,6 +109,112 @@ def is_robust(result, shift: float, unit: float, tolerances) -> bool:
     if bounds is None:
         return False
     return bounds[1] + shift < -tolerances.certify * unit
+
+
+def _bisect(robust_at, steps: int = 60) -> float:
+    """The largest factor in [0, 1] at which ``robust_at(factor)`` holds, to ``2**-steps``
+    (``robust_at`` holds at 0, fails at 1 and is monotone: shifts grow with the tolerance)."""
+    lo, hi = 0.0, 1.0
+    for _ in range(steps):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if robust_at(mid) else (lo, mid)
+    return lo
+
+
+def _scaled(tolerance: ModelTolerance, factor: float) -> ModelTolerance:
+    return ModelTolerance(tolerance.position * factor, tolerance.normal_deg * factor)
+
+
+def to_be_robust(contacts, bounds, tolerance=None, tolerances=None) -> dict | None:
+    """What would make a contact set that is force closure but not robust within its
+    tolerance robust: None when it is robust, has no tolerance or is not force closure (no
+    tolerance helps then).
+
+    Robust means ``hi + shift < -certify * unit`` (:func:`is_robust`), and the shift grows with
+    every tolerance, so the largest factor on them that keeps it is found by bisection on the
+    certified ``hi``: ``factor``, the share of every contact's tolerance at which the set would
+    be robust, and per contact its ``shift`` (what its tolerance costs) and the ``factor`` (and
+    ``tolerance``) its own tolerance alone would have to shrink to, the others' kept (None when
+    shrinking it alone cannot do); with one tolerance for every contact, ``tolerance_all`` is
+    that tolerance times ``factor``. ``costliest`` is the contact whose tolerance costs most.
+    ``tolerance``: default the contact set's own (one, or one per contact)."""
+    from closure_nlp.base.tolerances import DEFAULT_TOLERANCES
+    from closure_nlp.criterion.certificate import tolerance_unit
+
+    tolerances = tolerances or DEFAULT_TOLERANCES
+    slots = as_slots(contacts)
+    if tolerance is None:
+        tolerance = contacts.tolerance
+    if bounds is None or not has_tolerance(tolerance):
+        return None
+    if isinstance(tolerance, ModelTolerance):
+        tolerance = (tolerance,) * slots.m
+    need = -float(bounds[1]) - tolerances.certify * tolerance_unit(slots)
+    costs = np.maximum.reduceat(row_shifts(slots, tolerance), slots.starts)
+    if need <= 0.0 or costs.sum() < need:  # not force closure, or robust already
+        return None
+
+    def robust_with(shrunk) -> bool:
+        return float(np.maximum.reduceat(row_shifts(slots, shrunk), slots.starts).sum()) < need
+
+    factor = _bisect(lambda f: robust_with([_scaled(t, f) for t in tolerance]))
+    entries = []
+    for i, own in enumerate(tolerance):
+        alone = None
+        if own and costs.sum() - costs[i] < need:
+            alone = _bisect(
+                lambda f, i=i: robust_with(
+                    [_scaled(t, f) if k == i else t for k, t in enumerate(tolerance)]
+                )
+            )
+        entries.append(
+            {
+                "contact": i,
+                "shift": float(costs[i]),
+                "factor": alone,
+                "tolerance": None if alone is None else _scaled(own, alone).to_dict(),
+            }
+        )
+    same = all(t == tolerance[0] for t in tolerance)
+    return {
+        "factor": factor,
+        **({"tolerance_all": _scaled(tolerance[0], factor).to_dict()} if same else {}),
+        "shift": float(costs.sum()),
+        "allowed_shift": need,
+        "costliest": int(np.argmax(costs)),
+        "contacts": entries,
+    }
+
+
+def to_be_robust_text(advice: dict, elements=None, unit: str = "") -> str:
+    """:func:`to_be_robust`'s answer in words: the share of every tolerance that would do, and
+    the contact whose tolerance alone could shrink the least to do it (or the costliest)."""
+    name = (
+        (lambda i: f"contact {i}")
+        if elements is None
+        else (lambda i: f"contact {i} (element {elements[i]})")
+    )
+    text = f"robust if every contact's tolerance were {advice['factor']:.3g} of its own"
+    if "tolerance_all" in advice:  # one tolerance for every contact: say it in its units
+        t = advice["tolerance_all"]
+        text += f" (within {t['position']:.3g}{' ' + unit if unit else ''} and "
+        text += f"{t['normal_deg']:.3g} degrees)"
+    text += f" (shift {advice['shift']:.3g} against {advice['allowed_shift']:.3g} allowed)"
+    alone = [c for c in advice["contacts"] if c["factor"] is not None]
+    if alone:
+        best = max(alone, key=lambda c: c["factor"])
+        t = best["tolerance"]
+        text += (
+            f", or if {name(best['contact'])}'s alone were within {t['position']:.3g}"
+            f"{' ' + unit if unit else ''} and {t['normal_deg']:.3g} degrees"
+        )
+    else:
+        costliest = advice["contacts"][advice["costliest"]]
+        text += (
+            f"; {name(costliest['contact'])} costs most ({costliest['shift']:.3g}), and no "
+            "one contact's tolerance alone can do it"
+        )
+    return text
 
 
 def with_robustness(result, slots: WrenchSlots, tolerance: ModelTolerance, tolerances):
@@ -123,6 +237,9 @@ __all__ = [
     "ModelTolerance",
     "NO_TOLERANCE",
     "is_robust",
+    "robust_value",
+    "to_be_robust",
+    "to_be_robust_text",
     "row_shifts",
     "support_shift",
     "tolerance_from_dict",

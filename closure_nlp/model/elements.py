@@ -337,10 +337,8 @@ class Model:
         elements = tuple(_about(e, point) for e in elements)
         _check_sizes(elements)
         object.__setattr__(self, "elements", elements)
-        pairs = []
-        for k, pair in enumerate(self.adjacency):
-            pairs.append(_as_pair(pair, f"adjacency[{k}]", len(elements)))
-        object.__setattr__(self, "adjacency", tuple(pairs))
+        pairs = _as_pairs(self.adjacency, len(elements))
+        object.__setattr__(self, "adjacency", pairs)
         ids = {_as_id(e, f"unusable[{k}]", len(elements)) for k, e in enumerate(self.unusable)}
         unusable = tuple(sorted(ids))
         object.__setattr__(self, "unusable", unusable)
@@ -467,6 +465,31 @@ def _as_pair(pair, field: str, count: int) -> tuple[int, int]:
     if ids[0] == ids[1]:
         raise ValueError(f"{field}: an element is not its own neighbour ({ids[0]})")
     return ids[0], ids[1]
+
+
+def _as_pairs(adjacency, count: int) -> tuple[tuple[int, int], ...]:
+    """Every adjacency pair checked: at once when they are all pairs of plain ints (a model
+    read from a file or copied: thousands of pairs on a real mesh, checked one by one each time
+    a model is built, cost more than a one-seed plan's selection); otherwise, or when one is
+    bad, pair by pair, so that the error names it."""
+    pairs = list(adjacency)
+    plain = all(
+        type(p) in (list, tuple) and len(p) == 2 and type(p[0]) is int and type(p[1]) is int
+        for p in pairs
+    )
+    if plain and pairs:
+        try:
+            ids = np.array(pairs, dtype=np.int64)
+        except OverflowError:
+            ids = None
+        if (
+            ids is not None
+            and ids.min() >= 0
+            and ids.max() < count
+            and (ids[:, 0] != ids[:, 1]).all()
+        ):
+            return tuple((a, b) for a, b in pairs)
+    return tuple(_as_pair(pair, f"adjacency[{k}]", count) for k, pair in enumerate(pairs))
 
 
 def model_from_dict(data, base_dir=None, tolerances: Tolerances = DEFAULT_TOLERANCES) -> Model:

@@ -20,6 +20,10 @@ true support function instead (:class:`~closure_nlp.placement.sequential_lp.Exch
 
 Afterwards a contact whose optimum sits on its element's boundary may move into a neighbouring
 element sharing that boundary, if that raises the optimum ("occupied and adjacent areas").
+
+With a tolerance, every comparison (a round's weights, a start, a neighbour move, the start
+kept) is by rho plus the contacts' support shift within it (:meth:`ExchangePlacer.steering`):
+a contact moved onto a coarse element must gain more than its tolerance costs.
 """
 
 from __future__ import annotations
@@ -35,6 +39,7 @@ from closure_nlp.contact.contact_set import ContactSet, friction_pieces, is_fric
 from closure_nlp.contact.count import require_closure_count
 from closure_nlp.contact.wrenches import WrenchSlots, pad_rows
 from closure_nlp.criterion.rho_hat import Eligibility
+from closure_nlp.criterion.robustness import has_tolerance, robust_value, support_shift
 from closure_nlp.criterion.sphere_search import sphere_samples
 from closure_nlp.criterion.support_minimum import SearchOptions, rho, search_rho
 from closure_nlp.model.elements import nearest_weights, simplex_weights
@@ -237,6 +242,18 @@ class ExchangePlacer:
             self.eligibility.contact_tolerance(elements),
         )
 
+    def steering(self, contacts: ContactSet | WrenchSlots, found, tolerance=None) -> float:
+        """What placement steers by: ``found.rho`` plus the support shift of ``contacts``
+        within their tolerance (``tolerance``, default the contact set's own); rho itself
+        without one; the objective's value (minus the least load factor) when steering by loads."""
+        if self.objective is not None:
+            return found.rho
+        if tolerance is None:
+            tolerance = contacts.tolerance
+        if not has_tolerance(tolerance):
+            return found.rho
+        return robust_value(found.rho, support_shift(contacts, tolerance))
+
     def optimise(
         self,
         elements,
@@ -271,6 +288,7 @@ class ExchangePlacer:
         f_max = np.array([spec.f_max for spec in specs])
         best_w = [np.asarray(w, float) for w in weights]
         best = initial or self._search(self.contact_set(elements, best_w), minimizer)
+        tolerance = self.eligibility.contact_tolerance(elements)
         if self.objective is not None:  # each case's directions u / u.w
             U, directions = self.objective.directions(self.options.random_directions), None
         else:
@@ -284,6 +302,7 @@ class ExchangePlacer:
         c_best, radius, predicted = [_padded(w, k) for w, k in zip(best_w, rows)], 0.5, np.inf
         rounds = 0
         at_best = WrenchSlots.from_contacts(self.contact_set(elements, best_w))
+        best_value = self.steering(at_best, best, tolerance)
         limit = max_rounds or self.options.max_rounds
         checked = True  # best's value is the default search's (a start's, or validated)
         # "slp-ipopt": the sequential LP's rounds while they pay off; from the first one that
@@ -319,11 +338,15 @@ class ExchangePlacer:
                     # the full search it was meant to spare
                     found = search_rho(trial_slots, minimizer=light, warm_start=warm)
                     warm = found.direction
-                if self.objective is None and (not self.options.screen or found.rho < best.rho):
+                if self.objective is None and (
+                    not self.options.screen
+                    or self.steering(trial_slots, found, tolerance) < best_value
+                ):
                     found = search_rho(trial_slots, minimizer=judge, warm_start=warm)
                 U.append(found.direction)
-                if found.rho < best.rho:
-                    best, best_w, c_best, at_best = found, w, c, trial_slots
+                value = self.steering(trial_slots, found, tolerance)
+                if value < best_value:
+                    best, best_w, c_best, at_best, best_value = found, w, c, trial_slots, value
                     radius = min(1.0, 2.0 * radius)
                     checked = False
                 elif sequential and solver == "slp-ipopt":
@@ -337,12 +360,13 @@ class ExchangePlacer:
             # The exchange keeps the weights that the round search values lowest, so it seeks
             # out that search's misses: before the run ends, the default search checks the
             # best weights, and a weaker direction it finds resumes the run from the truer value.
-            if checked or not self.options.validate or best.rho >= bar or self.objective:
+            if checked or not self.options.validate or best_value >= bar or self.objective:
                 break
             again, checked = self._validated(at_best, best), True
             if again is best:
                 break
             best, radius = again, 0.5
+            best_value = self.steering(at_best, best, tolerance)
             U.append(best.direction)
         if directions is not None:
             directions += U[first_found:]
@@ -376,22 +400,25 @@ class ExchangePlacer:
         )
         if progress:
             progress("placement start", 1, best.rho)
+        best_value = self._value(elements, best_w, best)
         for k in range(1, self.options.starts + self.options.extra_starts):
             if k == self.options.starts and probe:
                 best_w, best, predicted, n_rounds = self.optimise(
                     elements, best_w, progress, best, None, shared
                 )
                 rounds += n_rounds
+                best_value = self._value(elements, best_w, best)
             if k >= self.options.starts and best.force_closure:
                 break  # extra starts only while no start has reached force closure
             trial = [rng.dirichlet(np.ones(k)) for k in counts]
             limit = probe if k < self.options.starts else None
             w, found, up, n_rounds = self.optimise(
-                elements, trial, progress, None, limit, shared, bar=best.rho, explore=True
+                elements, trial, progress, None, limit, shared, bar=best_value, explore=True
             )
             rounds += n_rounds
-            if found.rho < best.rho:
-                best_w, best, predicted = w, found, up
+            value = self._value(elements, w, found)
+            if value < best_value:
+                best_w, best, predicted, best_value = w, found, up, value
             if progress:
                 progress("placement start", k + 1, best.rho)
         if probe and self.options.extra_starts == 0:  # the loop above never reached k == starts
@@ -401,7 +428,8 @@ class ExchangePlacer:
             rounds += n_rounds
         moves = []
         for _ in range(self.options.neighbour_moves):
-            move, n_rounds = self._try_moves(elements, best_w, best, progress, shared)
+            best_value = self._value(elements, best_w, best)
+            move, n_rounds = self._try_moves(elements, best_w, best, best_value, progress, shared)
             rounds += n_rounds
             if move is None:
                 break
@@ -423,9 +451,13 @@ class ExchangePlacer:
             start = rho(start_set, minimizer=self.eligibility.minimizer)  # its rho, reported
         warm = None if self.objective is not None else best.direction  # a load's is not unit
         final = rho(contact_set, minimizer=self.eligibility.minimizer, warm_start=warm)
-        if self.objective is None and final.rho > start.rho:
+        if self.objective is None and self.steering(contact_set, final) > self.steering(
+            start_set, start
+        ):
             start = rho(start_set, minimizer=self.eligibility.minimizer)
-        if self.objective is None and final.rho > start.rho:
+        if self.objective is None and self.steering(contact_set, final) > self.steering(
+            start_set, start
+        ):
             # The exchange steered by the search's values, which can miss; certified, the start
             # is better: keep it, so that the result is never worse than the start it reports.
             elements, best_w, moves, contact_set, final = (
@@ -461,15 +493,20 @@ class ExchangePlacer:
         )
         return result
 
+    def _value(self, elements, weights, found) -> float:
+        """:meth:`steering` of the contacts at ``weights`` on ``elements``."""
+        return self.steering(self.contact_set(elements, weights), found)
+
     def _validated(self, slots: WrenchSlots, found):
         """``found`` (a round search's result on ``slots``), or the weaker answer of the
         eligibility's own search (the starts' search: more samples and IPOPT runs)."""
         again = search_rho(slots, minimizer=self.eligibility.minimizer, warm_start=found.direction)
         return again if again.rho > found.rho else found
 
-    def _try_moves(self, elements, weights, best, progress=None, directions=None):
-        """The first neighbour move (contact on its element's boundary) that lowers rho, or
-        None; and the exchange rounds spent on the trials."""
+    def _try_moves(self, elements, weights, best, best_value, progress=None, directions=None):
+        """The first neighbour move (contact on its element's boundary) that lowers the
+        steering value (:meth:`steering`, ``best_value`` now), or None; and the exchange rounds
+        spent on the trials."""
         model = self.eligibility.model
         tol = self.eligibility.minimizer.tolerances.geometry
         spent = 0
@@ -486,8 +523,8 @@ class ExchangePlacer:
                     continue  # the neighbour does not touch this contact
                 trial = list(elements)
                 trial[i] = n
-                margin = self.options.gap * max(1.0, abs(best.rho))
-                if self._cannot_beat(trial, best, margin):
+                margin = self.options.gap * max(1.0, abs(best_value))
+                if self._cannot_beat(trial, best_value - margin, best.direction):
                     continue
                 trial_w = list(weights)
                 trial_w[i] = w_n
@@ -499,11 +536,11 @@ class ExchangePlacer:
                     None,
                     probe,
                     directions,
-                    bar=best.rho - margin,
+                    bar=best_value - margin,
                     explore=True,
                 )
                 spent += n_rounds
-                if found.rho < best.rho - margin:
+                if self._value(trial, w_new, found) < best_value - margin:
                     if probe:  # a move that helps runs on to the full budget
                         w_new, found, up, more = self.optimise(
                             trial, w_new, progress, found, None, directions
@@ -512,20 +549,21 @@ class ExchangePlacer:
                     return (i, n, w_new, found, up), spent
         return None, spent
 
-    def _cannot_beat(self, elements, best, margin: float) -> bool:
-        """Whether no placement on ``elements`` can have rho below ``best.rho - margin``.
+    def _cannot_beat(self, elements, bar: float, direction) -> bool:
+        """Whether no placement on ``elements`` can have a steering value below ``bar``.
 
         Any placement's support function is at most the elements' (What_c^M holds every
-        placement's W_c^M), so one direction ``u`` with ``-p_hat(u) >= best.rho - margin``
-        proves it (rho >= -p(u) >= -p_hat(u)): a light search for a weak direction of the
-        elements, from the placement's own, is enough, and it never rules out a trial wrongly.
-        A trial ruled out skips its exchange run, most of a neighbour move's cost.
+        placement's W_c^M), so one direction ``u`` with ``-p_hat(u) >= bar`` proves it (rho +
+        shift >= rho >= -p(u) >= -p_hat(u), the shift never negative): a light search for a
+        weak direction of the elements, from the placement's own (``direction``), is enough,
+        and it never rules out a trial wrongly. A trial ruled out skips its exchange run, most
+        of a neighbour move's cost.
         """
-        bar = best.rho - margin  # the search may stop as soon as it shows rho >= bar
         if self.objective is not None:  # no placement holds more than the elements do
             return -self.objective.upper_bound(self.eligibility.slots(elements)) >= bar
         minimizer = self.eligibility.minimizer.with_search(SCREEN_SEARCH)
-        found = minimizer(self.eligibility.slots(elements), best.direction, -bar)
+        # the search may stop as soon as it shows rho >= bar
+        found = minimizer(self.eligibility.slots(elements), direction, -bar)
         return -found.value >= bar
 
 

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from closure_nlp.contact.contact_set import ContactSet
+from closure_nlp.criterion.robustness import to_be_robust, to_be_robust_text
 from closure_nlp.criterion.support_minimum import certificate_keys, robust_rho
 
 
@@ -132,7 +133,25 @@ class PlacementResult:
         """The capacity left within the tolerance, certified (``hi + shift``)."""
         return robust_rho(self)
 
+    def to_be_robust_text(self, unit: str = "") -> str:
+        """:meth:`to_be_robust` in words (empty when there is nothing to say)."""
+        advice = self.to_be_robust()
+        return "" if advice is None else to_be_robust_text(advice, self.elements, unit)
+
+    def to_be_robust(self) -> dict | None:
+        """What would make these contacts robust when they are force closure but not robust
+        (:func:`~closure_nlp.criterion.robustness.to_be_robust`, each contact's entry with its
+        ``element``); None otherwise."""
+        if self.robust is not False or not self.force_closure:
+            return None
+        advice = to_be_robust(self.contact_set, self.bounds)
+        if advice is not None:
+            for entry, placed in zip(advice["contacts"], self.contacts):
+                entry["element"] = placed.element
+        return advice
+
     def to_dict(self) -> dict:
+        advice = self.to_be_robust()
         return {
             "contacts": [c.to_dict() for c in self.contacts],
             "rho": self.rho,
@@ -146,6 +165,7 @@ class PlacementResult:
             "exchange_solver": self.exchange_solver,
             **certificate_keys(self),
             **self.bound_keys(),
+            **({} if advice is None else {"to_be_robust": advice}),
         }
 
     def bound_keys(self) -> dict:

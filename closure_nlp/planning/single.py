@@ -18,6 +18,7 @@ from closure_nlp.base.progress import Progress
 from closure_nlp.base.solver_cache import cached
 from closure_nlp.base.validation import is_whole
 from closure_nlp.criterion.rho_hat import Eligibility
+from closure_nlp.criterion.robustness import robust_value
 from closure_nlp.placement import ceiling
 from closure_nlp.placement.place import Placer
 from closure_nlp.placement.result import PlacementResult
@@ -163,7 +164,7 @@ def _held(result: PlacementResult) -> bool:
 def _robust_value(result: PlacementResult) -> float:
     """rho plus the support shift within the model's tolerance (rho without one): what the
     plan steers by, so that a robust placement wins over a merely force-closure one."""
-    return result.rho + result.shift
+    return robust_value(result.rho, result.shift)
 
 
 # Results one memo keeps (least recently used dropped first): a few KB each (pickled, 3.6 KB
@@ -308,8 +309,9 @@ def _alternatives(eligibility, seed, selection, second, recall: _Recall):
 
 def _pool(pool, run: SelectionResult, eligibility: Eligibility) -> list:
     """``pool`` with ``run``'s evaluated and screened sets, (elements, value, proven), lowest
-    value first; its unfinished sets (full searches stopped once they could not win) get their
-    full value now, from the same start, so they rank as if never stopped; its unranked sets
+    value plus the set's support shift within the tolerance first; its unfinished sets (full
+    searches stopped once they could not win) get their full value now, from the same start,
+    so they rank as if never stopped; its unranked sets
     (screens stopped once they could not win) get their light value now, from the screen's
     start: the value it would have given, so they rank as before."""
     finished = []
@@ -326,7 +328,7 @@ def _pool(pool, run: SelectionResult, eligibility: Eligibility) -> list:
             unproven.append((value, tuple(elements)))
     # equal values (symmetric parts have many) in the order of the elements
     pool += [(e, v, False) for v, e in sorted(unproven)]
-    return sorted(pool, key=lambda item: item[1])
+    return sorted(pool, key=lambda item: robust_value(item[1], eligibility.shift(item[0])))
 
 
 __all__ = [

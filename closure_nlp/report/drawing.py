@@ -129,7 +129,10 @@ def draw_model(
     contact_label : str
         Legend entry of ``contacts``.
 
-    Contacts are drawn last and above everything else, so no facet hides them.
+    Contacts are drawn last and above everything else, so no facet hides them; a contact whose
+    surface faces away from the viewer (on the far side of the part) is drawn hollow, with a
+    dashed arrow. The chosen elements are outlined (facets), drawn thick (segments) or ringed
+    (points) in the highlight colour, so the part stays visible under them.
 
     Returns
     -------
@@ -144,6 +147,7 @@ def draw_model(
         raise ValueError(f"up: expected x, y or z, got {up!r}")
     ax._closure_axes = UP_AXES[up]  # every later drawing call on ax shows the same axis up
     ax.computed_zorder = False  # draw in call order: contacts last, on top
+    ax._closure_view = view  # contacts drawn on ax later tell front from back by it
     chosen = {model.check_id(i, "highlight") for i in highlight}
     bad = {model.check_id(i, "marked") for i in marked}
     if show_mesh:
@@ -201,7 +205,10 @@ def update_legend(ax, model: Model | None = None, chosen=(), marked=()) -> None:
                 counts["point"],
                 Line2D([], [], color=POINT_COLOUR, marker="o", ls="", ms=3, label="points"),
             ),
-            (len(chosen), Patch(facecolor=HIGHLIGHT_COLOUR, label="chosen elements")),
+            (
+                len(chosen),
+                Patch(facecolor="none", edgecolor=HIGHLIGHT_COLOUR, lw=2, label="chosen elements"),
+            ),
             (len(marked), Patch(facecolor=MARKED_COLOUR, label="normal out of the mesh")),
             (len(model.unusable), Patch(facecolor=UNUSABLE_COLOUR, label="no contact here")),
             (1, Line2D([], [], color="black", marker="x", ls="", label="reference point")),
@@ -242,6 +249,12 @@ def _colour(i: int, base, chosen: set[int], marked: set[int], unusable=frozenset
     return UNUSABLE_COLOUR if i in unusable else base
 
 
+def _eye(elev: float, azim: float) -> np.ndarray:
+    """Unit direction from the part to matplotlib's eye for (elev, azim), in drawn axes."""
+    e, a = np.radians(elev), np.radians(azim)
+    return np.array([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)])
+
+
 def _draw_facets(ax, model: Model, chosen: set[int], marked: set[int] = frozenset()) -> None:
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
@@ -250,19 +263,21 @@ def _draw_facets(ax, model: Model, chosen: set[int], marked: set[int] = frozense
         return
     normals = np.array([model.elements[i].inward_normal for i in ids])
     unusable = set(model.unusable)
+    # chosen facets keep their fill and get a thick outline: a filled highlight hid the part
     colours = np.array(
         [
-            _shade(n[None], _colour(i, FACET_COLOUR, chosen, marked, unusable))[0]
+            _shade(n[None], _colour(i, FACET_COLOUR, set(), marked, unusable))[0]
             for i, n in zip(ids, normals)
         ]
     )
     polygons = [_shown(ax, model.elements[i].vertices) for i in ids]
+    picked = [i in chosen and i not in marked for i in ids]
     ax.add_collection3d(
         Poly3DCollection(
             polygons,
             facecolors=np.c_[colours, np.full(len(ids), 0.9)],
-            edgecolors="#33415c",
-            linewidths=0.5,
+            edgecolors=[HIGHLIGHT_COLOUR if p else "#33415c" for p in picked],
+            linewidths=[2.4 if p else 0.5 for p in picked],
         )
     )
 
@@ -285,10 +300,21 @@ def _draw_points(ax, model: Model, chosen: set[int]) -> None:
     if not ids:
         return
     pts = _shown(ax, np.array([model.elements[i].vertices[0] for i in ids]))
+    picked = np.array([i in chosen for i in ids])
+    plain = ~picked
     unusable = set(model.unusable)
-    colours = np.array([_colour(i, POINT_COLOUR, chosen, set(), unusable) for i in ids])
-    sizes = [30.0 if i in chosen else 6.0 for i in ids]
-    ax.scatter(pts[:, 0], pts[:, 1], pts[:, 2], c=colours, s=sizes, depthshade=False)
+    colours = np.array([_colour(i, POINT_COLOUR, set(), set(), unusable) for i in ids])
+    if plain.any():
+        ax.scatter(*pts[plain].T, c=colours[plain], s=6.0, depthshade=False)
+    if picked.any():  # a ring around each chosen point
+        ax.scatter(
+            *pts[picked].T,
+            s=30.0,
+            facecolors="none",
+            edgecolors=HIGHLIGHT_COLOUR,
+            linewidths=1.6,
+            depthshade=False,
+        )
 
 
 def draw_contacts(
@@ -313,6 +339,10 @@ def draw_contacts(
         Size of the object; arrows are ``0.15 * scale`` long unless ``arrow_length`` is given.
     label : str, optional
         Legend entry (the legend is redrawn with it); drawn above everything drawn before.
+
+    On axes from :func:`draw_model`, a contact whose inward normal points towards the viewer
+    (its surface faces away: the far side of the part) is drawn hollow with a dashed arrow,
+    before the near ones.
     """
     pos, nrm = contact_arrays(contacts)
     if len(pos) == 0:
@@ -321,32 +351,34 @@ def draw_contacts(
     sizes = np.broadcast_to(np.asarray(sizes, dtype=float), (len(pos),))
     length = 0.15 * scale if arrow_length is None else arrow_length
     tails = pos - length * nrm
-    ax.quiver(
-        tails[:, 0],
-        tails[:, 1],
-        tails[:, 2],
-        nrm[:, 0],
-        nrm[:, 1],
-        nrm[:, 2],
-        length=length,
-        normalize=True,
-        color=colour,
-        linewidth=1.6,
-        arrow_length_ratio=0.3,
-        zorder=30,
-    )
-    ax.scatter(
-        pos[:, 0],
-        pos[:, 1],
-        pos[:, 2],
-        s=sizes,
-        c=colour,
-        edgecolors="black",
-        linewidths=0.5,
-        depthshade=False,
-        alpha=1.0,
-        zorder=31,
-    )
+    view = getattr(ax, "_closure_view", None)
+    far = np.zeros(len(pos), bool) if view is None else nrm @ _eye(*view) > 0.0
+    for side in (far, ~far):  # the far side first, the near side over it
+        if not side.any():
+            continue
+        back = side is far
+        ax.quiver(
+            *tails[side].T,
+            *nrm[side].T,
+            length=length,
+            normalize=True,
+            color=colour,
+            linewidth=1.2 if back else 1.6,
+            linestyle="--" if back else "-",
+            alpha=0.6 if back else 1.0,
+            arrow_length_ratio=0.3,
+            zorder=30,
+        )
+        ax.scatter(
+            *pos[side].T,
+            s=sizes[side],
+            c="white" if back else colour,
+            edgecolors=colour if back else "black",
+            linewidths=1.4 if back else 0.5,
+            depthshade=False,
+            alpha=1.0,
+            zorder=31,
+        )
     if label:
         from matplotlib.lines import Line2D
 
@@ -361,7 +393,7 @@ def draw_contacts(
             ms=size / 1.6,
             ls="-",
             lw=1.2,
-            label=f"{label} (arrow: inward normal)",
+            label=f"{label} (arrow: inward normal" + ("; hollow: far side)" if far.any() else ")"),
         )
         ax._closure_legend = entries
         if ax.get_legend() is not None:

@@ -101,7 +101,8 @@ def summary_markdown(model, result: PlanResult, options: dict) -> str:
         held = "robust" if pl.robust else "NOT robust"
         rows += [
             f"Within the model's tolerance the placement is {held} (the support function may "
-            f"move {pl.shift:.3g}).",
+            f"move {pl.shift:.3g})."
+            + (f" It would be {pl.to_be_robust_text(model.units)}." if not pl.robust else ""),
             "",
         ]
     if pl.capacity_bound is not None:

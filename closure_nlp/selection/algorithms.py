@@ -1,6 +1,8 @@
 """Selecting eligible elements: the heuristic and the iterative algorithms (paper section 5).
 
-Both steer by rho_hat = rho(0, What_c^M) (:mod:`closure_nlp.criterion.rho_hat`). The heuristic grows
+Both steer by rho_hat = rho(0, What_c^M) (:mod:`closure_nlp.criterion.rho_hat`), plus the support
+shift of the set within the tolerance when there is one (:meth:`Eligibility.shift`): the robust
+value, so that a set of exact elements wins over one of coarse facets. The heuristic grows
 a set from ``i0`` random (or given) elements, each time adding the element whose best vertex
 wrench lies furthest along ``u*``, the direction that separates the current set from the origin
 (or its weakest side once the set is eligible). The iterative algorithm swaps one element at a time
@@ -25,6 +27,7 @@ from closure_nlp.criterion.rho_hat import (
     check_usable,
     element_set_keys,
 )
+from closure_nlp.criterion.robustness import robust_value
 from closure_nlp.criterion.support_minimum import SearchOptions, signed_distance
 
 # The light search that ranks the iterative algorithm's neighbours: few samples, one IPOPT run.
@@ -102,7 +105,8 @@ class SelectionResult:
         counted in ``evaluations``.
     eligible_sets : tuple of (tuple of int, float)
         Iterative algorithm: the other eligible sets it evaluated and their rho_hat, lowest
-        first (the next candidates when placement on the result fails).
+        steering value (rho_hat plus the tolerance's shift) first (the next candidates when
+        placement on the result fails).
     candidate_sets : tuple of (tuple of int, float)
         Iterative algorithm: neighbour sets the light search ranked but the run never fully
         evaluated, with light values below zero, lowest first. A light value is never above the
@@ -204,14 +208,16 @@ def heuristic(
         found = eligibility(chosen, partial=True, certify=len(chosen) == m)
         history.append((0, found.rho_hat))
         while len(chosen) < m:
+            # an element's support value along u*, less what its tolerance may take from it
             values = eligibility.element_values(len(chosen), found.direction)
+            values -= eligibility.element_shifts(len(chosen))
             values[~eligibility.model.usable] = -np.inf
             chosen.append(int(np.argmax(values)))
             found = eligibility(chosen, found.direction, partial=True, certify=len(chosen) == m)
             history.append((len(history), found.rho_hat))
             if progress:
                 progress("heuristic", len(history) - 1, found.rho_hat)
-        if best is None or found.rho_hat < best[0].rho_hat:
+        if best is None or steering(eligibility, found) < steering(eligibility, best[0]):
             best = (found, history)
         if found.eligible:
             break
@@ -237,6 +243,12 @@ def _certified_result(eligibility, best, history, evaluations0, t0, **extra) -> 
         converged=best.converged,
         **extra,
     )
+
+
+def steering(eligibility: Eligibility, found) -> float:
+    """The value selection steers by: rho_hat plus the set's support shift within the
+    tolerance (rho_hat without one)."""
+    return robust_value(found.rho_hat, eligibility.shift(found.elements))
 
 
 def light_rho_hat(eligibility: Eligibility, elements, warm, stop_below=None):
@@ -277,32 +289,39 @@ def iterative(
     # their full rho_hat and at or above every later bar, elements, the search's start)
     unfinished: dict[tuple, tuple[float, tuple[int, ...], np.ndarray]] = {}
 
+    def value(found) -> float:
+        return steering(eligibility, found)
+
     def evaluate(elements, warm, stop_above=None):
-        """The full search's result, or None when ``stop_above`` (< 0) is given and the search
-        showed rho_hat at or above it (the set cannot win: the step's choice is the same)."""
+        """The full search's result, or None when ``stop_above`` (a steering value) is given
+        and the search showed the set's value at or above it (the set cannot win: the step's
+        choice is the same). The search stops early only below zero (rho_hat < 0)."""
         key = _multiset(eligibility, elements)
         if key not in seen:
-            found = eligibility(elements, warm, certify=False, stop_above=stop_above)
-            if stop_above is not None and found.rho_hat >= stop_above:
-                unfinished[key] = (found.rho_hat, tuple(elements), warm)
+            shift = eligibility.shift(elements)
+            stop = None if stop_above is None or stop_above - shift >= 0 else stop_above - shift
+            found = eligibility(elements, warm, certify=False, stop_above=stop)
+            if stop is not None and found.rho_hat >= stop:
+                unfinished[key] = (found.rho_hat + shift, tuple(elements), warm)
                 return None
             seen[key] = found
         return seen[key]
 
     def screen(elements, warm, bar) -> tuple[float, np.ndarray]:
-        """A value never above the full rho_hat (see :class:`SelectionOptions`); the search
-        stops once it shows the value at or above ``bar`` (the set cannot win then, nor later,
-        when the bar is lower)."""
+        """A steering value never above the full one (see :class:`SelectionOptions`); the
+        search stops once it shows the value at or above ``bar`` (the set cannot win then, nor
+        later, when the bar is lower)."""
         key = _multiset(eligibility, elements)
         if key in seen:
-            return seen[key].rho_hat, seen[key].direction
+            return value(seen[key]), seen[key].direction
         if key in unfinished:  # at or above every later bar: ranks past the break, as before
             return unfinished[key][0], screened[key][1]
+        shift = eligibility.shift(elements)
         if key not in screened:
-            value, direction = light_rho_hat(eligibility, elements, warm, stop_below=-bar)
-            stopped = warm if value >= bar else None
-            screened[key] = (value, direction, tuple(elements), stopped)
-        return screened[key][:2]
+            light, direction = light_rho_hat(eligibility, elements, warm, stop_below=shift - bar)
+            stopped = warm if light >= bar - shift else None
+            screened[key] = (light, direction, tuple(elements), stopped)
+        return screened[key][0] + shift, screened[key][1]
 
     best = evaluate(current, None)
     history = [(0, best.rho_hat)]
@@ -316,53 +335,55 @@ def iterative(
         step += 1
         i = (i + 1) % m
         candidate = None
-        margin = options.descent * max(1.0, abs(best.rho_hat))
+        margin = options.descent * max(1.0, abs(value(best)))
         trials = []
         for neighbour in eligibility.model.neighbours(current[i]):
             trial = current.copy()
             trial[i] = neighbour
             trials.append(trial)
         if options.screen:
-            bar = best.rho_hat - margin
+            bar = value(best) - margin
             ranked = sorted(
                 ((*screen(trial, best.direction, bar), trial) for trial in trials),
                 key=lambda item: item[0],
             )
-            for value, direction, trial in ranked:
+            for light, direction, trial in ranked:
                 # values only rise along the ranking, and a full value is never below its own
-                if value >= best.rho_hat - margin:
+                if light >= bar:
                     break
-                if candidate is not None and value >= candidate.rho_hat:
+                if candidate is not None and light >= value(candidate):
                     break
                 # only a value below the bar and the candidate's can change the step's choice
-                stop = bar if candidate is None else min(bar, candidate.rho_hat)
-                found = evaluate(trial, direction, stop if stop < 0 else None)
-                if found is not None and (candidate is None or found.rho_hat < candidate.rho_hat):
+                stop = bar if candidate is None else min(bar, value(candidate))
+                found = evaluate(trial, direction, stop)
+                if found is not None and (candidate is None or value(found) < value(candidate)):
                     candidate = found
         else:
             for trial in trials:
                 found = evaluate(trial, best.direction)
-                if candidate is None or found.rho_hat < candidate.rho_hat:
+                if candidate is None or value(found) < value(candidate):
                     candidate = found
-        if candidate is not None and candidate.rho_hat < best.rho_hat - margin:
+        if candidate is not None and value(candidate) < value(best) - margin:
             best, current, count = candidate, list(candidate.elements), 0
         else:
             count += 1
         history.append((step, best.rho_hat))
         if progress:
             progress("iterative", step, best.rho_hat)
-    others = sorted((r.rho_hat, r.elements) for r in seen.values() if r.eligible and r is not best)
+    others = sorted(
+        (value(r), r.rho_hat, r.elements) for r in seen.values() if r.eligible and r is not best
+    )
     unproven = sorted(
-        (value, elements)
-        for key, (value, _, elements, stopped) in screened.items()
-        if key not in seen and key not in unfinished and value < 0 and stopped is None
+        (light, elements)
+        for key, (light, _, elements, stopped) in screened.items()
+        if key not in seen and key not in unfinished and light < 0 and stopped is None
     )
     # a stopped screen's value is below the light one (never above the full rho_hat): >= 0
     # proves the set is not eligible; below, it could be, and cannot be ranked by that value
     unranked = tuple(
         (elements, stopped)
-        for key, (value, _, elements, stopped) in screened.items()
-        if key not in seen and key not in unfinished and value < 0 and stopped is not None
+        for key, (light, _, elements, stopped) in screened.items()
+        if key not in seen and key not in unfinished and light < 0 and stopped is not None
     )
     return _certified_result(
         eligibility,
@@ -370,8 +391,8 @@ def iterative(
         history,
         evaluations0,
         t0,
-        eligible_sets=tuple((elements, value) for value, elements in others),
-        candidate_sets=tuple((elements, value) for value, elements in unproven),
+        eligible_sets=tuple((elements, rho_hat) for _, rho_hat, elements in others),
+        candidate_sets=tuple((elements, light) for light, elements in unproven),
         screened=len(screened),
         unranked_sets=unranked,
         unfinished_sets=tuple((elements, warm) for _, elements, warm in unfinished.values()),
