@@ -13,6 +13,7 @@ def add_eligibility(sub, common) -> None:
     p = arguments.model_parser(
         sub, common, "eligibility", "rho(0, What_c^M) of element sets", "elements"
     )
+    arguments.add_fixed_option(p)
     arguments.add_contact_options(p)
     p.set_defaults(run=cmd_eligibility)
 

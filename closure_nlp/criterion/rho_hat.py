@@ -35,6 +35,7 @@ from closure_nlp.criterion.support_minimum import (
     timing_keys,
 )
 from closure_nlp.model.elements import Model
+from closure_nlp.model.fixed_contacts import fixed_contacts
 from closure_nlp.model.regions import excluded_elements, marked_unusable
 from closure_nlp.model.scale import AUTO, auto_torque_scale
 
@@ -119,6 +120,11 @@ class Eligibility:
         ``"facing:+z:10"``, ``"box:X0,Y0,Z0,X1,Y1,Z1"`` or a list of ids): the elements outside
         every ``only`` region, or inside an ``exclude`` one, are used by no step of selection or
         placement (:attr:`excluded`). The automatic torque scale stays the whole part's.
+    fixed : contact-set file, ContactSet or contacts, optional
+        Contacts already in place, in the model's frame and units (:attr:`fixed`, a
+        :class:`~closure_nlp.model.fixed_contacts.FixedContacts`): every element set's wrench
+        set holds them too, each with its own type, mu, mu_s and f_max, and no step moves
+        them; ``specs`` are the new contacts only. ``ValueError`` when one is off the part.
     """
 
     def __init__(
@@ -131,6 +137,7 @@ class Eligibility:
         *,
         only=None,
         exclude=None,
+        fixed=None,
     ):
         if not isinstance(model, Model):
             raise TypeError(f"model: expected a Model, got {type(model).__name__}")
@@ -154,6 +161,13 @@ class Eligibility:
         self.tolerance = tolerance  # None: each element's own
         self._vertex_G = [e.grasp_matrices(self.torque_scale) for e in model.elements]
         self._all: dict[ContactSpec, WrenchSlots] = {}
+        self.fixed = fixed_contacts(model, fixed)
+        self._fixed_G = [e.grasp_matrices(self.torque_scale) for e in self.fixed.elements]
+
+    @property
+    def all_specs(self) -> tuple[ContactSpec, ...]:
+        """The fixed contacts' specs, then the new ones': what the count checks count."""
+        return self.fixed.specs + self.specs
 
     @property
     def evaluations(self) -> int:
@@ -177,32 +191,37 @@ class Eligibility:
         return check_usable(self.model, ids, field)
 
     def slots(self, elements) -> WrenchSlots:
-        """The slots of What_c^M: contact ``i`` on element ``elements[i]``, one row per vertex."""
+        """The slots of What_c^M: contact ``i`` on element ``elements[i]``, one row per vertex,
+        and the fixed contacts, one row each."""
         rows = [
-            (self._vertex_G[e], spec.type, spec.mu, spec.mu_s, spec.f_max)
-            for spec, e in zip(self.specs, elements)
+            (G, spec.type, spec.mu, spec.mu_s, spec.f_max)
+            for spec, G in zip(self.all_specs, self._all_G(elements))
         ]
         return WrenchSlots.build([rows[i] for i in self._slot_order(elements)])
 
+    def _all_G(self, elements) -> list[np.ndarray]:
+        """The vertex grasp matrices of the fixed contacts, then of ``elements``."""
+        return self._fixed_G + [self._vertex_G[e] for e in elements]
+
     def _slot_order(self, elements) -> list[int]:
-        """The contacts in the order of their slots. rho_hat does not depend on the slots'
-        order: sorted by NLP size and type, the sets that differ only by order share one NLP
-        shape (the solver cache holds each shape once)."""
-        specs, vertices = self.specs, [len(self._vertex_G[e]) for e in elements]
+        """The contacts (fixed ones first) in the order of their slots. rho_hat does not
+        depend on the slots' order: sorted by NLP size and type, the sets that differ only by
+        order share one NLP shape (the solver cache holds each shape once)."""
+        specs, vertices = self.all_specs, [len(G) for G in self._all_G(elements)]
 
         def key(i):
             s = specs[i]
             return padded_rows(vertices[i]), s.type.value, s.mu, s.mu_s, s.f_max
 
-        return sorted(range(len(elements)), key=key)
+        return sorted(range(len(vertices)), key=key)
 
     def contact_tolerance(self, elements):
-        """How far each contact on ``elements`` may lie from the model: the tolerance the
-        eligibility was given (or the model's own), for every contact; otherwise a tuple of each
-        element's own (``NO_TOLERANCE`` when none has one)."""
+        """How far each contact (the fixed ones, then those on ``elements``) may lie from the
+        model: the tolerance the eligibility was given (or the model's own), for every contact;
+        otherwise a tuple of each one's own (``NO_TOLERANCE`` when none has one)."""
         if self.tolerance is not None:
             return self.tolerance
-        own = tuple(self.model.elements[e].tolerance for e in elements)
+        own = self.fixed.tolerance + tuple(self.model.elements[e].tolerance for e in elements)
         return own if any(own) else NO_TOLERANCE
 
     def __call__(

@@ -28,6 +28,7 @@ import time
 
 import numpy as np
 
+from closure_nlp.base.errors import MethodError
 from closure_nlp.base.progress import Progress
 from closure_nlp.base.solver_cache import PerThread, cached
 from closure_nlp.base.ties import lowest_first
@@ -42,6 +43,7 @@ from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.placement.restricted import ExchangeLP, ExchangeProblem
 from closure_nlp.placement.result import Move, PlacedContact, PlacementResult
 from closure_nlp.placement.sequential_lp import ExchangeSLP, ModelSLP
+from closure_nlp.placement.spacing import Spacing, check_fixed_spacing
 from closure_nlp.selection.algorithms import SCREEN_SEARCH
 
 # Working-set sizes the exchange NLP is built for (unused directions masked out). An IPOPT
@@ -84,6 +86,7 @@ class ElementFrame:
         return cls(pad_rows(element.vertices), pad_rows(element.grasp_matrices(torque_scale)))
 
     def __init__(self, vertices: np.ndarray, G: np.ndarray):
+        self.vertices = vertices  # (rows, 3)
         centre = vertices.mean(axis=0)
         size = float(np.max(np.linalg.norm(vertices - centre, axis=1)))
         self.offsets = (vertices - centre) / (size if size > 0 else 1.0)
@@ -130,7 +133,9 @@ class ExchangePlacer:
         options: PlacementOptions = PlacementOptions(),
         problems: PerThread[dict] | None = None,
     ):
-        require_closure_count(eligibility.specs)
+        require_closure_count(eligibility.all_specs)
+        if options.min_spacing:
+            check_fixed_spacing(eligibility, options.min_spacing)
         if not (problems is None or isinstance(problems, PerThread)):
             raise TypeError(f"problems: expected a PerThread cache, got {type(problems).__name__}")
         self.eligibility = eligibility
@@ -144,13 +149,13 @@ class ExchangePlacer:
 
     def _frictionless(self) -> tuple[bool, ...]:
         """Per contact: no friction piece (FPC, or mu = mu_s = 0)."""
-        return tuple(is_frictionless(s.type, s.mu, s.mu_s) for s in self.eligibility.specs)
+        return tuple(is_frictionless(s.type, s.mu, s.mu_s) for s in self.eligibility.all_specs)
 
     def _components(self) -> tuple[tuple[int, ...], ...]:
         """Per contact: the components of ``d`` its friction pieces weigh (none: frictionless)."""
         return tuple(
             tuple(int(j) for j in np.flatnonzero(friction_pieces(s.type, s.mu, s.mu_s).any(axis=0)))
-            for s in self.eligibility.specs
+            for s in self.eligibility.all_specs
         )
 
     def exchange_solver(self) -> str:
@@ -174,9 +179,9 @@ class ExchangePlacer:
         return solver
 
     def _problem(
-        self, rows, count, solver: str | None = None
+        self, rows, count, solver: str | None = None, pairs=()
     ) -> ExchangeProblem | ExchangeLP | ExchangeSLP:
-        solver = solver or self.exchange_solver()
+        solver = "ipopt" if pairs else solver or self.exchange_solver()
         if solver == "highs":
             # the same problem, linear
             return ExchangeLP(self.options.subset_margin, self.options.lp_centre)
@@ -189,18 +194,20 @@ class ExchangePlacer:
         capacity = next((b for b in DIRECTION_BUCKETS if count <= b), count)
         components = self._components()
         tol, margin = self.options.ipopt_tol, self.options.subset_margin
-        key = (rows, capacity, tol, margin, components)
+        key = (rows, capacity, tol, margin, components, pairs)
         return cached(
             self._problems,
             key,
-            lambda: ExchangeProblem(rows, capacity, tol, margin, components),
+            lambda: ExchangeProblem(rows, capacity, tol, margin, components, pairs),
             MAX_EXCHANGE_PROBLEMS,
         )
 
     def contact_set(self, elements, weights) -> ContactSet:
+        """The fixed contacts, then one on each of ``elements`` at ``weights``."""
         model, specs = self.eligibility.model, self.eligibility.specs
         return ContactSet(
-            tuple(
+            self.eligibility.fixed.contacts
+            + tuple(
                 specs[i].at(
                     model.elements[e].position(w),
                     model.elements[e].inward_normal,
@@ -236,16 +243,23 @@ class ExchangePlacer:
 
         Returns (weights, rho result, the model's last predicted ``-rho``, rounds).
         """
-        model, specs = self.eligibility.model, self.eligibility.specs
+        model, fixed = self.eligibility.model, self.eligibility.fixed
         minimizer = self.eligibility.minimizer
         light = minimizer.with_search(SCREEN_SEARCH)
         judge = minimizer.with_search(ROUND_SEARCH) if self.options.round_search else minimizer
         ts = self.eligibility.torque_scale
         counts = [len(model.elements[e].vertices) for e in elements]
-        frames = [ElementFrame.padded(model.elements[e], ts) for e in elements]
+        # the fixed contacts first, each a point: its one weight cannot move
+        frames = [ElementFrame.padded(e, ts) for e in fixed.elements]
+        frames += [ElementFrame.padded(model.elements[e], ts) for e in elements]
         rows = tuple(len(frame.G) for frame in frames)
-        f_max = np.array([spec.f_max for spec in specs])
+        k0 = len(fixed)
+        f_max = np.array([spec.f_max for spec in self.eligibility.all_specs])
+        spacing = self._spacing(elements)
+        pairs = spacing.pairs if spacing else ()
+        spaced = (spacing.length, spacing.distance) if spacing else None
         best_w = [np.asarray(w, float) for w in weights]
+        best_ok = self._kept(elements, best_w, spacing)
         best = initial or search_rho(self.contact_set(elements, best_w), minimizer=minimizer)
         U = list(sphere_samples(self.options.random_directions, seed=1))
         if directions is not None:
@@ -254,7 +268,9 @@ class ExchangePlacer:
         first_found = len(U) - 1
         # A trust region around the best weights: the restricted model is only good nearby, and
         # without it the solves jump between far corners (cutting planes oscillate).
-        c_best, radius, predicted = [_padded(w, k) for w, k in zip(best_w, rows)], 0.5, np.inf
+        c_best = [_padded(np.ones(1), k) for k in rows[:k0]]
+        c_best += [_padded(w, k) for w, k in zip(best_w, rows[k0:])]
+        radius, predicted = (0.5 if best_ok else 1.0), np.inf
         rounds = 0
         at_best = WrenchSlots.from_contacts(self.contact_set(elements, best_w))
         limit = max_rounds or self.options.max_rounds
@@ -262,20 +278,25 @@ class ExchangePlacer:
         # "slp-ipopt": the sequential LP's rounds while they pay off; from the first one that
         # does not, IPOPT's, from a trust region of at least 0.5, so that a run ends where
         # IPOPT's rounds end it (a point of IPOPT's model, not a stall of the linearisation).
-        solver = self._run_solver(explore)
+        solver = "ipopt" if pairs else self._run_solver(explore)  # spacing: IPOPT's NLP
         sequential = solver in ("slp", "slp-ipopt")
         tail = "ipopt" if solver == "slp-ipopt" else solver
         while True:
             while rounds < limit:
                 rounds += 1
-                problem = self._problem(rows, len(U), "slp" if sequential else tail)
-                c, predicted = problem.solve(frames, at_best, f_max, np.array(U), c_best, radius)
-                if predicted + best.rho <= self.options.gap * max(1.0, abs(best.rho)):
+                problem = self._problem(rows, len(U), "slp" if sequential else tail, pairs)
+                args = (frames, at_best, f_max, np.array(U), c_best, radius)
+                c, predicted = problem.solve(*args, spaced) if pairs else problem.solve(*args)
+                no_gain = predicted + best.rho <= self.options.gap * max(1.0, abs(best.rho))
+                if no_gain and best_ok:
                     if sequential and solver == "slp-ipopt":
                         sequential, radius = False, max(radius, 0.5)
                         continue
                     break  # the model sees no better weights within the trust region
-                w = [_unpadded(ci, k) for ci, k in zip(c, counts)]
+                w = [_unpadded(ci, k) for ci, k in zip(c[k0:], counts)]
+                trial_ok = self._kept(elements, w, spacing)
+                if not (trial_ok or best_ok):
+                    break  # no placement found that keeps the spacing
                 trial_slots = WrenchSlots.from_contacts(self.contact_set(elements, w))
                 warm = best.direction
                 if self.options.round_search:
@@ -290,12 +311,13 @@ class ExchangePlacer:
                     # the full search it was meant to spare
                     found = search_rho(trial_slots, minimizer=light, warm_start=warm)
                     warm = found.direction
-                if not self.options.screen or found.rho < best.rho:
+                if not self.options.screen or found.rho < best.rho or not best_ok:
                     found = search_rho(trial_slots, minimizer=judge, warm_start=warm)
                 U.append(found.direction)
-                if found.rho < best.rho:
+                if trial_ok and (found.rho < best.rho or not best_ok):
                     best, best_w, c_best, at_best = found, w, c, trial_slots
-                    radius = min(1.0, 2.0 * radius)
+                    radius = min(1.0, 2.0 * radius) if best_ok else 0.5
+                    best_ok = True
                     checked = False
                 elif sequential and solver == "slp-ipopt":
                     sequential, radius = False, max(radius, 0.5)
@@ -333,6 +355,10 @@ class ExchangePlacer:
         weights = [
             simplex_weights(w, k, f"weights[{i}]") for i, (w, k) in enumerate(zip(weights, counts))
         ]
+        spacing = self._spacing(elements)
+        reason = spacing.impossible() if spacing else None
+        if reason:
+            raise MethodError(f"min_spacing: cannot be kept: {reason}")
         start_elements, start_set = tuple(elements), self.contact_set(elements, weights)
         # The start's search value is never above its certified rho (a found support value), so
         # the start is certified only when the final result does not beat that value (below).
@@ -361,7 +387,7 @@ class ExchangePlacer:
                 elements, trial, progress, None, limit, shared, bar=best.rho, explore=True
             )
             rounds += n_rounds
-            if found.rho < best.rho:
+            if self._better(elements, w, found, best_w, best):
                 best_w, best, predicted = w, found, up
             if progress:
                 progress("placement start", k + 1, best.rho)
@@ -389,9 +415,10 @@ class ExchangePlacer:
         if progress:
             progress("certification", 0, best.rho)
         final = rho(contact_set, minimizer=self.eligibility.minimizer, warm_start=best.direction)
-        if final.rho > start.rho:
+        start_ok = self._kept(start_elements, weights, spacing)
+        if final.rho > start.rho and start_ok:
             start = rho(start_set, minimizer=self.eligibility.minimizer)
-        if final.rho > start.rho:
+        if final.rho > start.rho and start_ok:
             # The exchange steered by the search's values, which can miss; certified, the start
             # is better: keep it, so that the result is never worse than the start it reports.
             elements, best_w, moves, contact_set, final = (
@@ -401,6 +428,10 @@ class ExchangePlacer:
                 start_set,
                 start,
             )
+        if self.options.min_spacing:
+            final_spacing = self._spacing(elements)
+            if final_spacing:
+                final_spacing.check(self._positions(elements, best_w))
         placed = tuple(
             PlacedContact(e, w, model.elements[e].position(w), model.elements[e].inward_normal)
             for e, w in zip(elements, best_w)
@@ -426,6 +457,36 @@ class ExchangePlacer:
             exchange_solver=self.exchange_solver(),
         )
         return result
+
+    def _spacing(self, elements) -> Spacing | None:
+        """The spacing of contacts on ``elements`` (None: no minimum, or no pair that can
+        come closer than it)."""
+        if not self.options.min_spacing:
+            return None
+        spacing = Spacing(self.eligibility, elements, self.options.min_spacing)
+        return spacing if spacing.pairs else None
+
+    def _positions(self, elements, weights) -> np.ndarray:
+        """(k + m, 3): the fixed contacts' positions, then those on ``elements``."""
+        model = self.eligibility.model
+        new = [model.elements[e].position(w) for e, w in zip(elements, weights)]
+        return np.vstack([self.eligibility.fixed.positions, *new])
+
+    def _kept(self, elements, weights, spacing: Spacing | None | bool = True) -> bool:
+        """Whether the contacts on ``elements`` at ``weights`` keep the minimum spacing
+        (``spacing``: theirs when known)."""
+        if spacing is True:
+            spacing = self._spacing(elements)
+        return not spacing or spacing.kept(self._positions(elements, weights))
+
+    def _better(self, elements, w, found, best_w, best) -> bool:
+        """Whether a run's ``found`` (at ``w``) replaces ``best`` (at ``best_w``), both on
+        ``elements``: lower rho and keeping the spacing, or keeping it where best does not."""
+        if not self.options.min_spacing:
+            return found.rho < best.rho
+        if not self._kept(elements, w):
+            return False
+        return found.rho < best.rho or not self._kept(elements, best_w)
 
     def _validated(self, slots: WrenchSlots, found):
         """``found`` (a round search's result on ``slots``), or the weaker answer of the
@@ -469,7 +530,9 @@ class ExchangePlacer:
                     explore=True,
                 )
                 spent += n_rounds
-                if found.rho < best.rho - margin:
+                if not self._kept(trial, w_new):
+                    continue
+                if found.rho < best.rho - margin or not self._kept(elements, weights):
                     if probe:  # a move that helps runs on to the full budget
                         w_new, found, up, more = self.optimise(
                             trial, w_new, progress, found, None, directions
