@@ -194,7 +194,7 @@ class ExchangePlacer:
         capacity = next((b for b in DIRECTION_BUCKETS if count <= b), count)
         components = self._components()
         tol, margin = self.options.ipopt_tol, self.options.subset_margin
-        key = (rows, capacity, tol, margin, components, pairs)
+        key = (rows, capacity, tol, margin, pairs, components)
         return cached(
             self._problems,
             key,
@@ -260,6 +260,10 @@ class ExchangePlacer:
         spaced = (spacing.length, spacing.distance) if spacing else None
         best_w = [np.asarray(w, float) for w in weights]
         best_ok = self._kept(elements, best_w, spacing)
+        start_w = best_w
+        if not best_ok:  # coincident contacts have no gradient apart: start from nearby weights
+            rng = np.random.default_rng(len(best_w))
+            start_w = [0.8 * w + 0.2 * rng.dirichlet(np.ones(len(w))) for w in best_w]
         best = initial or search_rho(self.contact_set(elements, best_w), minimizer=minimizer)
         U = list(sphere_samples(self.options.random_directions, seed=1))
         if directions is not None:
@@ -269,10 +273,10 @@ class ExchangePlacer:
         # A trust region around the best weights: the restricted model is only good nearby, and
         # without it the solves jump between far corners (cutting planes oscillate).
         c_best = [_padded(np.ones(1), k) for k in rows[:k0]]
-        c_best += [_padded(w, k) for w, k in zip(best_w, rows[k0:])]
+        c_best += [_padded(w, k) for w, k in zip(start_w, rows[k0:])]
         radius, predicted = (0.5 if best_ok else 1.0), np.inf
         rounds = 0
-        at_best = WrenchSlots.from_contacts(self.contact_set(elements, best_w))
+        at_best = WrenchSlots.from_contacts(self.contact_set(elements, start_w))
         limit = max_rounds or self.options.max_rounds
         checked = True  # best's value is the default search's (a start's, or validated)
         # "slp-ipopt": the sequential LP's rounds while they pay off; from the first one that

@@ -170,7 +170,7 @@ def study_from_dict(
             f"selection.initial: must be < every contact count {list(grid['contacts'])}, "
             f"got {selection.initial}"
         )
-    _check_counts(grid, fixed.specs if fixed is not None else ())
+    _check_counts(grid, [c.spec for c in fixed.contacts] if fixed is not None else ())
     models = _models(data["models"], Path(base_dir))
     for ref in models:  # the regions and the fixed contacts hold on every model
         model = load_model(ref.path)
