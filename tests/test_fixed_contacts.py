@@ -221,3 +221,10 @@ def test_study_intent(block, tmp_path):
         study_from_dict({**data, "exclude": "facing:+w"}, tmp_path)
     with pytest.raises(ValueError, match="contacts"):  # 3 fixed FPC + 2 FPC: too few
         study_from_dict({**data, "type": "fpc", "contacts": 2}, tmp_path)
+
+
+def test_plan_says_why_the_spacing_cannot_be_kept(block):
+    eligibility = Eligibility(block, contact_specs(7, type="fpc"))
+    options = PlacementOptions(min_spacing=200.0, bound=False)  # beyond the part's size
+    with pytest.raises(MethodError, match="min_spacing: cannot be kept"):
+        plan(eligibility, seed=0, placement=options, alternatives=2)

@@ -94,6 +94,7 @@ from closure_nlp.model.elements import nearest_weights
 from closure_nlp.placement import max_min_lp as lp_solvers  # tests swap its solvers
 from closure_nlp.placement.max_min_lp import INF, OPTIMAL, dual_bound, max_min_model, thread_solver
 from closure_nlp.placement.placer import ExchangePlacer, PlacementOptions
+from closure_nlp.placement.spacing import SpacingError
 
 # Directions kept in the shared working set of the cutting planes (the most recent ones).
 MAX_DIRECTIONS = 600
@@ -687,7 +688,7 @@ def capacity_bound(
         polishes += 1
         try:
             found = polisher(list(ids), weights)
-        except MethodError:  # no placement found there that keeps the spacing
+        except SpacingError:  # no placement found there that keeps the spacing
             return
         if _capacity(found) > best_value:
             best, best_value = found, _capacity(found)

@@ -28,7 +28,6 @@ import time
 
 import numpy as np
 
-from closure_nlp.base.errors import MethodError
 from closure_nlp.base.progress import Progress
 from closure_nlp.base.solver_cache import PerThread, cached
 from closure_nlp.base.ties import lowest_first
@@ -43,7 +42,7 @@ from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.placement.restricted import ExchangeLP, ExchangeProblem
 from closure_nlp.placement.result import Move, PlacedContact, PlacementResult
 from closure_nlp.placement.sequential_lp import ExchangeSLP, ModelSLP
-from closure_nlp.placement.spacing import Spacing, check_fixed_spacing
+from closure_nlp.placement.spacing import Spacing, SpacingError, check_fixed_spacing
 from closure_nlp.selection.algorithms import SCREEN_SEARCH
 
 # Working-set sizes the exchange NLP is built for (unused directions masked out). An IPOPT
@@ -362,7 +361,7 @@ class ExchangePlacer:
         spacing = self._spacing(elements)
         reason = spacing.impossible() if spacing else None
         if reason:
-            raise MethodError(f"min_spacing: cannot be kept: {reason}")
+            raise SpacingError(f"min_spacing: cannot be kept: {reason}")
         start_elements, start_set = tuple(elements), self.contact_set(elements, weights)
         # The start's search value is never above its certified rho (a found support value), so
         # the start is certified only when the final result does not beat that value (below).

@@ -20,6 +20,10 @@ from closure_nlp.model.elements import part_size
 KEPT_SHARE = 1e-6
 
 
+class SpacingError(MethodError):
+    """No placement found on the elements keeps the minimum spacing."""
+
+
 class Spacing:
     """The spacing ``distance`` (model units, > 0) of contacts on ``elements`` of
     ``eligibility`` (with its fixed contacts).
@@ -82,7 +86,7 @@ class Spacing:
         the distance."""
         i, j, d = self.closest(positions)
         if d < self.distance * (1.0 - KEPT_SHARE):
-            raise MethodError(
+            raise SpacingError(
                 f"min_spacing: no placement found that keeps {self.distance:g}: "
                 f"{self._name(i)} and {self._name(j)} end {d:.6g} apart"
             )
@@ -107,4 +111,4 @@ def check_fixed_spacing(eligibility, distance: float) -> None:
                 )
 
 
-__all__ = ["KEPT_SHARE", "Spacing", "check_fixed_spacing"]
+__all__ = ["KEPT_SHARE", "Spacing", "SpacingError", "check_fixed_spacing"]
