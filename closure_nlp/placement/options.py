@@ -138,8 +138,9 @@ class PlacementOptions:
         and 1.1-1.6x slower.
     min_spacing : float
         No two contacts (new or fixed) closer than this (model units; 0, the default: no
-        limit). Pairs that can come closer get a constraint in IPOPT's restricted problems
-        (every run then solves them by IPOPT); ``MethodError`` when no placement found keeps it.
+        limit). A run whose contacts end closer goes on with a constraint on every pair that
+        can come closer in IPOPT's restricted problems; ``MethodError`` when no placement found
+        keeps it.
     """
 
     gap: float = 1e-6

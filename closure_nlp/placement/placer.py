@@ -230,6 +230,31 @@ class ExchangePlacer:
         bar: float = np.inf,
         explore: bool = False,
     ):
+        """:meth:`run`; with a minimum spacing that some pair of contacts can break, the run
+        without its constraints first (their own solvers, faster), and only when its weights
+        break the spacing a run with them, from those weights: a local optimum that keeps the
+        spacing without its constraints is one with them."""
+        args = (progress, initial, max_rounds, directions, bar, explore)
+        spacing = self._spacing(elements)
+        found = self.run(elements, weights, *args)
+        if spacing is None or self._kept(elements, found[0], spacing):
+            return found
+        w, best, predicted, rounds = found
+        again = self.run(elements, w, progress, best, max_rounds, directions, bar, explore, True)
+        return (*again[:3], rounds + again[3])
+
+    def run(
+        self,
+        elements,
+        weights,
+        progress: Progress | None = None,
+        initial=None,
+        max_rounds=None,
+        directions: list | None = None,
+        bar: float = np.inf,
+        explore: bool = False,
+        spaced: bool = False,
+    ):
         """Trust-region exchange on fixed elements from ``weights`` (``initial``: their rho
         result, when already known), for at most ``max_rounds`` (default: the options') rounds.
         ``directions`` (optional, updated in place) holds the weak directions found by earlier
@@ -239,6 +264,8 @@ class ExchangePlacer:
         the default search (``validate``): a check could only raise it. ``explore``: a run that
         only has to beat the best one so far (a further start, a neighbour-move trial), whose
         restricted problems the ``"mixed"`` solver gives to the sequential LP.
+
+        ``spaced``: keep the minimum spacing by constraints of the restricted problems.
 
         Returns (weights, rho result, the model's last predicted ``-rho``, rounds).
         """
@@ -254,7 +281,7 @@ class ExchangePlacer:
         rows = tuple(len(frame.G) for frame in frames)
         k0 = len(fixed)
         f_max = np.array([spec.f_max for spec in self.eligibility.all_specs])
-        spacing = self._spacing(elements)
+        spacing = self._spacing(elements) if spaced else None
         pairs = spacing.pairs if spacing else ()
         spaced = (spacing.length, spacing.distance) if spacing else None
         best_w = [np.asarray(w, float) for w in weights]
