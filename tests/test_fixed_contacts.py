@@ -155,7 +155,16 @@ def run(args, capsys):
         (lambda tmp: base_file(tmp, BASE[:2] + [[0.0, 14.0, -3.0]]), "fixed[2]: off the part"),
         (
             lambda tmp: base_file(tmp, [[-20.0, -12.0, 0.0], [20.0, -12.0, 0.0], [0.0, 0.0, 0.0]]),
-            "fixed[2]",  # inside the hole: no surface there
+            "fixed[2]: off the part's surface: 4.97",  # in the hole (a 32-gon): no surface
+        ),
+        (
+            lambda tmp: (
+                tmp.joinpath("up.json").write_text(
+                    json.dumps({"contacts": [{"position": BASE[0], "inward_normal": [0, 0, -1]}]})
+                )
+                and tmp / "up.json"
+            ),
+            "fixed[0]: its inward normal is 180 degrees from that of element",
         ),
     ],
 )
@@ -228,3 +237,21 @@ def test_plan_says_why_the_spacing_cannot_be_kept(block):
     options = PlacementOptions(min_spacing=200.0, bound=False)  # beyond the part's size
     with pytest.raises(MethodError, match="min_spacing: cannot be kept"):
         plan(eligibility, seed=0, placement=options, alternatives=2)
+
+
+def test_plan_command_with_intent(tmp_path, capsys):
+    import closure_nlp.cli.main as main_module
+
+    out = tmp_path / "plan"
+    args = ["plan", str(BLOCK), "--contacts", "4", "--type", "pcwf", "--mu", "0.3", "--seeds", "1"]
+    args += ["--fixed", str(base_file(tmp_path)), "--exclude", "facing:+z", "--min-spacing", "5"]
+    assert main_module.main([*args, "--json", "--out", str(out)]) == 0
+    payload = json.loads(capsys.readouterr().out)
+    assert payload["fixed"] == {"count": 3, "elements": payload["fixed"]["elements"]}
+    assert payload["min_spacing"] == 5.0 and payload["excluded"]
+    assert main_module.main(["rho", str(out / "contacts.json"), "--json"]) == 0
+    again = json.loads(capsys.readouterr().out)
+    lo, hi = payload["placement"]["bounds"]
+    assert again["bounds"][0] <= hi and lo <= again["bounds"][1]
+    written = json.loads((out / "contacts.json").read_text())["contacts"]
+    assert [c["position"] for c in written[:3]] == BASE and all(c["fixed"] for c in written[:3])
