@@ -83,7 +83,6 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from closure_nlp.base.errors import MethodError
 from closure_nlp.contact.contact_set import grasp_matrices, is_frictionless
 from closure_nlp.contact.wrenches import WrenchSlots
 from closure_nlp.criterion.certificate import tolerance_unit
@@ -651,7 +650,7 @@ def capacity_bound(
     root_cell += tuple(sum((element_pieces(eligibility, e) for e in ids), []) for ids in domain)
     spacing = placer.options.min_spacing
     if spacing and not _room(root_cell, spacing, k0):
-        raise MethodError(f"min_spacing: no placement on these elements keeps {spacing:g}")
+        raise SpacingError(f"min_spacing: no placement on these elements keeps {spacing:g}")
     deadline = t0 + options.time_budget
     root = lp.bound(root_cell, options.root_cuts, options.cut_tolerance, deadline)
     heap = [_Cell(root_cell, root, 0)]

@@ -283,7 +283,7 @@ class ExchangePlacer:
         f_max = np.array([spec.f_max for spec in self.eligibility.all_specs])
         spacing = self._spacing(elements) if spaced else None
         pairs = spacing.pairs if spacing else ()
-        spaced = (spacing.length, spacing.distance) if spacing else None
+        kept_apart = (spacing.length, spacing.distance) if spacing else None
         best_w = [np.asarray(w, float) for w in weights]
         best_ok = self._kept(elements, best_w, spacing)
         start_w = best_w
@@ -316,7 +316,7 @@ class ExchangePlacer:
                 rounds += 1
                 problem = self._problem(rows, len(U), "slp" if sequential else tail, pairs)
                 args = (frames, at_best, f_max, np.array(U), c_best, radius)
-                c, predicted = problem.solve(*args, spaced) if pairs else problem.solve(*args)
+                c, predicted = problem.solve(*args, kept_apart) if pairs else problem.solve(*args)
                 no_gain = predicted + best.rho <= self.options.gap * max(1.0, abs(best.rho))
                 if no_gain and best_ok:
                     if sequential and solver == "slp-ipopt":
