@@ -255,3 +255,16 @@ def test_plan_command_with_intent(tmp_path, capsys):
     assert again["bounds"][0] <= hi and lo <= again["bounds"][1]
     written = json.loads((out / "contacts.json").read_text())["contacts"]
     assert [c["position"] for c in written[:3]] == BASE and all(c["fixed"] for c in written[:3])
+
+
+def test_ceiling_holds_the_fixed_contacts_and_the_spacing(planned):
+    from closure_nlp.placement.ceiling import Piece, _room
+
+    placed = planned[1].placement
+    assert placed.capacity_bound >= -placed.bounds[1] * (1 - 1e-9)  # a ceiling, fixed included
+    point = Piece(0, np.zeros((1, 3)), np.array([0.0, 0.0, 1.0]))
+    near = Piece(1, np.array([[1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0]]), np.array([1.0, 0, 0]))
+    far = Piece(2, np.array([[9.0, 0, 0], [0, 9.0, 0], [0, 0, 9.0]]), np.array([1.0, 0, 0]))
+    assert not _room(([point], [near]), 2.0, 1)  # wholly within 2 of the fixed point
+    assert _room(([point], [near, far]), 2.0, 1)  # a piece of it lies far enough
+    assert _room(([point], [point]), 2.0, 2)  # two fixed contacts: nothing to decide
