@@ -1405,6 +1405,8 @@ def main(argv=None) -> int:
     p.add_argument("--sets", type=int, default=1000)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--workers", default="1,2", help="worker counts, comma-separated")
+    p = sub.add_parser("intent", help="the block's fixture with intent against without")
+    p.add_argument("--seeds", default="0,1,2", help="comma-separated seeds")
     p = sub.add_parser("units", help="pybullet's domino in m and mm, placed under margins")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--cells", type=int, default=200, help="cells of each ceiling (default 200)")
@@ -1447,6 +1449,10 @@ def main(argv=None) -> int:
     elif args.what == "throughput":
         counts = tuple(int(k) for k in args.workers.split(","))
         report = bench_throughput(args.sets, args.seed, counts)
+    elif args.what == "intent":
+        from benchmarks.intent import bench_intent
+
+        report = bench_intent([int(x) for x in args.seeds.split(",")])
     elif args.what == "units":
         report = bench_units(seed=args.seed, cells=args.cells, lp_centre=args.lp_centre)
     elif args.what == "real-meshes":

@@ -10,7 +10,7 @@ import pytest
 import trimesh
 
 from closure_nlp.contact.accuracy import ModelTolerance
-from closure_nlp.contact.contact_set import ContactSet
+from closure_nlp.contact.contact_set import Contact, ContactSet, ContactType
 from closure_nlp.contact.random_sets import random_contact_set
 from closure_nlp.criterion.rho_hat import Eligibility
 from closure_nlp.criterion.robustness import to_be_robust, to_be_robust_text
@@ -41,6 +41,21 @@ def test_an_element_sets_shift_is_the_one_its_certificate_carries(can):
         found = can(ids)
         assert can.shift(ids) == pytest.approx(found.shift, rel=1e-12, abs=1e-15)
     assert can.shift([tolerant[0]] * 4) > 0.0
+
+
+def test_fixed_contacts_count_in_an_element_sets_shift(can):
+    """A contact already in place on a tolerant element adds its own share to every set's."""
+    side = next(i for i, e in enumerate(can.model.elements) if e.tolerance)
+    element = can.model.elements[side]
+    spot = Contact(element.centroid, element.inward_normal, ContactType.PCWF, mu=0.5)
+    specs = contact_specs(3, type="pcwf", mu=0.5)
+    held, free = Eligibility(can.model, specs, fixed=[spot]), Eligibility(can.model, specs)
+    rng = np.random.default_rng(1)
+    for _ in range(3):
+        ids = [int(i) for i in rng.integers(0, len(can.model.elements), 3)]
+        found = held(ids)
+        assert held.shift(ids) == pytest.approx(found.shift, rel=1e-12, abs=1e-15)
+        assert held.shift(ids) > free.shift(ids)
 
 
 @pytest.mark.slow

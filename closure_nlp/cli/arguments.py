@@ -141,7 +141,24 @@ def add_placing_options(parser) -> None:
     add_margin_option(parser)
     add_bound_options(parser)
     add_region_options(parser)
+    add_fixed_option(parser)
+    parser.add_argument(
+        "--min-spacing",
+        type=bounded_float(0.0, float("inf"), "--min-spacing"),
+        default=0.0,
+        metavar="D",
+        help="no two contacts (new or fixed) closer than D (model units; default 0: no limit)",
+    )
     add_contact_options(parser)
+
+
+def add_fixed_option(parser) -> None:
+    parser.add_argument(
+        "--fixed",
+        metavar="CONTACTS.json",
+        help="contacts already in place (a contact-set file, the model's frame and units): "
+        "counted in every rho, never moved; --contacts counts the new ones",
+    )
 
 
 def add_region_options(parser) -> None:

@@ -6,13 +6,14 @@ import time
 
 from closure_nlp.base.formatting import certain
 from closure_nlp.cli import arguments, output
-from closure_nlp.cli.setup import model_eligibility
+from closure_nlp.cli.setup import intent_keys, model_eligibility
 
 
 def add_eligibility(sub, common) -> None:
     p = arguments.model_parser(
         sub, common, "eligibility", "rho(0, What_c^M) of element sets", "elements"
     )
+    arguments.add_fixed_option(p)
     arguments.add_contact_options(p)
     p.set_defaults(run=cmd_eligibility)
 
@@ -27,7 +28,7 @@ def cmd_eligibility(args) -> None:
     verdict = output.verdict_text(result, result.eligible, "eligible", "not eligible")
     output.emit(
         args,
-        {**result.to_dict(), **output.whole_cost(result, t0)},
+        {**result.to_dict(), **output.whole_cost(result, t0), **intent_keys(args, eligibility)},
         f"{output.shown(args.model)}: elements {output.joined_ids(result.elements)}: "
         f"rho_hat = {certain(result.rho_hat, result.bounds)} ({verdict})"
         + output.bounds_text(result, "rho_hat"),

@@ -37,7 +37,7 @@ def cmd_place(args) -> None:
     loads = read_loads(args)
     with output.reading(args.model):
         ids = eligibility.check_elements(ids, "--elements")
-        require_closure_count(eligibility.specs, "--elements")
+        require_closure_count(eligibility.all_specs, "--elements")
         eligibility = setup.with_margin(args, eligibility, ids)
     options, progress, close = setup.placement_setup(args, True, check_output_file)
     try:

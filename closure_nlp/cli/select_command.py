@@ -15,6 +15,7 @@ def add_select(sub, common) -> None:
     p.add_argument(
         "--seed", type=arguments.seed_value, default=0, help="random start of the heuristic"
     )
+    arguments.add_fixed_option(p)
     arguments.add_region_options(p)
     arguments.add_contact_options(p)
     p.set_defaults(run=cmd_select)

@@ -22,14 +22,16 @@ from closure_nlp.cli.output import (
     shown,
     verdict_text,
 )
-from closure_nlp.contact.contact_set import SOFT_FINGERS
+from closure_nlp.contact.contact_set import SOFT_FINGERS, load_contact_set
 from closure_nlp.contact.count import require_closure_count
 from closure_nlp.criterion.rho_hat import Eligibility
 from closure_nlp.model.elements import load_model
+from closure_nlp.model.fixed_contacts import fixed_contacts
 from closure_nlp.model.scale import contact_specs, is_auto, scale_warnings
 from closure_nlp.model.scale import resolve as resolve_scale
 from closure_nlp.placement.ceiling import gap_text
 from closure_nlp.placement.options import PlacementOptions
+from closure_nlp.placement.spacing import check_fixed_spacing
 
 
 def model_eligibility(args, m: int, field: str = "--contacts", closure: bool = False):
@@ -44,9 +46,14 @@ def model_eligibility(args, m: int, field: str = "--contacts", closure: bool = F
         sys.stderr.write(f"warning: {shown(args.model)}: {line}\n")
     args.scale = scale
     args.soft_fingers = any(s.type in SOFT_FINGERS for s in specs)  # mu_s plays a part
+    fixed = None
+    if getattr(args, "fixed", None):
+        [(_, fixed)] = load_each([args.fixed], load_contact_set)
+        with reading(args.fixed):  # a fixed contact off the part is that file's fault
+            fixed = fixed_contacts(model, fixed)
     if closure:
-        with reading(args.model):
-            require_closure_count(specs, field)
+        with reading(args.model):  # the fixed contacts count too
+            require_closure_count((fixed.specs if fixed else ()) + tuple(specs), field)
     only, exclude = getattr(args, "only", None), getattr(args, "exclude", None)
     # the tolerance flags hold for every element, even at 0 (the model is then the part)
     flagged = args.position_tolerance is not None or args.normal_tolerance is not None
@@ -58,7 +65,11 @@ def model_eligibility(args, m: int, field: str = "--contacts", closure: bool = F
             tolerance=model.tolerance if flagged else None,
             only=only,
             exclude=exclude,
+            fixed=fixed,
         )
+    if fixed and getattr(args, "min_spacing", 0):
+        with reading(args.fixed):
+            check_fixed_spacing(eligibility, args.min_spacing)
     left = int(eligibility.model.usable.sum())
     if left == 0 or left < m <= int(model.usable.sum()):
         flag = "--exclude" if exclude else "--only"
@@ -67,10 +78,17 @@ def model_eligibility(args, m: int, field: str = "--contacts", closure: bool = F
 
 
 def intent_keys(args, eligibility) -> dict:
-    """The JSON keys of where contacts may go: ``excluded`` ids, when the command set any."""
-    if not (getattr(args, "only", None) or getattr(args, "exclude", None)):
-        return {}
-    return {"excluded": list(eligibility.excluded)}
+    """The JSON keys of the engineer's intent the command was given: ``excluded`` ids (with
+    ``--only``/``--exclude``), ``fixed`` (the fixed contacts' count and elements) and
+    ``min_spacing``."""
+    out = {}
+    if getattr(args, "only", None) or getattr(args, "exclude", None):
+        out["excluded"] = list(eligibility.excluded)
+    if len(eligibility.fixed):
+        out["fixed"] = {"count": len(eligibility.fixed), "elements": list(eligibility.fixed.on)}
+    if getattr(args, "min_spacing", None):
+        out["min_spacing"] = args.min_spacing
+    return out
 
 
 def read_model(args, marked: list | None = None):
@@ -148,7 +166,9 @@ def with_margin(args, eligibility: Eligibility, ids=()) -> Eligibility:
     if len(model.unusable) == len(model):
         raise InputError("--margin", f"every element is too small for a margin of {args.margin:g}")
     specs, scale = eligibility.specs, eligibility.torque_scale
-    return Eligibility(model, specs, scale, tolerance=eligibility.tolerance)
+    return Eligibility(
+        model, specs, scale, tolerance=eligibility.tolerance, fixed=eligibility.fixed
+    )
 
 
 def margin_text(args, model) -> str:
@@ -173,8 +193,9 @@ def placement_options(args, seeded: bool) -> PlacementOptions:
         "time_budget": args.time_budget,
     }
     try:
+        spacing = {"min_spacing": args.min_spacing} if getattr(args, "min_spacing", None) else {}
         return PlacementOptions(
-            starts=args.starts, **bound, **({"seed": args.seed} if seeded else {})
+            starts=args.starts, **bound, **spacing, **({"seed": args.seed} if seeded else {})
         )
     except ValueError as exc:
         raise ValueError(f"--{exc}") from None
@@ -201,6 +222,9 @@ def placement_text(result, model) -> str:
     ]
     if result.capacity_bound is not None:
         lines.append(f"  {gap_text(result)}")
+    fixed = result.contact_set.contacts[: len(result.contact_set) - len(result.contacts)]
+    for i, c in enumerate(fixed):
+        lines.append(f"  fixed contact {i}: at [{lengths(c.position, model)}]")
     for i, c in enumerate(result.contacts):
         pos = lengths(c.position, model)  # to the model's accuracy (numbers.model_accuracy)
         lines.append(f"  contact {i}: element {c.element} at [{pos}]")

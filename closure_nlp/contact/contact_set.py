@@ -378,6 +378,7 @@ CONTACT_KEYS = {
     "weights",
     "name",
     "tolerance",
+    "fixed",
 }
 DEFAULT_KEYS = {"type", "mu", "mu_s", "f_max"}
 FILE_KEYS = {
@@ -451,6 +452,8 @@ def _check_kept_keys(entry: dict, name: str) -> None:
         as_element_id(entry["element"], f"{name}.element")
     if "weights" in entry:
         as_numbers(entry["weights"], f"{name}.weights")
+    if "fixed" in entry and not isinstance(entry["fixed"], bool):
+        raise TypeError(f"{name}.fixed: expected true or false, got {entry['fixed']!r}")
     if "name" in entry and not isinstance(entry["name"], str):
         raise TypeError(f"{name}.name: expected text, got {entry['name']!r}")
 

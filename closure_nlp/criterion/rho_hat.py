@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections import Counter
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -21,7 +22,12 @@ from closure_nlp.base.validation import as_flag, as_id_list, as_torque_scale
 from closure_nlp.contact.accuracy import NO_TOLERANCE, ModelTolerance
 from closure_nlp.contact.contact_set import ContactSpec
 from closure_nlp.contact.wrenches import WrenchSlots, padded_rows
-from closure_nlp.criterion.robustness import has_tolerance, row_shifts, with_robustness
+from closure_nlp.criterion.robustness import (
+    has_tolerance,
+    row_shifts,
+    support_shift,
+    with_robustness,
+)
 from closure_nlp.criterion.support_minimum import (
     Certificate,
     SolverStats,
@@ -35,6 +41,7 @@ from closure_nlp.criterion.support_minimum import (
     timing_keys,
 )
 from closure_nlp.model.elements import Model
+from closure_nlp.model.fixed_contacts import fixed_contacts
 from closure_nlp.model.regions import excluded_elements, marked_unusable
 from closure_nlp.model.scale import AUTO, auto_torque_scale
 
@@ -119,6 +126,11 @@ class Eligibility:
         ``"facing:+z:10"``, ``"box:X0,Y0,Z0,X1,Y1,Z1"`` or a list of ids): the elements outside
         every ``only`` region, or inside an ``exclude`` one, are used by no step of selection or
         placement (:attr:`excluded`). The automatic torque scale stays the whole part's.
+    fixed : contact-set file, ContactSet or contacts, optional
+        Contacts already in place, in the model's frame and units (:attr:`fixed`, a
+        :class:`~closure_nlp.model.fixed_contacts.FixedContacts`): every element set's wrench
+        set holds them too, each with its own type, mu, mu_s and f_max, and no step moves
+        them; ``specs`` are the new contacts only. ``ValueError`` when one is off the part.
     """
 
     def __init__(
@@ -131,6 +143,7 @@ class Eligibility:
         *,
         only=None,
         exclude=None,
+        fixed=None,
     ):
         if not isinstance(model, Model):
             raise TypeError(f"model: expected a Model, got {type(model).__name__}")
@@ -155,6 +168,13 @@ class Eligibility:
         self._vertex_G = [e.grasp_matrices(self.torque_scale) for e in model.elements]
         self._all: dict[ContactSpec, WrenchSlots] = {}
         self._shifts: dict[ContactSpec, np.ndarray] = {}
+        self.fixed = fixed_contacts(model, fixed)
+        self._fixed_G = [e.grasp_matrices(self.torque_scale) for e in self.fixed.elements]
+
+    @property
+    def all_specs(self) -> tuple[ContactSpec, ...]:
+        """The fixed contacts' specs, then the new ones': what the count checks count."""
+        return self.fixed.specs + self.specs
 
     @property
     def evaluations(self) -> int:
@@ -178,32 +198,37 @@ class Eligibility:
         return check_usable(self.model, ids, field)
 
     def slots(self, elements) -> WrenchSlots:
-        """The slots of What_c^M: contact ``i`` on element ``elements[i]``, one row per vertex."""
+        """The slots of What_c^M: contact ``i`` on element ``elements[i]``, one row per vertex,
+        and the fixed contacts, one row each."""
         rows = [
-            (self._vertex_G[e], spec.type, spec.mu, spec.mu_s, spec.f_max)
-            for spec, e in zip(self.specs, elements)
+            (G, spec.type, spec.mu, spec.mu_s, spec.f_max)
+            for spec, G in zip(self.all_specs, self._all_G(elements))
         ]
         return WrenchSlots.build([rows[i] for i in self._slot_order(elements)])
 
+    def _all_G(self, elements) -> list[np.ndarray]:
+        """The vertex grasp matrices of the fixed contacts, then of ``elements``."""
+        return self._fixed_G + [self._vertex_G[e] for e in elements]
+
     def _slot_order(self, elements) -> list[int]:
-        """The contacts in the order of their slots. rho_hat does not depend on the slots'
-        order: sorted by NLP size and type, the sets that differ only by order share one NLP
-        shape (the solver cache holds each shape once)."""
-        specs, vertices = self.specs, [len(self._vertex_G[e]) for e in elements]
+        """The contacts (fixed ones first) in the order of their slots. rho_hat does not
+        depend on the slots' order: sorted by NLP size and type, the sets that differ only by
+        order share one NLP shape (the solver cache holds each shape once)."""
+        specs, vertices = self.all_specs, [len(G) for G in self._all_G(elements)]
 
         def key(i):
             s = specs[i]
             return padded_rows(vertices[i]), s.type.value, s.mu, s.mu_s, s.f_max
 
-        return sorted(range(len(elements)), key=key)
+        return sorted(range(len(vertices)), key=key)
 
     def contact_tolerance(self, elements):
-        """How far each contact on ``elements`` may lie from the model: the tolerance the
-        eligibility was given (or the model's own), for every contact; otherwise a tuple of each
-        element's own (``NO_TOLERANCE`` when none has one)."""
+        """How far each contact (the fixed ones, then those on ``elements``) may lie from the
+        model: the tolerance the eligibility was given (or the model's own), for every contact;
+        otherwise a tuple of each one's own (``NO_TOLERANCE`` when none has one)."""
         if self.tolerance is not None:
             return self.tolerance
-        own = tuple(self.model.elements[e].tolerance for e in elements)
+        own = self.fixed.tolerance + tuple(self.model.elements[e].tolerance for e in elements)
         return own if any(own) else NO_TOLERANCE
 
     def __call__(
@@ -300,7 +325,17 @@ class Eligibility:
         """The support shift of an element set (or its first contacts) within the tolerance:
         the ``shift`` its certified result carries, a sum over its contacts, so selection can
         steer by ``rho_hat + shift`` without a certificate."""
-        return float(sum(self.element_shifts(i)[e] for i, e in enumerate(elements)))
+        new = sum(self.element_shifts(i)[e] for i, e in enumerate(elements))
+        return float(self._fixed_shift + new)
+
+    @cached_property
+    def _fixed_shift(self) -> float:
+        """The fixed contacts' part of every element set's shift."""
+        if not len(self.fixed):
+            return 0.0
+        tolerance = self.tolerance if self.tolerance is not None else self.fixed.tolerance
+        rows = [(G, s.type, s.mu, s.mu_s, s.f_max) for s, G in zip(self.fixed.specs, self._fixed_G)]
+        return support_shift(WrenchSlots.build(rows), tolerance)
 
 
 def check_usable(model: Model, ids: tuple[int, ...], field: str) -> tuple[int, ...]:

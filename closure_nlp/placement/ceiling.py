@@ -93,6 +93,7 @@ from closure_nlp.model.elements import nearest_weights
 from closure_nlp.placement import max_min_lp as lp_solvers  # tests swap its solvers
 from closure_nlp.placement.max_min_lp import INF, OPTIMAL, dual_bound, max_min_model, thread_solver
 from closure_nlp.placement.placer import ExchangePlacer, PlacementOptions
+from closure_nlp.placement.spacing import SpacingError
 
 # Directions kept in the shared working set of the cutting planes (the most recent ones).
 MAX_DIRECTIONS = 600
@@ -328,7 +329,7 @@ class CellLP:
         contact's vertex positions (R_i, 3) and its rows' count."""
         ts = self.eligibility.torque_scale
         slots, positions, counts = [], [], []
-        for spec, pieces in zip(self.eligibility.specs, cell):
+        for spec, pieces in zip(self.eligibility.all_specs, cell):
             G = np.concatenate(
                 [grasp_matrices(p.vertices - self.reference, p.inward_normal, ts) for p in pieces]
             )
@@ -402,7 +403,7 @@ class CellLP:
         ts = self.eligibility.torque_scale
         vertex_wrenches = [
             spec.f_max * grasp_matrices(p.vertices - self.reference, p.inward_normal, ts)[:, :, 0]
-            for spec, (p,) in zip(self.eligibility.specs, cell)
+            for spec, (p,) in zip(self.eligibility.all_specs, cell)
         ]
         A = facet_rows(vertex_wrenches)
         if not len(A):
@@ -640,7 +641,16 @@ def capacity_bound(
 
     best = incumbent
     best_value = _capacity(incumbent)
-    root_cell = tuple(sum((element_pieces(eligibility, e) for e in ids), []) for ids in domain)
+    # the fixed contacts first, each one point (never split), as in a placement's contact set
+    fixed = eligibility.fixed
+    k0 = len(fixed)
+    root_cell = tuple(
+        [Piece(e, c.position[None], c.inward_normal)] for c, e in zip(fixed.contacts, fixed.on)
+    )
+    root_cell += tuple(sum((element_pieces(eligibility, e) for e in ids), []) for ids in domain)
+    spacing = placer.options.min_spacing
+    if spacing and not _room(root_cell, spacing, k0):
+        raise SpacingError(f"min_spacing: no placement on these elements keeps {spacing:g}")
     deadline = t0 + options.time_budget
     root = lp.bound(root_cell, options.root_cuts, options.cut_tolerance, deadline)
     heap = [_Cell(root_cell, root, 0)]
@@ -655,6 +665,7 @@ def capacity_bound(
             neighbour_moves=0,
             max_rounds=placer.options.max_rounds,
             bound=False,
+            min_spacing=spacing,
         ),
         placer._caches,
     )
@@ -671,9 +682,13 @@ def capacity_bound(
 
     def polish(ids, positions):
         nonlocal best, best_value, polishes
+        ids, positions = ids[k0:], positions[k0:]  # the fixed contacts stay
         weights = [nearest_weights(model.elements[e].vertices, x) for e, x in zip(ids, positions)]
         polishes += 1
-        found = polisher(list(ids), weights)
+        try:
+            found = polisher(list(ids), weights)
+        except SpacingError:  # no placement found there that keeps the spacing
+            return
         if _capacity(found) > best_value:
             best, best_value = found, _capacity(found)
 
@@ -721,6 +736,8 @@ def capacity_bound(
             continue
         hint = cell.bound.directions[cell.bound.y > 0.0]
         for pieces in split:
+            if spacing and not _room(pieces, spacing, k0):
+                continue  # two contacts wholly closer than the spacing: no placement here
             bound = lp.bound(
                 pieces,
                 options.cell_cuts,
@@ -853,7 +870,7 @@ def _lp_placement(lp: CellLP, cell: _Cell):
 def _frictionless(eligibility: Eligibility) -> bool:
     """Every contact frictionless, and few enough for
     :func:`~closure_nlp.criterion.frictionless.climb`."""
-    specs = eligibility.specs
+    specs = eligibility.all_specs
     frictionless = all(is_frictionless(s.type, s.mu, s.mu_s) for s in specs)
     return frictionless and 7 <= len(specs) <= MAX_CONTACTS
 
@@ -870,7 +887,7 @@ def _climbed(lp: CellLP, cell: _Cell, size: tuple[int, int], seed: int) -> list:
     rng = np.random.default_rng(seed)
     ts, ref = lp.eligibility.torque_scale, lp.reference
     rows, starts = [], []
-    for spec, piece, point in zip(lp.eligibility.specs, pieces, points):
+    for spec, piece, point in zip(lp.eligibility.all_specs, pieces, points):
         G = grasp_matrices(piece.vertices - ref, piece.inward_normal, ts)
         rows.append(spec.f_max * G[:, :, 0])
         k = len(piece.vertices)
@@ -890,6 +907,19 @@ def _climbed(lp: CellLP, cell: _Cell, size: tuple[int, int], seed: int) -> list:
         if len(out) == CLIMB_POLISHES:
             break
     return out
+
+
+def _room(cell, spacing: float, fixed: int) -> bool:
+    """Whether every pair of contacts of ``cell`` (pieces per contact, the first ``fixed``
+    ones fixed) can lie ``spacing`` apart: some of their pieces' vertices are that far apart
+    (the farthest points of two convex sets are vertices)."""
+    points = [np.vstack([p.vertices for p in pieces]) for pieces in cell]
+    for j in range(fixed, len(points)):
+        for i in range(j):
+            a, b = points[i], points[j]
+            if np.max(np.linalg.norm(a[:, None] - b[None], axis=2)) < spacing:
+                return False
+    return True
 
 
 def _split(lp: CellLP, cell: _Cell):

@@ -48,6 +48,7 @@ from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.placement.restricted import ExchangeLP, ExchangeProblem
 from closure_nlp.placement.result import Move, PlacedContact, PlacementResult
 from closure_nlp.placement.sequential_lp import ExchangeSLP, ModelSLP
+from closure_nlp.placement.spacing import Spacing, SpacingError, check_fixed_spacing
 from closure_nlp.selection.algorithms import SCREEN_SEARCH
 
 # Working-set sizes the exchange NLP is built for (unused directions masked out). An IPOPT
@@ -90,6 +91,7 @@ class ElementFrame:
         return cls(pad_rows(element.vertices), pad_rows(element.grasp_matrices(torque_scale)))
 
     def __init__(self, vertices: np.ndarray, G: np.ndarray):
+        self.vertices = vertices  # (rows, 3)
         centre = vertices.mean(axis=0)
         size = float(np.max(np.linalg.norm(vertices - centre, axis=1)))
         self.offsets = (vertices - centre) / (size if size > 0 else 1.0)
@@ -141,7 +143,9 @@ class ExchangePlacer:
         problems: PerThread[dict] | None = None,
         loads=None,
     ):
-        require_closure_count(eligibility.specs)
+        require_closure_count(eligibility.all_specs)
+        if options.min_spacing:
+            check_fixed_spacing(eligibility, options.min_spacing)
         if not (problems is None or isinstance(problems, PerThread)):
             raise TypeError(f"problems: expected a PerThread cache, got {type(problems).__name__}")
         self.eligibility = eligibility
@@ -173,13 +177,13 @@ class ExchangePlacer:
 
     def _frictionless(self) -> tuple[bool, ...]:
         """Per contact: no friction piece (FPC, or mu = mu_s = 0)."""
-        return tuple(is_frictionless(s.type, s.mu, s.mu_s) for s in self.eligibility.specs)
+        return tuple(is_frictionless(s.type, s.mu, s.mu_s) for s in self.eligibility.all_specs)
 
     def _components(self) -> tuple[tuple[int, ...], ...]:
         """Per contact: the components of ``d`` its friction pieces weigh (none: frictionless)."""
         return tuple(
             tuple(int(j) for j in np.flatnonzero(friction_pieces(s.type, s.mu, s.mu_s).any(axis=0)))
-            for s in self.eligibility.specs
+            for s in self.eligibility.all_specs
         )
 
     def exchange_solver(self) -> str:
@@ -203,9 +207,9 @@ class ExchangePlacer:
         return solver
 
     def _problem(
-        self, rows, count, solver: str | None = None
+        self, rows, count, solver: str | None = None, pairs=()
     ) -> ExchangeProblem | ExchangeLP | ExchangeSLP:
-        solver = solver or self.exchange_solver()
+        solver = "ipopt" if pairs else solver or self.exchange_solver()
         if solver == "highs":
             # the same problem, linear
             return ExchangeLP(self.options.subset_margin, self.options.lp_centre)
@@ -218,18 +222,20 @@ class ExchangePlacer:
         capacity = next((b for b in DIRECTION_BUCKETS if count <= b), count)
         components = self._components()
         tol, margin = self.options.ipopt_tol, self.options.subset_margin
-        key = (rows, capacity, tol, margin, components)
+        key = (rows, capacity, tol, margin, pairs, components)
         return cached(
             self._problems,
             key,
-            lambda: ExchangeProblem(rows, capacity, tol, margin, components),
+            lambda: ExchangeProblem(rows, capacity, tol, margin, components, pairs),
             MAX_EXCHANGE_PROBLEMS,
         )
 
     def contact_set(self, elements, weights) -> ContactSet:
+        """The fixed contacts, then one on each of ``elements`` at ``weights``."""
         model, specs = self.eligibility.model, self.eligibility.specs
         return ContactSet(
-            tuple(
+            self.eligibility.fixed.contacts
+            + tuple(
                 specs[i].at(
                     model.elements[e].position(w),
                     model.elements[e].inward_normal,
@@ -265,6 +271,31 @@ class ExchangePlacer:
         bar: float = np.inf,
         explore: bool = False,
     ):
+        """:meth:`run`; with a minimum spacing that some pair of contacts can break, the run
+        without its constraints first (their own solvers, faster), and only when its weights
+        break the spacing a run with them, from those weights: a local optimum that keeps the
+        spacing without its constraints is one with them."""
+        args = (progress, initial, max_rounds, directions, bar, explore)
+        spacing = self._spacing(elements)
+        found = self.run(elements, weights, *args)
+        if spacing is None or self._kept(elements, found[0], spacing):
+            return found
+        w, best, predicted, rounds = found
+        again = self.run(elements, w, progress, best, max_rounds, directions, bar, explore, True)
+        return (*again[:3], rounds + again[3])
+
+    def run(
+        self,
+        elements,
+        weights,
+        progress: Progress | None = None,
+        initial=None,
+        max_rounds=None,
+        directions: list | None = None,
+        bar: float = np.inf,
+        explore: bool = False,
+        spaced: bool = False,
+    ):
         """Trust-region exchange on fixed elements from ``weights`` (``initial``: their rho
         result, when already known), for at most ``max_rounds`` (default: the options') rounds.
         ``directions`` (optional, updated in place) holds the weak directions found by earlier
@@ -275,18 +306,31 @@ class ExchangePlacer:
         only has to beat the best one so far (a further start, a neighbour-move trial), whose
         restricted problems the ``"mixed"`` solver gives to the sequential LP.
 
+        ``spaced``: keep the minimum spacing by constraints of the restricted problems.
+
         Returns (weights, rho result, the model's last predicted ``-rho``, rounds).
         """
-        model, specs = self.eligibility.model, self.eligibility.specs
+        model, fixed = self.eligibility.model, self.eligibility.fixed
         minimizer = self.eligibility.minimizer
         light = minimizer.with_search(SCREEN_SEARCH)
         judge = minimizer.with_search(ROUND_SEARCH) if self.options.round_search else minimizer
         ts = self.eligibility.torque_scale
         counts = [len(model.elements[e].vertices) for e in elements]
-        frames = [ElementFrame.padded(model.elements[e], ts) for e in elements]
+        # the fixed contacts first, each a point: its one weight cannot move
+        frames = [ElementFrame.padded(e, ts) for e in fixed.elements]
+        frames += [ElementFrame.padded(model.elements[e], ts) for e in elements]
         rows = tuple(len(frame.G) for frame in frames)
-        f_max = np.array([spec.f_max for spec in specs])
+        k0 = len(fixed)
+        f_max = np.array([spec.f_max for spec in self.eligibility.all_specs])
+        spacing = self._spacing(elements) if spaced else None
+        pairs = spacing.pairs if spacing else ()
+        kept_apart = (spacing.length, spacing.distance) if spacing else None
         best_w = [np.asarray(w, float) for w in weights]
+        best_ok = self._kept(elements, best_w, spacing)
+        start_w = best_w
+        if not best_ok:  # coincident contacts have no gradient apart: start from nearby weights
+            rng = np.random.default_rng(len(best_w))
+            start_w = [0.8 * w + 0.2 * rng.dirichlet(np.ones(len(w))) for w in best_w]
         best = initial or self._search(self.contact_set(elements, best_w), minimizer)
         tolerance = self.eligibility.contact_tolerance(elements)
         if self.objective is not None:  # each case's directions u / u.w
@@ -299,29 +343,36 @@ class ExchangePlacer:
         first_found = len(U) - 1
         # A trust region around the best weights: the restricted model is only good nearby, and
         # without it the solves jump between far corners (cutting planes oscillate).
-        c_best, radius, predicted = [_padded(w, k) for w, k in zip(best_w, rows)], 0.5, np.inf
+        c_best = [_padded(np.ones(1), k) for k in rows[:k0]]
+        c_best += [_padded(w, k) for w, k in zip(start_w, rows[k0:])]
+        radius, predicted = (0.5 if best_ok else 1.0), np.inf
         rounds = 0
-        at_best = WrenchSlots.from_contacts(self.contact_set(elements, best_w))
+        at_best = WrenchSlots.from_contacts(self.contact_set(elements, start_w))
         best_value = self.steering(at_best, best, tolerance)
         limit = max_rounds or self.options.max_rounds
         checked = True  # best's value is the default search's (a start's, or validated)
         # "slp-ipopt": the sequential LP's rounds while they pay off; from the first one that
         # does not, IPOPT's, from a trust region of at least 0.5, so that a run ends where
         # IPOPT's rounds end it (a point of IPOPT's model, not a stall of the linearisation).
-        solver = self._run_solver(explore)
+        solver = "ipopt" if pairs else self._run_solver(explore)  # spacing: IPOPT's NLP
         sequential = solver in ("slp", "slp-ipopt")
         tail = "ipopt" if solver == "slp-ipopt" else solver
         while True:
             while rounds < limit:
                 rounds += 1
-                problem = self._problem(rows, len(U), "slp" if sequential else tail)
-                c, predicted = problem.solve(frames, at_best, f_max, np.array(U), c_best, radius)
-                if predicted + best.rho <= self.options.gap * max(1.0, abs(best.rho)):
+                problem = self._problem(rows, len(U), "slp" if sequential else tail, pairs)
+                args = (frames, at_best, f_max, np.array(U), c_best, radius)
+                c, predicted = problem.solve(*args, kept_apart) if pairs else problem.solve(*args)
+                no_gain = predicted + best.rho <= self.options.gap * max(1.0, abs(best.rho))
+                if no_gain and best_ok:
                     if sequential and solver == "slp-ipopt":
                         sequential, radius = False, max(radius, 0.5)
                         continue
                     break  # the model sees no better weights within the trust region
-                w = [_unpadded(ci, k) for ci, k in zip(c, counts)]
+                w = [_unpadded(ci, k) for ci, k in zip(c[k0:], counts)]
+                trial_ok = self._kept(elements, w, spacing)
+                if not (trial_ok or best_ok):
+                    break  # no placement found that keeps the spacing
                 trial_slots = WrenchSlots.from_contacts(self.contact_set(elements, w))
                 warm = best.direction
                 if self.objective is not None:
@@ -340,14 +391,16 @@ class ExchangePlacer:
                     warm = found.direction
                 if self.objective is None and (
                     not self.options.screen
+                    or not best_ok
                     or self.steering(trial_slots, found, tolerance) < best_value
                 ):
                     found = search_rho(trial_slots, minimizer=judge, warm_start=warm)
                 U.append(found.direction)
                 value = self.steering(trial_slots, found, tolerance)
-                if value < best_value:
+                if trial_ok and (value < best_value or not best_ok):
                     best, best_w, c_best, at_best, best_value = found, w, c, trial_slots, value
-                    radius = min(1.0, 2.0 * radius)
+                    radius = min(1.0, 2.0 * radius) if best_ok else 0.5
+                    best_ok = True
                     checked = False
                 elif sequential and solver == "slp-ipopt":
                     sequential, radius = False, max(radius, 0.5)
@@ -386,6 +439,10 @@ class ExchangePlacer:
         weights = [
             simplex_weights(w, k, f"weights[{i}]") for i, (w, k) in enumerate(zip(weights, counts))
         ]
+        spacing = self._spacing(elements)
+        reason = spacing.impossible() if spacing else None
+        if reason:
+            raise SpacingError(f"min_spacing: cannot be kept: {reason}")
         start_elements, start_set = tuple(elements), self.contact_set(elements, weights)
         # The start's search value is never above its certified rho (a found support value), so
         # the start is certified only when the final result does not beat that value (below).
@@ -417,7 +474,7 @@ class ExchangePlacer:
             )
             rounds += n_rounds
             value = self._value(elements, w, found)
-            if value < best_value:
+            if self._better(elements, w, value, best_w, best_value):
                 best_w, best, predicted, best_value = w, found, up, value
             if progress:
                 progress("placement start", k + 1, best.rho)
@@ -445,19 +502,17 @@ class ExchangePlacer:
         contact_set = self.contact_set(elements, best_w)
         if progress:
             progress("certification", 0, best.rho)
+        start_ok = self._kept(start_elements, weights, spacing)
         if self.objective is not None:  # certified load factors: keep the start if better
-            if best.rho > start.rho:
+            if best.rho > start.rho and start_ok:
                 elements, best_w, moves, contact_set = list(start_elements), weights, [], start_set
             start = rho(start_set, minimizer=self.eligibility.minimizer)  # its rho, reported
         warm = None if self.objective is not None else best.direction  # a load's is not unit
         final = rho(contact_set, minimizer=self.eligibility.minimizer, warm_start=warm)
-        if self.objective is None and self.steering(contact_set, final) > self.steering(
-            start_set, start
-        ):
+        steered = self.objective is None and start_ok
+        if steered and self.steering(contact_set, final) > self.steering(start_set, start):
             start = rho(start_set, minimizer=self.eligibility.minimizer)
-        if self.objective is None and self.steering(contact_set, final) > self.steering(
-            start_set, start
-        ):
+        if steered and self.steering(contact_set, final) > self.steering(start_set, start):
             # The exchange steered by the search's values, which can miss; certified, the start
             # is better: keep it, so that the result is never worse than the start it reports.
             elements, best_w, moves, contact_set, final = (
@@ -467,6 +522,10 @@ class ExchangePlacer:
                 start_set,
                 start,
             )
+        if self.options.min_spacing:
+            final_spacing = self._spacing(elements)
+            if final_spacing:
+                final_spacing.check(self._positions(elements, best_w))
         placed = tuple(
             PlacedContact(e, w, model.elements[e].position(w), model.elements[e].inward_normal)
             for e, w in zip(elements, best_w)
@@ -496,6 +555,37 @@ class ExchangePlacer:
     def _value(self, elements, weights, found) -> float:
         """:meth:`steering` of the contacts at ``weights`` on ``elements``."""
         return self.steering(self.contact_set(elements, weights), found)
+
+    def _spacing(self, elements) -> Spacing | None:
+        """The spacing of contacts on ``elements`` (None: no minimum, or no pair that can
+        come closer than it)."""
+        if not self.options.min_spacing:
+            return None
+        spacing = Spacing(self.eligibility, elements, self.options.min_spacing)
+        return spacing if spacing.pairs else None
+
+    def _positions(self, elements, weights) -> np.ndarray:
+        """(k + m, 3): the fixed contacts' positions, then those on ``elements``."""
+        model = self.eligibility.model
+        new = [model.elements[e].position(w) for e, w in zip(elements, weights)]
+        return np.vstack([self.eligibility.fixed.positions, *new])
+
+    def _kept(self, elements, weights, spacing: Spacing | None | bool = True) -> bool:
+        """Whether the contacts on ``elements`` at ``weights`` keep the minimum spacing
+        (``spacing``: theirs when known)."""
+        if spacing is True:
+            spacing = self._spacing(elements)
+        return not spacing or spacing.kept(self._positions(elements, weights))
+
+    def _better(self, elements, w, value: float, best_w, best_value: float) -> bool:
+        """Whether a run's result at ``w`` (steering ``value``) replaces the best (at
+        ``best_w``), both on ``elements``: a lower value keeping the spacing, or keeping it
+        where the best does not."""
+        if not self.options.min_spacing:
+            return value < best_value
+        if not self._kept(elements, w):
+            return False
+        return value < best_value or not self._kept(elements, best_w)
 
     def _validated(self, slots: WrenchSlots, found):
         """``found`` (a round search's result on ``slots``), or the weaker answer of the
@@ -540,7 +630,11 @@ class ExchangePlacer:
                     explore=True,
                 )
                 spent += n_rounds
-                if self._value(trial, w_new, found) < best_value - margin:
+                if not self._kept(trial, w_new):
+                    continue
+                if self._value(trial, w_new, found) < best_value - margin or not self._kept(
+                    elements, weights
+                ):
                     if probe:  # a move that helps runs on to the full budget
                         w_new, found, up, more = self.optimise(
                             trial, w_new, progress, found, None, directions

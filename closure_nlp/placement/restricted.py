@@ -43,6 +43,10 @@ class ExchangeProblem:
     or mu = mu_s = 0) has the linear term ``f_i d_n`` alone: the same value, and no curvature
     at all. The other components are left out of ``q``, the same
     values to the bit with a smaller graph (its Hessian is most of a solve's time).
+
+    ``pairs`` (optional): pairs of contacts kept at least a distance apart, ``|x_i - x_j|^2 >=
+    D^2`` with ``x_i = V_i^T c_i`` (the vertices over the part's size, parameters): a
+    non-convex constraint IPOPT keeps locally (:class:`~closure_nlp.placement.spacing.Spacing`).
     """
 
     EPS = 1e-9
@@ -55,8 +59,9 @@ class ExchangeProblem:
         tol: float = 1e-10,
         margin: float = 0.0,
         components=(),
+        pairs=(),
     ):
-        self.margin = margin
+        self.margin, self.pairs = margin, tuple(pairs)
         self.rows, self.capacity = tuple(rows), capacity
         self.affine = tuple(k > AFFINE_ROWS for k in self.rows)
         components = tuple(components) or ((0, 1, 2, 3),) * len(self.rows)
@@ -89,10 +94,18 @@ class ExchangeProblem:
                 q = sum(W[i][j, :] * d[j, :] ** 2 for j in components[i])
                 P = f_max[i] * (d[0, :] + ca.sqrt(q + self.EPS**2) - self.EPS)
             total = total + mask[i, :] * P
-        g = ca.vertcat(*[ca.sum1(ci) for ci in c], *ties, (total - active.T * r).T)
-        n_tie = 3 * len(xis)
-        self._lbg = np.concatenate([np.ones(m), np.zeros(n_tie), np.zeros(K)])
-        self._ubg = np.concatenate([np.ones(m), np.zeros(n_tie), np.full(K, np.inf)])
+        spaced = sorted({i for pair in self.pairs for i in pair})
+        V = {i: ca.SX.sym(f"V{i}", self.rows[i], 3) for i in spaced}
+        x_at = {i: ca.mtimes(V[i].T, c[i]) for i in spaced}
+        gaps = [ca.sumsqr(x_at[i] - x_at[j]) for i, j in self.pairs]
+        data += [V[i] for i in spaced]
+        self._spaced = spaced
+        g = ca.vertcat(*[ca.sum1(ci) for ci in c], *ties, (total - active.T * r).T, *gaps)
+        n_tie, n_gap = 3 * len(xis), len(gaps)
+        self._lbg = np.concatenate([np.ones(m), np.zeros(n_tie), np.zeros(K), np.zeros(n_gap)])
+        self._ubg = np.concatenate(
+            [np.ones(m), np.zeros(n_tie), np.full(K, np.inf), np.full(n_gap, np.inf)]
+        )
         x = ca.vertcat(*c, *xis, r)
         p = ca.vertcat(*[ca.vec(a) for a in (*data, *W)], ca.vec(mask), f_max, active)
         self._solver = ca.nlpsol(
@@ -111,10 +124,11 @@ class ExchangeProblem:
             },
         )
 
-    def solve(self, frames, slots_at_c, f_max, U, c0, radius):
+    def solve(self, frames, slots_at_c, f_max, U, c0, radius, spacing=None):
         """One solve from weights ``c0`` (padded), each weight within ``radius`` of its start;
         ``frames`` holds each contact's :class:`ElementFrame`, ``slots_at_c`` the contacts at
-        ``c0``.
+        ``c0``; ``spacing``, with ``pairs``: ``(length, distance)``, the distance kept and the
+        part's size the positions are scaled by.
 
         Returns the new padded weights (list) and ``r``.
         """
@@ -138,6 +152,9 @@ class ExchangeProblem:
             else:
                 data.append(padded(frame.local(U).reshape(-1, n)))
             W_parts.append(padded(chosen[:, i, :].T))
+        if self._spaced:
+            length, distance = spacing
+            data += [(frames[i].vertices / length).ravel(order="F") for i in self._spaced]
         active = np.zeros(K)
         active[:n] = 1.0
         params = np.concatenate([*data, *W_parts, mask.ravel(order="F"), f_max, active])
@@ -151,7 +168,10 @@ class ExchangeProblem:
         # relaxed bound inside IPOPT's barrier and complementarity measure, which took more
         # iterations to other weights than the NLP of exactly these directions; free, the same.
         lbg = self._lbg.copy()
-        lbg[len(lbg) - K + n :] = -np.inf
+        n_gap = len(self.pairs)
+        lbg[len(lbg) - n_gap - K + n : len(lbg) - n_gap] = -np.inf
+        if n_gap:  # a hair above: the NLP keeps it to its constraint tolerance
+            lbg[len(lbg) - n_gap :] = (distance / length) ** 2 * (1.0 + 1e-7)
         with interruptible():
             sol = self._solver(x0=x0, p=params, lbx=lbx, ubx=ubx, lbg=lbg, ubg=self._ubg)
         x = np.asarray(sol["x"]).ravel()

@@ -201,8 +201,10 @@ class PlacementResult:
         as_file = self.contact_set.to_dict()  # its tolerance too: rho of it gives this verdict
         if "tolerance" in as_file:
             data["tolerance"] = as_file["tolerance"]
-        data["contacts"] = [
+        # the fixed contacts first (in their given order), then the placed ones
+        entries, k = as_file["contacts"], len(as_file["contacts"]) - len(self.contacts)
+        data["contacts"] = [{**c, "fixed": True} for c in entries[:k]] + [
             {**c, "element": p.element, "weights": p.weights.tolist()}
-            for c, p in zip(as_file["contacts"], self.contacts)
+            for c, p in zip(entries[k:], self.contacts)
         ]
         return data

@@ -22,6 +22,7 @@ from closure_nlp.criterion.robustness import robust_value
 from closure_nlp.placement import ceiling
 from closure_nlp.placement.place import Placer
 from closure_nlp.placement.result import PlacementResult
+from closure_nlp.placement.spacing import SpacingError
 from closure_nlp.selection.algorithms import (
     SelectionOptions,
     SelectionResult,
@@ -136,20 +137,28 @@ def plan_one(
     recall = _Recall(memo, eligibility, selection, placer, progress)
     first = heuristic(eligibility, start=start, seed=seed, options=selection, progress=progress)
     second = recall.iterative(first.elements, "iterative")
-    best = recall.placement(second.elements, "placement")
-    best_start = second.elements
-    attempts = [_attempt(second.elements, "iterative", second.rho_hat, best)]
-    if not _held(best) and alternatives and second.eligible:  # else 50 rounds failed
+    best_start, unspaced = second.elements, None
+    try:
+        best = recall.placement(second.elements, "placement")
+        attempts = [_attempt(second.elements, "iterative", second.rho_hat, best)]
+    except SpacingError as exc:  # the alternatives may have room for the spacing
+        best, unspaced, attempts = None, exc, []
+    if (best is None or not _held(best)) and alternatives and second.eligible:
         candidates = _alternatives(eligibility, seed, selection, second, recall)
         for elements, source, value in itertools.islice(candidates, alternatives):
-            found = recall.placement(elements, f"placement {len(attempts)}")
+            try:
+                found = recall.placement(elements, f"placement {len(attempts)}")
+            except SpacingError:
+                continue
             attempts.append(_attempt(elements, source, value, found))
             if progress:
                 progress("alternative", len(attempts) - 1, found.rho)
-            if _robust_value(found) < _robust_value(best):
+            if best is None or _robust_value(found) < _robust_value(best):
                 best, best_start = found, elements
             if _held(found):
                 break
+    if best is None:
+        raise unspaced
     best = recall.ceiling(best_start, best)
     return PlanResult(
         first, second, best, time.perf_counter() - t0, tuple(attempts), tuple(recall.reused)

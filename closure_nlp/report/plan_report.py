@@ -254,7 +254,23 @@ def _figures(model, result: PlanResult, out: Path, up: str | None = None) -> dic
         title=f"{model.name}: rho = {certain(result.placement.rho, result.placement.bounds)}",
         up=up,
     )
-    draw_contacts(ax, final, sizes=140.0, scale=model_extent(model), label="placed contacts")
+    fixed = len(final) - len(result.placement.contacts)  # contacts already in place: first
+    if fixed:
+        draw_contacts(
+            ax,
+            final.contacts[:fixed],
+            sizes=140.0,
+            colour="black",
+            scale=model_extent(model),
+            label="fixed contacts",
+        )
+    draw_contacts(
+        ax,
+        final.contacts[fixed:],
+        sizes=140.0,
+        scale=model_extent(model),
+        label="placed contacts",
+    )
     paths["placement.png"] = save_figure(fig, out / "placement.png")
     plt.close(fig)
     # Fig. 3: rho_hat against the iteration number.

@@ -187,7 +187,7 @@ def heuristic(
     ValueError
         When the contact specs can never give force closure (:mod:`closure_nlp.contact.count`).
     """
-    require_closure_count(eligibility.specs)
+    require_closure_count(eligibility.all_specs)
     t0 = time.perf_counter()
     m = eligibility.m
     usable = np.flatnonzero(eligibility.model.usable)
@@ -275,7 +275,7 @@ def iterative(
     rho_hat is warm-started from the current ``u*`` and remembered, so no set is solved twice.
     Contact specs that can never give force closure raise ``ValueError`` before any search.
     """
-    require_closure_count(eligibility.specs)
+    require_closure_count(eligibility.all_specs)
     t0 = time.perf_counter()
     evaluations0 = eligibility.evaluations
     current = list(eligibility.check_elements(start, "start"))
@@ -436,6 +436,10 @@ def lone_contact(eligibility: Eligibility, elements) -> int | None:
     blocks = []
     for spec, e in zip(specs, elements):
         G = eligibility.model.elements[e].grasp_matrices(eligibility.torque_scale)
+        columns = _COLUMNS.get(spec.type, [0, 1, 2, 3])
+        blocks.append(G[:, :, columns].transpose(0, 2, 1).reshape(-1, 6))
+    for spec, element in zip(eligibility.fixed.specs, eligibility.fixed.elements):
+        G = element.grasp_matrices(eligibility.torque_scale)  # fixed contacts: never alone here
         columns = _COLUMNS.get(spec.type, [0, 1, 2, 3])
         blocks.append(G[:, :, columns].transpose(0, 2, 1).reshape(-1, 6))
     largest = max(np.linalg.norm(b, 2) for b in blocks)

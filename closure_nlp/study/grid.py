@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import hashlib
-from dataclasses import asdict, dataclass, field, fields
+import json
+from dataclasses import asdict, dataclass, field, fields, replace
 from itertools import product
 from pathlib import Path
 
@@ -23,15 +24,33 @@ from closure_nlp.base.validation import (
     check_keys,
     is_whole,
 )
-from closure_nlp.contact.contact_set import DEFAULT_F_MAX, DEFAULT_MU, DEFAULT_MU_S, ContactType
+from closure_nlp.contact.contact_set import (
+    DEFAULT_F_MAX,
+    DEFAULT_MU,
+    DEFAULT_MU_S,
+    ContactType,
+    contact_set_from_dict,
+)
 from closure_nlp.contact.count import closure_count_problem
 from closure_nlp.model.elements import load_model
+from closure_nlp.model.fixed_contacts import fixed_contacts
+from closure_nlp.model.regions import excluded_elements
 from closure_nlp.model.scale import contact_specs
 from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.selection.algorithms import SelectionOptions
 from closure_nlp.study.tasks import GRID_AXES, Task
 
-STUDY_KEYS = {"name", "description", "models", "seeds", "selection", "placement", *GRID_AXES}
+INTENT_KEYS = ("only", "exclude", "fixed", "min_spacing")
+STUDY_KEYS = {
+    "name",
+    "description",
+    "models",
+    "seeds",
+    "selection",
+    "placement",
+    *GRID_AXES,
+    *INTENT_KEYS,
+}
 REQUIRED_KEYS = {"models", "contacts"}
 MODEL_SUFFIX = ".model.json"
 
@@ -77,6 +96,7 @@ class Study:
     placement: PlacementOptions
     tasks: tuple[Task, ...]
     duplicates: int
+    intent: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
         """The resolved study as JSON values (written as ``OUT/study.json``)."""
@@ -93,6 +113,7 @@ class Study:
             "placement": asdict(self.placement),
             "tasks": len(self.tasks),
             "duplicates": self.duplicates,
+            **{k: (list(v) if isinstance(v, tuple) else v) for k, v in self.intent.items()},
         }
 
 
@@ -138,17 +159,73 @@ def study_from_dict(
     seeds = _seeds(data.get("seeds", 1))
     selection = _options(data, "selection", SelectionOptions)
     placement = _options(data, "placement", PlacementOptions)
+    if "min_spacing" in data:  # the same as [placement] min_spacing
+        try:
+            placement = replace(placement, min_spacing=data["min_spacing"])
+        except ValueError as exc:
+            raise ValueError(str(exc)) from None
+    intent, fixed = _intent(data, Path(base_dir))
     if not selection.initial < min(grid["contacts"]):
         raise ValueError(
             f"selection.initial: must be < every contact count {list(grid['contacts'])}, "
             f"got {selection.initial}"
         )
-    _check_counts(grid)
+    _check_counts(grid, [c.spec for c in fixed.contacts] if fixed is not None else ())
     models = _models(data["models"], Path(base_dir))
-    tasks, duplicates = _expand(models, grid, seeds, selection, placement)
+    for ref in models:  # the regions and the fixed contacts hold on every model
+        model = load_model(ref.path)
+        try:
+            excluded_elements(model, intent.get("only", ()), intent.get("exclude", ()))
+            fixed_contacts(model, fixed)
+        except ValueError as exc:
+            raise ValueError(f"{ref.label}: {exc}") from None
+    tasks, duplicates = _expand(models, grid, seeds, selection, placement, intent)
     return Study(
-        name, description, source, models, grid, seeds, selection, placement, tasks, duplicates
+        name,
+        description,
+        source,
+        models,
+        grid,
+        seeds,
+        selection,
+        placement,
+        tasks,
+        duplicates,
+        dict(intent, **({"fixed": str(data["fixed"])} if fixed is not None else {})),
     )
+
+
+def _intent(data: dict, base_dir: Path):
+    """The study's ``only`` and ``exclude`` (tuples of regions: SPEC strings or id lists) and
+    ``fixed`` (a contact-set file, relative to the study file) as task keys, and the fixed
+    contacts read."""
+    intent: dict = {}
+    for key in ("only", "exclude"):
+        if key not in data:
+            continue
+        value = data[key]
+        values = value if isinstance(value, list) else [value]
+        if values and all(is_whole(v) and not isinstance(v, bool) for v in values):
+            values = [values]  # one list of ids
+        for i, v in enumerate(values):
+            if not (isinstance(v, str) or isinstance(v, list)):
+                raise TypeError(f"{key}[{i}]: expected a SPEC string or a list of ids, got {v!r}")
+        intent[key] = tuple(tuple(v) if isinstance(v, list) else v for v in values)
+    fixed = None
+    if "fixed" in data:
+        if not isinstance(data["fixed"], str) or not data["fixed"]:
+            raise TypeError(f"fixed: expected a contact-set file's path, got {data['fixed']!r}")
+        path = (base_dir / data["fixed"]).resolve()
+        try:
+            raw = json.loads(read_input(path).decode("utf-8"))
+            fixed = contact_set_from_dict(raw)
+        except OSError as exc:
+            reason = exc.strerror or exc
+            raise ValueError(f"fixed: cannot read {data['fixed']!r}: {reason}") from None
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"fixed: {data['fixed']!r}: {exc}") from None
+        intent["fixed"] = json.dumps(raw, sort_keys=True, separators=(",", ":"))
+    return intent, fixed
 
 
 def _check_size(data: dict, grid: dict) -> None:
@@ -170,10 +247,12 @@ def _check_size(data: dict, grid: dict) -> None:
         )
 
 
-def _check_counts(grid: dict) -> None:
-    """Refuse a grid point whose contacts can never give force closure (before any model)."""
+def _check_counts(grid: dict, fixed=()) -> None:
+    """Refuse a grid point whose contacts (with the ``fixed`` ones' specs) can never give force
+    closure (before any model)."""
     for kind, m, mu, mu_s in product(grid["type"], grid["contacts"], grid["mu"], grid["mu_s"]):
-        problem = closure_count_problem(contact_specs(m, type=kind, mu=mu, mu_s=mu_s))
+        specs = tuple(fixed) + tuple(contact_specs(m, type=kind, mu=mu, mu_s=mu_s))
+        problem = closure_count_problem(specs)
         if problem is not None:
             point = "" if kind == "fpc" else f" (grid point mu = {mu:g}, mu_s = {mu_s:g})"
             raise ValueError(f"contacts: {problem}{point}")
@@ -281,10 +360,14 @@ def _model_ref(path: Path, where: str) -> ModelRef:
     return ModelRef(label, path, digest, raw.decode("utf-8"))
 
 
-def _expand(models, grid, seeds, selection, placement) -> tuple[tuple[Task, ...], int]:
+def _expand(models, grid, seeds, selection, placement, intent) -> tuple[tuple[Task, ...], int]:
     """Tasks in grid order, seeds innermost (so a worker meets the same solvers in a row)."""
     sel = tuple(sorted(asdict(selection).items()))
-    plc = tuple(sorted(asdict(placement).items()))
+    # without a spacing, the tasks' ids stay those of studies that had none
+    plc = tuple(
+        (k, v) for k, v in sorted(asdict(placement).items()) if (k, v) != ("min_spacing", 0.0)
+    )
+    kept = tuple(sorted(intent.items()))
     tasks: dict[str, Task] = {}
     points = 0
     axes = [grid[k] for k in ("type", "contacts", "mu", "mu_s", "f_max", "torque_scale")]
@@ -303,6 +386,7 @@ def _expand(models, grid, seeds, selection, placement) -> tuple[tuple[Task, ...]
             seed,
             sel,
             plc,
+            kept,
         )
         tasks.setdefault(task.task_id, task)
     return tuple(tasks.values()), points - len(tasks)

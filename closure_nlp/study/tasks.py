@@ -20,6 +20,7 @@ from pathlib import Path
 from closure_nlp._version import __version__
 from closure_nlp.base.files import parse_json, read_input
 from closure_nlp.base.solver_cache import PerThread
+from closure_nlp.contact.contact_set import contact_set_from_dict
 from closure_nlp.criterion.rho_hat import Eligibility
 from closure_nlp.criterion.support_minimum import SupportMinimizer
 from closure_nlp.model.elements import model_from_dict
@@ -64,6 +65,10 @@ class Task:
         Seed of the heuristic's random start element.
     selection, placement : tuple of (str, object)
         Every field of :class:`SelectionOptions` and :class:`PlacementOptions`, sorted by name.
+    intent : tuple of (str, object)
+        Where contacts may go and the contacts already in place, for every task of the study:
+        ``only`` and ``exclude`` (tuples of regions) and ``fixed`` (the contact-set file's
+        content as canonical JSON text, or None); empty when the study gives none.
     """
 
     model: str
@@ -78,12 +83,16 @@ class Task:
     seed: int
     selection: tuple[tuple[str, object], ...]
     placement: tuple[tuple[str, object], ...]
+    intent: tuple[tuple[str, object], ...] = ()
 
     def inputs(self) -> dict:
         """Everything the result depends on, as plain JSON values (the model by its digest)."""
         data = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "model_file"}
         data["selection"] = dict(self.selection)
         data["placement"] = dict(self.placement)
+        data["intent"] = dict(self.intent)
+        if not self.intent:  # the ids of studies without it stay as they were
+            del data["intent"]
         return {"version": TASK_VERSION, **data}
 
     @cached_property  # a run asks for it several times per task; hashing is most of its cost
@@ -112,6 +121,13 @@ class Task:
         """The options of the heuristic and iterative algorithms."""
         return SelectionOptions(**dict(self.selection))
 
+    def intent_keywords(self) -> dict:
+        """``only``, ``exclude`` and ``fixed`` as :class:`Eligibility` takes them."""
+        out = dict(self.intent)
+        if out.get("fixed") is not None:
+            out["fixed"] = contact_set_from_dict(json.loads(out["fixed"]))
+        return out
+
     def placement_options(self) -> PlacementOptions:
         """The options of the contact placement."""
         return PlacementOptions(**dict(self.placement))
@@ -122,7 +138,8 @@ class Task:
 GRID_AXES = tuple(
     f.name
     for f in fields(Task)
-    if f.name not in {"model", "model_file", "model_digest", "seed", "selection", "placement"}
+    if f.name
+    not in {"model", "model_file", "model_digest", "seed", "selection", "placement", "intent"}
 )
 
 _CACHE_SIZE = 8
@@ -160,7 +177,7 @@ def _solvers(task: Task, model_text: str | None) -> tuple[Eligibility, Placer, d
         _local.problems = PerThread(dict)  # exchange NLPs, shared by the thread's placers
     cache = _local.cache
     key = (task.model_digest, task.type, task.contacts, task.mu, task.mu_s, task.f_max)
-    key += (task.torque_scale,)
+    key += (task.torque_scale, task.intent)
     built = key not in cache
     if built:
         if model_text is None:
@@ -169,7 +186,9 @@ def _solvers(task: Task, model_text: str | None) -> tuple[Eligibility, Placer, d
                 raise ValueError(f"{task.model_file}: model file changed since the study was read")
             model_text = raw.decode("utf-8")
         model = model_from_dict(parse_json(model_text), Path(task.model_file).parent)
-        eligibility = Eligibility(model, task.specs(), task.torque_scale, _local.minimizer)
+        eligibility = Eligibility(
+            model, task.specs(), task.torque_scale, _local.minimizer, **task.intent_keywords()
+        )
         cache[key] = (eligibility, {}, {})
         while len(cache) > _CACHE_SIZE:
             cache.popitem(last=False)
@@ -321,7 +340,7 @@ def worker_memory() -> dict:
 
 # The task's fields that a row holds as they are (the options go in as JSON).
 _TASK_COLUMNS = tuple(
-    f.name for f in fields(Task) if f.name not in {"model_file", "selection", "placement"}
+    f.name for f in fields(Task) if f.name not in {"model_file", "selection", "placement", "intent"}
 )
 
 
