@@ -54,3 +54,13 @@ def factors_answer(factors, objective: str | None = None) -> tuple[dict, str]:
         return {}, ""
     keys = factors.to_dict() | ({"objective": objective} if objective else {})
     return keys, "\n" + factors.text() + (f" (objective: {objective})" if objective else "")
+
+
+def element_factors(eligibility, elements, loads):
+    """The certified factors of ``loads`` on the wrench set of the element set ``elements``:
+    an upper bound on any placement's factors on those elements (``None`` without loads)."""
+    if loads is None:
+        return None
+    from closure_nlp.placement.load_objective import LoadObjective
+
+    return LoadObjective.of(eligibility, loads)(eligibility.slots(elements)).factors

@@ -1,6 +1,8 @@
 """Selecting eligible elements: the heuristic and the iterative algorithms (paper section 5).
 
-Both steer by rho_hat = rho(0, What_c^M) (:mod:`closure_nlp.criterion.rho_hat`). The heuristic grows
+Both steer by rho_hat = rho(0, What_c^M) (:mod:`closure_nlp.criterion.rho_hat`), or by another
+value of element sets called like the eligibility (``value``: e.g. minus the least load factor,
+:class:`~closure_nlp.selection.load_value.LoadValue`). The heuristic grows
 a set from ``i0`` random (or given) elements, each time adding the element whose best vertex
 wrench lies furthest along ``u*``, the direction that separates the current set from the origin
 (or its weakest side once the set is eligible). The iterative algorithm swaps one element at a time
@@ -158,6 +160,7 @@ def heuristic(
     seed: int | None = 0,
     options: SelectionOptions = SelectionOptions(),
     progress: Progress | None = None,
+    value=None,
 ) -> SelectionResult:
     """Steps 1-5 of the heuristic algorithm.
 
@@ -171,6 +174,11 @@ def heuristic(
     seed : int, optional
     options : SelectionOptions
     progress : callable, optional
+    value : callable, optional
+        What ranks element sets, lower better, called as ``eligibility`` is and with its
+        ``certify`` and ``evaluations`` (default: rho_hat by ``eligibility``;
+        :class:`~closure_nlp.selection.load_value.LoadValue`: minus the least load factor).
+        Every field of the result named ``rho_hat`` is then that value.
 
     Returns
     -------
@@ -187,7 +195,8 @@ def heuristic(
     t0 = time.perf_counter()
     m = eligibility.m
     usable = np.flatnonzero(eligibility.model.usable)
-    evaluations0 = eligibility.evaluations
+    source = eligibility if value is None else value
+    evaluations0 = source.evaluations
     rng = np.random.default_rng(seed)
     given = None if start is None else _check_start(eligibility, start)
     if given is None and not options.initial < m:
@@ -201,13 +210,13 @@ def heuristic(
         history = []
         # A complete set is certified at once: the certificate's light seed search replaces the
         # full one, and the verdict that ends the rounds is the certified one.
-        found = eligibility(chosen, partial=True, certify=len(chosen) == m)
+        found = source(chosen, partial=True, certify=len(chosen) == m)
         history.append((0, found.rho_hat))
         while len(chosen) < m:
             values = eligibility.element_values(len(chosen), found.direction)
             values[~eligibility.model.usable] = -np.inf
             chosen.append(int(np.argmax(values)))
-            found = eligibility(chosen, found.direction, partial=True, certify=len(chosen) == m)
+            found = source(chosen, found.direction, partial=True, certify=len(chosen) == m)
             history.append((len(history), found.rho_hat))
             if progress:
                 progress("heuristic", len(history) - 1, found.rho_hat)
@@ -216,12 +225,13 @@ def heuristic(
         if found.eligible:
             break
     found, history = best
-    return _certified_result(eligibility, found, history, evaluations0, t0, rounds=round_)
+    return _certified_result(source, found, history, evaluations0, t0, rounds=round_)
 
 
 def _certified_result(eligibility, best, history, evaluations0, t0, **extra) -> SelectionResult:
     """The result of a selection run that ended on ``best``: certified (its history's last
-    value too), with the run's evaluations and seconds; ``extra``: the algorithm's own fields."""
+    value too), with the run's evaluations and seconds; ``extra``: the algorithm's own fields.
+    ``eligibility``: what valued the sets (the eligibility or a ``value``)."""
     best = eligibility.certify(best)
     history[-1] = (history[-1][0], best.rho_hat)
     return SelectionResult(
@@ -255,6 +265,7 @@ def iterative(
     *,
     options: SelectionOptions = SelectionOptions(),
     progress: Progress | None = None,
+    value=None,
 ) -> SelectionResult:
     """Steps 1-4 of the iterative algorithm from ``start`` (m element ids).
 
@@ -262,10 +273,20 @@ def iterative(
     does; the run ends after ``m`` consecutive positions without descent. Each candidate set's
     rho_hat is warm-started from the current ``u*`` and remembered, so no set is solved twice.
     Contact specs that can never give force closure raise ``ValueError`` before any search.
+    ``value``: what ranks the sets instead of rho_hat (see :func:`heuristic`); its ``light``
+    method is the screen's value.
     """
     require_closure_count(eligibility.specs)
     t0 = time.perf_counter()
-    evaluations0 = eligibility.evaluations
+    source = eligibility if value is None else value
+    if value is None:
+
+        def light(elements, warm, stop_below):
+            return light_rho_hat(eligibility, elements, warm, stop_below=stop_below)
+
+    else:
+        light = value.light
+    evaluations0 = source.evaluations
     current = list(eligibility.check_elements(start, "start"))
     m = eligibility.m
     seen: dict[tuple, EligibilityResult] = {}
@@ -282,7 +303,7 @@ def iterative(
         showed rho_hat at or above it (the set cannot win: the step's choice is the same)."""
         key = _multiset(eligibility, elements)
         if key not in seen:
-            found = eligibility(elements, warm, certify=False, stop_above=stop_above)
+            found = source(elements, warm, certify=False, stop_above=stop_above)
             if stop_above is not None and found.rho_hat >= stop_above:
                 unfinished[key] = (found.rho_hat, tuple(elements), warm)
                 return None
@@ -299,7 +320,7 @@ def iterative(
         if key in unfinished:  # at or above every later bar: ranks past the break, as before
             return unfinished[key][0], screened[key][1]
         if key not in screened:
-            value, direction = light_rho_hat(eligibility, elements, warm, stop_below=-bar)
+            value, direction = light(elements, warm, -bar)
             stopped = warm if value >= bar else None
             screened[key] = (value, direction, tuple(elements), stopped)
         return screened[key][:2]
@@ -365,7 +386,7 @@ def iterative(
         if key not in seen and key not in unfinished and value < 0 and stopped is not None
     )
     return _certified_result(
-        eligibility,
+        source,
         best,
         history,
         evaluations0,
@@ -436,17 +457,20 @@ def run_selection(
     seed: int | None = 0,
     options: SelectionOptions = SelectionOptions(),
     progress: Progress | None = None,
+    value=None,
 ) -> SelectionResult:
     """``heuristic``, or ``iterative`` (from ``start`` if it names m elements, else from the
-    heuristic's result; evaluations and seconds then include the heuristic's)."""
+    heuristic's result; evaluations and seconds then include the heuristic's); ``value`` ranks
+    the sets instead of rho_hat (see :func:`heuristic`)."""
+    common = dict(options=options, progress=progress, value=value)
     if algorithm == "heuristic":
-        return heuristic(eligibility, start=start, seed=seed, options=options, progress=progress)
+        return heuristic(eligibility, start=start, seed=seed, **common)
     if algorithm != "iterative":
         raise ValueError(f"algorithm: expected 'heuristic' or 'iterative', got {algorithm!r}")
     if start is not None and len(start) == eligibility.m:
-        return iterative(eligibility, start, options=options, progress=progress)
-    first = heuristic(eligibility, start=start, seed=seed, options=options, progress=progress)
-    result = iterative(eligibility, first.elements, options=options, progress=progress)
+        return iterative(eligibility, start, **common)
+    first = heuristic(eligibility, start=start, seed=seed, **common)
+    result = iterative(eligibility, first.elements, **common)
     return replace(
         result,
         evaluations=result.evaluations + first.evaluations,
