@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import json
 from dataclasses import asdict, dataclass, field, fields
 from itertools import product
 from pathlib import Path
@@ -25,6 +26,7 @@ from closure_nlp.base.validation import (
 )
 from closure_nlp.contact.contact_set import DEFAULT_F_MAX, DEFAULT_MU, DEFAULT_MU_S, ContactType
 from closure_nlp.contact.count import closure_count_problem
+from closure_nlp.contact.loads import as_loads, load_loads
 from closure_nlp.model.elements import load_model
 from closure_nlp.model.scale import contact_specs
 from closure_nlp.placement.options import PlacementOptions
@@ -32,6 +34,7 @@ from closure_nlp.selection.algorithms import SelectionOptions
 from closure_nlp.study.tasks import GRID_AXES, Task
 
 STUDY_KEYS = {"name", "description", "models", "seeds", "selection", "placement", *GRID_AXES}
+STUDY_KEYS |= {"loads", "objective"}
 REQUIRED_KEYS = {"models", "contacts"}
 MODEL_SUFFIX = ".model.json"
 
@@ -65,6 +68,11 @@ class Study:
         Grid order (models, types, counts, parameters, then seeds innermost), without repeats.
     duplicates : int
         Grid points dropped because they repeat a task (e.g. several ``mu`` for FPC).
+    loads : str or None
+        The load cases every task reports the factors of (canonical JSON of a LOADS.json).
+    objective : str or None
+        ``"loads"`` (the default with loads: plans steered by the least load factor) or
+        ``"rho"``; ``None`` without loads.
     """
 
     name: str
@@ -77,6 +85,8 @@ class Study:
     placement: PlacementOptions
     tasks: tuple[Task, ...]
     duplicates: int
+    loads: str | None = None
+    objective: str | None = None
 
     def to_dict(self) -> dict:
         """The resolved study as JSON values (written as ``OUT/study.json``)."""
@@ -93,6 +103,8 @@ class Study:
             "placement": asdict(self.placement),
             "tasks": len(self.tasks),
             "duplicates": self.duplicates,
+            **({} if self.loads is None else {"loads": json.loads(self.loads)}),
+            **({} if self.objective is None else {"objective": self.objective}),
         }
 
 
@@ -144,11 +156,50 @@ def study_from_dict(
             f"got {selection.initial}"
         )
     _check_counts(grid)
+    loads, objective = _loads(data, Path(base_dir))
     models = _models(data["models"], Path(base_dir))
-    tasks, duplicates = _expand(models, grid, seeds, selection, placement)
+    tasks, duplicates = _expand(models, grid, seeds, selection, placement, (loads, objective))
     return Study(
-        name, description, source, models, grid, seeds, selection, placement, tasks, duplicates
+        name,
+        description,
+        source,
+        models,
+        grid,
+        seeds,
+        selection,
+        placement,
+        tasks,
+        duplicates,
+        loads,
+        objective,
     )
+
+
+def _loads(data: dict, base_dir: Path) -> tuple[str | None, str | None]:
+    """``loads`` (a LOADS.json path relative to the study file, or its content inline) as
+    canonical JSON, and ``objective`` (default ``"loads"`` with loads, ``"rho"`` the other)."""
+    objective = data.get("objective")
+    if objective is not None and objective not in ("loads", "rho"):
+        raise ValueError(f"objective: expected 'loads' or 'rho', got {objective!r}")
+    if "loads" not in data:
+        if objective is not None:
+            raise ValueError(f"objective: {objective!r} needs a loads key (the load cases)")
+        return None, None
+    value = data["loads"]
+    try:
+        if isinstance(value, str):
+            loads = load_loads(base_dir / value)
+        elif isinstance(value, (dict, list)):
+            loads = as_loads(value)
+        else:
+            raise TypeError(f"expected a LOADS.json path or the cases inline, got {value!r}")
+    except OSError as exc:
+        raise ValueError(f"loads: cannot read {value!r}: {exc.strerror or exc}") from None
+    except (TypeError, ValueError) as exc:
+        where = f"loads: {value!r}" if isinstance(value, str) else "loads"
+        raise type(exc)(f"{where}: {exc}") from None
+    text = json.dumps(loads.to_dict(), sort_keys=True, separators=(",", ":"))
+    return text, objective or "loads"
 
 
 def _check_size(data: dict, grid: dict) -> None:
@@ -281,8 +332,9 @@ def _model_ref(path: Path, where: str) -> ModelRef:
     return ModelRef(label, path, digest, raw.decode("utf-8"))
 
 
-def _expand(models, grid, seeds, selection, placement) -> tuple[tuple[Task, ...], int]:
-    """Tasks in grid order, seeds innermost (so a worker meets the same solvers in a row)."""
+def _expand(models, grid, seeds, selection, placement, loads=(None, None)):
+    """Tasks in grid order, seeds innermost (so a worker meets the same solvers in a row), and
+    the number of grid points dropped as repeats; ``loads``: (cases, objective) of every task."""
     sel = tuple(sorted(asdict(selection).items()))
     plc = tuple(sorted(asdict(placement).items()))
     tasks: dict[str, Task] = {}
@@ -303,6 +355,7 @@ def _expand(models, grid, seeds, selection, placement) -> tuple[tuple[Task, ...]
             seed,
             sel,
             plc,
+            *loads,
         )
         tasks.setdefault(task.task_id, task)
     return tuple(tasks.values()), points - len(tasks)
