@@ -637,7 +637,7 @@ def save_view(
 
 
 LOAD_ARROW = 0.3  # the largest load force's arrow, as a share of the part's size
-LOAD_COLOURS = (4, 2, 1, 9, 6, 5, 8, 7, 0)  # tab10 without its red (the contacts')
+LOAD_COLOURS = (4, 2, 9, 6, 5, 8, 7, 1, 0)  # tab10 but its red (contacts); orange, blue last
 
 
 def draw_loads(ax, loads, model: Model, factors=None) -> int:

@@ -159,7 +159,7 @@ def _loads_markdown(factors, options: dict) -> list[str]:
         marginal = " (marginal)" if f.marginal else ""
         rows.append(
             f"| {name} | {certain(f.load_factor, f.bounds)}{marginal} "
-            f"| [{f.bounds[0]:.6g}, {f.bounds[1]:.6g}] |"
+            f"| [{f.bounds[0]:.10g}, {f.bounds[1]:.10g}] |"
         )
     return rows
 
