@@ -108,3 +108,20 @@ def test_select_and_eligibility_report_the_element_sets_factors(tmp_path, capsys
     assert not missing(found, spans)
     code, out, err = run(["select", str(LAMP), "--contacts", "4", "--objective", "loads"], capsys)
     assert code == 2 and "--objective" in err
+
+
+def test_placing_by_loads_where_the_centroids_hold_nothing_starts_from_rho(lamp):
+    """The centroids of these elements hold no case at all (the least factor is flat at 0
+    around them): the load placement starts from the rho placement and never ends below it."""
+    from closure_nlp.criterion.load_factor import load_factors
+
+    eligibility, _ = lamp
+    elements = [39, 47, 42, 8]
+    options = c.PlacementOptions(bound=False, starts=1)
+    counts = [len(eligibility.model.elements[e].vertices) for e in elements]
+    weights = [np.full(k, 1.0 / k) for k in counts]
+    centroids = Placer(eligibility, options).contact_set(elements, weights)
+    assert load_factors(centroids, LOADS).load_factor == 0.0
+    by_rho = load_factors(Placer(eligibility, options)(elements).contact_set, LOADS)
+    by_loads = load_factors(Placer(eligibility, options, loads=LOADS)(elements).contact_set, LOADS)
+    assert by_loads.load_factor >= by_rho.load_factor > 0
