@@ -1,5 +1,6 @@
 """Load factors against the independent SOCP: ``python -m benchmarks.loads [--sets N]``; plans
-steered by rho and by load factors: ``python -m benchmarks.loads --steering [--seeds N]``.
+steered by rho and by load factors: ``python -m benchmarks.loads --steering [--seeds N]``;
+element sets selected by rho_hat and by load factors: ``python -m benchmarks.loads --selection``.
 
 Per contact type, ``N`` random sets with a load each (half inside the wrench set, half random
 wrenches): the certified factor's agreement with cvxpy's SOCP on the forces, the bracket's
@@ -73,7 +74,12 @@ def main(argv=None) -> int:
     parser.add_argument(
         "--steering", action="store_true", help="plans steered by rho and by loads instead"
     )
-    parser.add_argument("--seeds", type=int, default=4, help="seeds of each plan (--steering)")
+    parser.add_argument(
+        "--selection", action="store_true", help="selection by rho_hat and by loads instead"
+    )
+    parser.add_argument(
+        "--seeds", type=int, default=4, help="seeds of each plan (--steering, --selection)"
+    )
     args = parser.parse_args(argv)
     from closure_nlp.criterion.warm_up import warm_up
 
@@ -81,6 +87,8 @@ def main(argv=None) -> int:
     load_factor(random_contact_set(np.random.default_rng(0), ["pcwf"] * 4), np.ones(6))
     if args.steering:
         write_report(bench_steering(seeds=args.seeds), load_before)
+    elif args.selection:
+        write_report(bench_selection(seeds=args.seeds), load_before)
     else:
         write_report(bench_loads(args.sets, args.seed), load_before)
     return 0
@@ -142,6 +150,56 @@ def bench_steering(names=("lamp", "cup"), seeds: int = 4) -> dict:
             "steering_seconds": t2 - t1,
         }
     return {"benchmark": "load_steering", "models": out}
+
+
+def bench_selection(names=("lamp", "cup"), seeds: int = 4) -> dict:
+    """Per example and seed, the iterative selection by rho_hat and by the least load factor
+    (:class:`closure_nlp.selection.load_value.LoadValue`): each chosen element set's least
+    certified factor, evaluations and seconds; then contacts placed on it by the load factors,
+    whose least factor never passes the element set's upper bound (``bound_kept``)."""
+    from benchmarks.bench import PAPER_EXAMPLES, paper_eligibility
+    from closure_nlp.criterion.load_factor import load_factors
+    from closure_nlp.placement.load_objective import LoadObjective
+    from closure_nlp.placement.options import PlacementOptions
+    from closure_nlp.placement.place import Placer
+    from closure_nlp.selection.algorithms import run_selection
+    from closure_nlp.selection.load_value import LoadValue
+
+    out = {}
+    for name in names:
+        eligibility = paper_eligibility(name)
+        loads = STEERING_LOADS[name]
+        objective = LoadObjective.of(eligibility, loads)
+        placer = Placer(eligibility, PlacementOptions(bound=False), loads=loads)
+        runs = []
+        for seed in range(seeds):
+            row = {"seed": seed}
+            for label in ("rho", "loads"):
+                value = LoadValue(eligibility, objective) if label == "loads" else None
+                found = run_selection(eligibility, "iterative", seed=seed, value=value)
+                factors = objective(eligibility.slots(found.elements)).factors
+                placed = load_factors(placer(list(found.elements)).contact_set, loads)
+                row[label] = {
+                    "elements": list(found.elements),
+                    "element_factor": factors.load_factor,
+                    "element_factor_hi": factors.bounds[1],
+                    "placed_factor": placed.load_factor,
+                    "bound_kept": placed.load_factor <= factors.bounds[1] * (1 + 1e-9),
+                    "evaluations": found.evaluations,
+                    "seconds": found.seconds,
+                }
+            runs.append(row)
+        by = {k: [r[k]["element_factor"] for r in runs] for k in ("rho", "loads")}
+        placed = {k: [r[k]["placed_factor"] for r in runs] for k in ("rho", "loads")}
+        out[name] = {
+            "type": PAPER_EXAMPLES[name]["type"],
+            "median_element_factor": {k: float(np.median(v)) for k, v in by.items()},
+            "median_placed_factor": {k: float(np.median(v)) for k, v in placed.items()},
+            "loads_at_least_rho": int(sum(a >= b for a, b in zip(by["loads"], by["rho"]))),
+            "bound_kept": int(sum(r[k]["bound_kept"] for r in runs for k in ("rho", "loads"))),
+            "runs": runs,
+        }
+    return {"benchmark": "load_selection", "seeds": seeds, "models": out}
 
 
 if __name__ == "__main__":

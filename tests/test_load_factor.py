@@ -148,3 +148,14 @@ def test_element_sets_agree_with_the_socp():
             held += 1
             assert result.load_factor == pytest.approx(reference, rel=AGREE)
     assert held >= 4
+
+
+def test_a_bracket_cut_short_still_contains_the_factor():
+    """Stopped by ``max_iterations`` after new columns came in: the last LP's point is verified
+    with those columns at zero weight, and the bracket still holds the full answer."""
+    cs, load = random_case("sfce", 0)
+    full = load_factor(cs, load)
+    for cap in (1, 2, 3, 5):
+        short = load_factor(cs, load, max_iterations=cap)
+        assert short.bounds[0] <= full.load_factor * (1 + 1e-9)
+        assert short.bounds[1] >= full.bounds[0] * (1 - 1e-9)

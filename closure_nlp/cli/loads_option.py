@@ -6,11 +6,12 @@ from __future__ import annotations
 from closure_nlp.cli import output
 
 
-def add_loads_option(parser, objective: bool = False) -> None:
+def add_loads_option(parser, objective: bool = False, help: str | None = None) -> None:
     parser.add_argument(
         "--loads",
         metavar="LOADS.json",
-        help="load cases the contacts must hold: their certified load factors are reported "
+        help=help
+        or "load cases the contacts must hold: their certified load factors are reported "
         "(f_max is then in the loads' force unit)",
     )
     if objective:
@@ -43,6 +44,23 @@ def loads_answer(contact_set, loads, objective: str | None = None) -> tuple[dict
         return {}, ""
     from closure_nlp.criterion.load_factor import load_factors
 
-    factors = load_factors(contact_set, loads)
+    return factors_answer(load_factors(contact_set, loads), objective)
+
+
+def factors_answer(factors, objective: str | None = None) -> tuple[dict, str]:
+    """:func:`loads_answer` of factors already computed
+    (:class:`~closure_nlp.criterion.load_factor.LoadFactors`; nothing for ``None``)."""
+    if factors is None:
+        return {}, ""
     keys = factors.to_dict() | ({"objective": objective} if objective else {})
     return keys, "\n" + factors.text() + (f" (objective: {objective})" if objective else "")
+
+
+def element_factors(eligibility, elements, loads):
+    """The certified factors of ``loads`` on the wrench set of the element set ``elements``:
+    an upper bound on any placement's factors on those elements (``None`` without loads)."""
+    if loads is None:
+        return None
+    from closure_nlp.placement.load_objective import LoadObjective
+
+    return LoadObjective.of(eligibility, loads)(eligibility.slots(elements)).factors

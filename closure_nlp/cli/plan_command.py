@@ -15,7 +15,7 @@ from closure_nlp.base.validation import (
     MAX_SEED,
 )
 from closure_nlp.cli import arguments, output, setup
-from closure_nlp.cli.loads_option import add_loads_option, loads_answer, read_loads
+from closure_nlp.cli.loads_option import add_loads_option, factors_answer, read_loads
 from closure_nlp.planning.plan import plan
 from closure_nlp.planning.seeds import DEFAULT_BUDGET, DEFAULT_SEEDS, MAX_PLAN_SEEDS
 from closure_nlp.report.plan_report import write_report
@@ -106,8 +106,13 @@ def cmd_plan(args) -> None:
     payload = result.to_dict()
     payload["margin"] = args.margin
     payload.update(intent)
-    factors, factors_text = loads_answer(result.placement.contact_set, loads, args.objective)
-    payload.update(factors)
+    factors = None
+    if loads is not None:
+        from closure_nlp.criterion.load_factor import load_factors
+
+        factors = load_factors(result.placement.contact_set, loads)
+    factors_keys, factors_text = factors_answer(factors, args.objective)
+    payload.update(factors_keys)
     output.check_finite(payload, args.model)  # before anything is written
     if args.out:
         options = {
@@ -123,9 +128,12 @@ def cmd_plan(args) -> None:
             "alternatives": args.alternatives,
             "up": args.up or eligibility.model.up,
             "margin": args.margin,
+            **({} if loads is None else {"loads": loads.to_dict(), "objective": args.objective}),
         }
         with staged_folder(args.out) as staged:  # all files of this run, or none
-            written = write_report(original, result, staged, options)
+            written = write_report(
+                original, result, staged, options, loads=loads, load_factors=factors
+            )
         payload["out"] = {name: os.path.join(args.out, name) for name in written}
     h, it = result.heuristic, result.iterative
     text = (

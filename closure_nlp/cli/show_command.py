@@ -7,6 +7,7 @@ from closure_nlp.base.files import (
 )
 from closure_nlp.base.formatting import certain
 from closure_nlp.cli import arguments, output
+from closure_nlp.cli.loads_option import add_loads_option, read_loads
 from closure_nlp.cli.setup import read_model
 from closure_nlp.criterion.support_minimum import rho
 from closure_nlp.model.regions import with_exclusions
@@ -41,6 +42,11 @@ def add_show(sub, common) -> None:
     p.add_argument("--ids", action="store_true", help="write each element's id beside it")
     p.add_argument(
         "--up", choices=["x", "y", "z"], help="model axis drawn upwards (default: the model's)"
+    )
+    add_loads_option(
+        p,
+        help="load cases drawn as arrows at their points (pictures only; with "
+        "--contacts, each case's certified load factor in the legend)",
     )
     p.set_defaults(run=cmd_show)
 
@@ -99,6 +105,11 @@ def cmd_show(args) -> None:
             args.contacts if not args.highlight else "--highlight", str(exc)
         ) from None
     suffix = Path(args.out).suffix.lower()
+    loads = read_loads(args)
+    if loads is not None and suffix in SCENE_SUFFIXES:
+        raise output.InputError(
+            "--loads", f"load arrows are drawn in pictures, not {suffix} scenes"
+        )
     if suffix not in PICTURE_SUFFIXES | SCENE_SUFFIXES:
         raise output.InputError(
             "--out",
@@ -108,6 +119,12 @@ def cmd_show(args) -> None:
     options = {"up": args.up, "title": show_title(model, contacts)}
     if suffix not in SCENE_SUFFIXES:
         options.update(view=(args.elev, args.azim), show_mesh=not args.no_mesh, ids=args.ids)
+    if loads is not None:
+        from closure_nlp.criterion.load_factor import load_factors
+
+        options["loads"] = loads
+        if contacts is not None and contacts.contacts:
+            options["load_factors"] = load_factors(contacts, loads)
     try:
         out = save_view(model, args.out, contacts, highlight=highlight, marked=marked, **options)
     except OSError as exc:

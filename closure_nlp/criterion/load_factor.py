@@ -294,7 +294,9 @@ def load_factor(
         ):
             break
     if k * scale / size > lo and not converged:  # the last LP's point, verified
-        lo = max(lo, _verified_lower(*master.matrices(), lam, w) * scale / size)
+        A, B = master.matrices()  # columns added after that LP weigh nothing in its point
+        lam = np.pad(lam, (0, A.shape[1] - len(lam)))
+        lo = max(lo, _verified_lower(A, B, lam, w) * scale / size)
     # within the bracket's accuracy of zero, measured against the factor at which one contact's
     # largest wrench matches the load
     marginal = hi * size <= tolerances.certify * scale

@@ -61,6 +61,13 @@ class LoadObjective:
         self.targets = -self.loads.wrenches(reference_point, torque_scale)
         self.unit = float(np.linalg.norm(self.targets, axis=1).max()) / f_max
 
+    @classmethod
+    def of(cls, eligibility, loads) -> LoadObjective:
+        """The objective of ``loads`` on contacts or elements of ``eligibility``: torques about
+        its model's reference point times its torque scale, ``f_max`` its specs' largest."""
+        f_max = max(spec.f_max for spec in eligibility.specs)
+        return cls(loads, eligibility.model.reference_point, eligibility.torque_scale, f_max)
+
     def __call__(self, slots: WrenchSlots) -> LoadFound:
         factors = tuple(load_factor(slots, -w) for w in self.targets)
         weakest = int(np.argmin([f.load_factor for f in factors]))

@@ -153,11 +153,7 @@ class ExchangePlacer:
         self._caches: PerThread[dict] = PerThread(dict) if problems is None else problems
         self.objective = None
         if loads is not None:
-            model = eligibility.model
-            f_max = max(spec.f_max for spec in eligibility.specs)
-            self.objective = LoadObjective(
-                loads, model.reference_point, eligibility.torque_scale, f_max
-            )
+            self.objective = LoadObjective.of(eligibility, loads)
 
     def _search(self, contacts, minimizer, warm_start=None):
         """The exchange's value of contacts (a ContactSet or its slots): the rho search's

@@ -8,12 +8,13 @@ set whose placement holds the loads most times is kept; the sets go in the order
 elements' own load factor (an upper bound on any placement's on them), and a set that cannot beat
 the best placement so far is left out. A placement never ends below its start (certified
 factors), and the plan's own set is re-placed or bounded below the best, so steering by loads
-never ends below steering by rho on the same seeds.
+never ends below steering by rho on the same seeds. The plan's ``seconds`` include this step.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import time
 
 from closure_nlp.base.progress import Progress
 from closure_nlp.contact.wrenches import WrenchSlots
@@ -31,7 +32,9 @@ def steer_by_loads(
     progress: Progress | None = None,
 ) -> PlanResult:
     """``result`` with its placement replaced by the best load-steered placement over the
-    element sets of its seeds (force-closure placements first, the plan's own when none is)."""
+    element sets of its seeds (force-closure placements first, the plan's own when none is);
+    its ``seconds`` count this step too."""
+    t0 = time.perf_counter()
     runs = [run.result for run in result.seeds.runs if run.ok] if result.seeds else [result]
     placements = [r.placement for r in runs if r.placement.force_closure] or [result.placement]
     starts: dict[tuple, object] = {}
@@ -51,4 +54,5 @@ def steer_by_loads(
         value = objective(WrenchSlots.from_contacts(found.contact_set)).rho  # -factor * unit
         if best is None or value < best[0]:
             best = (value, found)
-    return dataclasses.replace(result, placement=best[1])
+    seconds = result.seconds + time.perf_counter() - t0
+    return dataclasses.replace(result, placement=best[1], seconds=seconds)

@@ -414,10 +414,13 @@ def _equal_aspect(ax, model: Model, contacts) -> None:
     ax.set_box_aspect((1, 1, 1))
 
 
-def render_model(model: Model, path, contacts=None, **options) -> Path:
+def render_model(
+    model: Model, path, contacts=None, *, loads=None, load_factors=None, **options
+) -> Path:
     """Draw ``model`` (see :func:`draw_model` for ``options``) and write a picture, atomically.
 
-    The format follows the suffix of ``path`` (.png, .pdf, .svg, .jpg).
+    The format follows the suffix of ``path`` (.png, .pdf, .svg, .jpg). ``loads`` and
+    ``load_factors``: load arrows (:func:`draw_loads`).
     """
     path = Path(path)
     suffix = path.suffix.lower()
@@ -430,6 +433,8 @@ def render_model(model: Model, path, contacts=None, **options) -> Path:
     try:
         ax = fig.add_subplot(projection="3d")
         draw_model(model, contacts, ax, **options)
+        if loads is not None:
+            draw_loads(ax, loads, model, load_factors)
         return save_figure(fig, path)
     finally:
         plt.close(fig)
@@ -663,11 +668,65 @@ def save_view(
     return render_model(model, path, contacts, highlight=highlight, marked=marked, **options)
 
 
+LOAD_ARROW = 0.3  # the largest load force's arrow, as a share of the part's size
+LOAD_COLOURS = (4, 2, 9, 6, 5, 8, 7, 1, 0)  # tab10 but its red (contacts); orange, blue last
+
+
+def draw_loads(ax, loads, model: Model, factors=None) -> int:
+    """Each load case's forces as arrows ending at their points (a colour per case), and a
+    legend entry per case: its name and, with ``factors``
+    (:class:`~closure_nlp.criterion.load_factor.LoadFactors` of the same cases), its certified
+    load factor. The largest force is drawn :data:`LOAD_ARROW` times the part's size, the others
+    in proportion; a component without a point acts at the reference point, and a case of
+    torques alone is a ring there. Returns the number of arrows drawn."""
+    from matplotlib import colormaps
+    from matplotlib.lines import Line2D
+
+    from closure_nlp.contact.loads import as_loads
+
+    loads = as_loads(loads)
+    largest = max(np.linalg.norm(p.force) for case in loads.cases for p in case.components)
+    length = LOAD_ARROW * model_extent(model) / (largest or 1.0)
+    colours = colormaps["tab10"].colors
+    entries = getattr(ax, "_closure_legend", {})
+    arrows = 0
+    for k, case in enumerate(loads.cases):
+        colour = colours[LOAD_COLOURS[k % len(LOAD_COLOURS)]]
+        for part in case.components:
+            point = model.reference_point if part.point is None else part.point
+            if not np.any(part.force):
+                p = _shown(ax, point)
+                ax.scatter(*p, marker="o", s=120, facecolors="none", edgecolors=[colour])
+                continue
+            tip, force = _shown(ax, point), _shown(ax, part.force) * length
+            tail = tip - force
+            ax.quiver(
+                *tail,
+                *force,
+                color=colour,
+                linewidth=2.2,
+                arrow_length_ratio=0.25,
+                zorder=32,
+                gid=f"load:{case.name}",
+            )
+            arrows += 1
+        name = case.name
+        if factors is not None:
+            factor = dict(zip(factors.names, factors.factors))[case.name]
+            name += f" (load factor {factor.load_factor:.4g})"
+        entries[f"load:{case.name}"] = Line2D([], [], color=colour, lw=2.2, label=name)
+    ax._closure_legend = entries
+    if ax.get_legend() is not None:
+        update_legend(ax)
+    return arrows
+
+
 __all__ = [
     "build_scene",
     "scene_view",
     "counts_text",
     "draw_contacts",
+    "draw_loads",
     "draw_model",
     "export_scene",
     "render_model",

@@ -74,8 +74,8 @@ def _ipopt_version() -> str:
     return "unknown"
 
 
-def summary_markdown(model, result: PlanResult, options: dict) -> str:
-    """A short human summary of a run."""
+def summary_markdown(model, result: PlanResult, options: dict, load_factors=None) -> str:
+    """A short human summary of a run (with ``load_factors``, a table of them)."""
     h, it, pl = result.heuristic, result.iterative, result.placement
     verdict = "force closure" if pl.force_closure else "NOT force closure"
     rows = [
@@ -139,9 +139,30 @@ def summary_markdown(model, result: PlanResult, options: dict) -> str:
             f"- contact {mv.contact} moved from element {mv.source} to its neighbour "
             f"{mv.target}: rho {certain(mv.rho_before)} -> {certain(mv.rho_after)}"
         )
+    if load_factors is not None:
+        rows += ["", *_loads_markdown(load_factors, options)]
     if result.seeds is not None:
         rows += ["", *_seeds_markdown(result.seeds)]
     return "\n".join(rows) + "\n"
+
+
+def _loads_markdown(factors, options: dict) -> list[str]:
+    """Each load case's certified factor: how many times the case the contacts hold."""
+    steered = options.get("objective") == "loads"
+    rows = [
+        f"Load factors (certified; least {certain(factors.load_factor, factors.bounds)}, "
+        f"{factors.weakest}; placement steered by {'them' if steered else 'rho'}):",
+        "",
+        "| case | load factor | bounds |",
+        "|---|---|---|",
+    ]
+    for name, f in zip(factors.names, factors.factors):
+        marginal = " (marginal)" if f.marginal else ""
+        rows.append(
+            f"| {name} | {certain(f.load_factor, f.bounds)}{marginal} "
+            f"| [{f.bounds[0]:.10g}, {f.bounds[1]:.10g}] |"
+        )
+    return rows
 
 
 def _seeds_markdown(spread) -> list[str]:
@@ -195,10 +216,14 @@ def load_contacts(path) -> ContactSet:
     return contact_set_from_dict(data)
 
 
-def write_report(model, result: PlanResult, out_dir, options: dict) -> dict:
+def write_report(
+    model, result: PlanResult, out_dir, options: dict, *, loads=None, load_factors=None
+) -> dict:
     """Write ``report.json``, ``contacts.json`` (a contact-set file of the placed contacts),
     ``placement.png``, ``history.png`` and ``summary.md`` in ``out_dir``; returns their paths
-    by name."""
+    by name. With ``loads`` and their ``load_factors`` on the placed contacts
+    (:class:`~closure_nlp.criterion.load_factor.LoadFactors`), the factors are in the report and
+    the summary and the loads are drawn on the placement."""
     from closure_nlp.report.drawing import PLOT_LOCK
 
     out = Path(out_dir)
@@ -209,24 +234,28 @@ def write_report(model, result: PlanResult, out_dir, options: dict) -> dict:
     report = {
         "model": model.name,
         **result.to_dict(),
+        **({} if load_factors is None else load_factors.to_dict()),
         "contact_set": contacts,
         "options": options,
         "versions": versions(),
     }
     json.dumps(report, allow_nan=False)  # refuse NaN before anything is written
     with PLOT_LOCK:
-        paths.update(_figures(model, result, out, options.get("up")))
-    paths["summary.md"] = write_atomic(out / "summary.md", summary_markdown(model, result, options))
+        paths.update(_figures(model, result, out, options.get("up"), (loads, load_factors)))
+    summary = summary_markdown(model, result, options, load_factors)
+    paths["summary.md"] = write_atomic(out / "summary.md", summary)
     paths["contacts.json"] = write_json(out / "contacts.json", contacts)
     paths["report.json"] = write_json(out / "report.json", report)
     return {name: str(p) for name, p in paths.items()}
 
 
-def _figures(model, result: PlanResult, out: Path, up: str | None = None) -> dict:
+def _figures(model, result: PlanResult, out: Path, up: str | None = None, loads=(None,)) -> dict:
     """``placement.png`` (the paper's Fig. 1, ``up`` the model axis drawn upwards; default:
-    the model's) and ``history.png`` (its Fig. 3)."""
+    the model's; ``loads``: (cases, their factors) drawn as arrows) and ``history.png`` (its
+    Fig. 3)."""
     from closure_nlp.report.drawing import (
         draw_contacts,
+        draw_loads,
         draw_model,
         model_extent,
         pyplot,
@@ -271,6 +300,8 @@ def _figures(model, result: PlanResult, out: Path, up: str | None = None) -> dic
         scale=model_extent(model),
         label="placed contacts",
     )
+    if loads[0] is not None:
+        draw_loads(ax, loads[0], model, loads[1])
     paths["placement.png"] = save_figure(fig, out / "placement.png")
     plt.close(fig)
     # Fig. 3: rho_hat against the iteration number.

@@ -2,7 +2,9 @@
 
 Both steer by rho_hat = rho(0, What_c^M) (:mod:`closure_nlp.criterion.rho_hat`), plus the support
 shift of the set within the tolerance when there is one (:meth:`Eligibility.shift`): the robust
-value, so that a set of exact elements wins over one of coarse facets. The heuristic grows
+value, so that a set of exact elements wins over one of coarse facets; or by another value of
+element sets called like the eligibility (``value``: e.g. minus the least load factor,
+:class:`~closure_nlp.selection.load_value.LoadValue`). The heuristic grows
 a set from ``i0`` random (or given) elements, each time adding the element whose best vertex
 wrench lies furthest along ``u*``, the direction that separates the current set from the origin
 (or its weakest side once the set is eligible). The iterative algorithm swaps one element at a time
@@ -162,6 +164,7 @@ def heuristic(
     seed: int | None = 0,
     options: SelectionOptions = SelectionOptions(),
     progress: Progress | None = None,
+    value=None,
 ) -> SelectionResult:
     """Steps 1-5 of the heuristic algorithm.
 
@@ -175,6 +178,11 @@ def heuristic(
     seed : int, optional
     options : SelectionOptions
     progress : callable, optional
+    value : callable, optional
+        What ranks element sets, lower better, called as ``eligibility`` is and with its
+        ``certify`` and ``evaluations`` (default: rho_hat by ``eligibility``, plus the set's
+        shift within the tolerance; :class:`~closure_nlp.selection.load_value.LoadValue`: minus
+        the least load factor). Every field of the result named ``rho_hat`` is then that value.
 
     Returns
     -------
@@ -191,7 +199,8 @@ def heuristic(
     t0 = time.perf_counter()
     m = eligibility.m
     usable = np.flatnonzero(eligibility.model.usable)
-    evaluations0 = eligibility.evaluations
+    source = eligibility if value is None else value
+    evaluations0 = source.evaluations
     rng = np.random.default_rng(seed)
     given = None if start is None else _check_start(eligibility, start)
     if given is None and not options.initial < m:
@@ -205,29 +214,33 @@ def heuristic(
         history = []
         # A complete set is certified at once: the certificate's light seed search replaces the
         # full one, and the verdict that ends the rounds is the certified one.
-        found = eligibility(chosen, partial=True, certify=len(chosen) == m)
+        found = source(chosen, partial=True, certify=len(chosen) == m)
         history.append((0, found.rho_hat))
         while len(chosen) < m:
             # an element's support value along u*, less what its tolerance may take from it
             values = eligibility.element_values(len(chosen), found.direction)
-            values -= eligibility.element_shifts(len(chosen))
+            if value is None:  # a load's direction is not a unit one: no shift in its units
+                values -= eligibility.element_shifts(len(chosen))
             values[~eligibility.model.usable] = -np.inf
             chosen.append(int(np.argmax(values)))
-            found = eligibility(chosen, found.direction, partial=True, certify=len(chosen) == m)
+            found = source(chosen, found.direction, partial=True, certify=len(chosen) == m)
             history.append((len(history), found.rho_hat))
             if progress:
                 progress("heuristic", len(history) - 1, found.rho_hat)
-        if best is None or steering(eligibility, found) < steering(eligibility, best[0]):
+        if best is None or steering(eligibility, found, value) < steering(
+            eligibility, best[0], value
+        ):
             best = (found, history)
         if found.eligible:
             break
     found, history = best
-    return _certified_result(eligibility, found, history, evaluations0, t0, rounds=round_)
+    return _certified_result(source, found, history, evaluations0, t0, rounds=round_)
 
 
 def _certified_result(eligibility, best, history, evaluations0, t0, **extra) -> SelectionResult:
     """The result of a selection run that ended on ``best``: certified (its history's last
-    value too), with the run's evaluations and seconds; ``extra``: the algorithm's own fields."""
+    value too), with the run's evaluations and seconds; ``extra``: the algorithm's own fields.
+    ``eligibility``: what valued the sets (the eligibility or a ``value``)."""
     best = eligibility.certify(best)
     history[-1] = (history[-1][0], best.rho_hat)
     return SelectionResult(
@@ -245,9 +258,11 @@ def _certified_result(eligibility, best, history, evaluations0, t0, **extra) -> 
     )
 
 
-def steering(eligibility: Eligibility, found) -> float:
+def steering(eligibility: Eligibility, found, value=None) -> float:
     """The value selection steers by: rho_hat plus the set's support shift within the
-    tolerance (rho_hat without one)."""
+    tolerance (rho_hat without one); a ``value``'s own (its ``rho_hat`` field) when given."""
+    if value is not None:
+        return found.rho_hat
     return robust_value(found.rho_hat, eligibility.shift(found.elements))
 
 
@@ -267,6 +282,7 @@ def iterative(
     *,
     options: SelectionOptions = SelectionOptions(),
     progress: Progress | None = None,
+    value=None,
 ) -> SelectionResult:
     """Steps 1-4 of the iterative algorithm from ``start`` (m element ids).
 
@@ -274,10 +290,25 @@ def iterative(
     does; the run ends after ``m`` consecutive positions without descent. Each candidate set's
     rho_hat is warm-started from the current ``u*`` and remembered, so no set is solved twice.
     Contact specs that can never give force closure raise ``ValueError`` before any search.
+    ``value``: what ranks the sets instead of rho_hat (see :func:`heuristic`); its ``light``
+    method is the screen's value.
     """
     require_closure_count(eligibility.all_specs)
     t0 = time.perf_counter()
-    evaluations0 = eligibility.evaluations
+    source = eligibility if value is None else value
+    if value is None:
+
+        def light_value(elements, warm, stop_below):
+            return light_rho_hat(eligibility, elements, warm, stop_below=stop_below)
+
+        shift_of = eligibility.shift
+    else:
+        light_value = value.light
+
+        def shift_of(elements) -> float:
+            return 0.0
+
+    evaluations0 = source.evaluations
     current = list(eligibility.check_elements(start, "start"))
     m = eligibility.m
     seen: dict[tuple, EligibilityResult] = {}
@@ -289,8 +320,8 @@ def iterative(
     # their full rho_hat and at or above every later bar, elements, the search's start)
     unfinished: dict[tuple, tuple[float, tuple[int, ...], np.ndarray]] = {}
 
-    def value(found) -> float:
-        return steering(eligibility, found)
+    def steered(found) -> float:
+        return steering(eligibility, found, value)
 
     def evaluate(elements, warm, stop_above=None):
         """The full search's result, or None when ``stop_above`` (a steering value) is given
@@ -298,9 +329,9 @@ def iterative(
         choice is the same). The search stops early only below zero (rho_hat < 0)."""
         key = _multiset(eligibility, elements)
         if key not in seen:
-            shift = eligibility.shift(elements)
+            shift = shift_of(elements)
             stop = None if stop_above is None or stop_above - shift >= 0 else stop_above - shift
-            found = eligibility(elements, warm, certify=False, stop_above=stop)
+            found = source(elements, warm, certify=False, stop_above=stop)
             if stop is not None and found.rho_hat >= stop:
                 unfinished[key] = (found.rho_hat + shift, tuple(elements), warm)
                 return None
@@ -313,14 +344,14 @@ def iterative(
         later, when the bar is lower)."""
         key = _multiset(eligibility, elements)
         if key in seen:
-            return value(seen[key]), seen[key].direction
+            return steered(seen[key]), seen[key].direction
         if key in unfinished:  # at or above every later bar: ranks past the break, as before
             return unfinished[key][0], screened[key][1]
-        shift = eligibility.shift(elements)
+        shift = shift_of(elements)
         if key not in screened:
-            light, direction = light_rho_hat(eligibility, elements, warm, stop_below=shift - bar)
-            stopped = warm if light >= bar - shift else None
-            screened[key] = (light, direction, tuple(elements), stopped)
+            screen_value, direction = light_value(elements, warm, shift - bar)
+            stopped = warm if screen_value >= bar - shift else None
+            screened[key] = (screen_value, direction, tuple(elements), stopped)
         return screened[key][0] + shift, screened[key][1]
 
     best = evaluate(current, None)
@@ -335,14 +366,14 @@ def iterative(
         step += 1
         i = (i + 1) % m
         candidate = None
-        margin = options.descent * max(1.0, abs(value(best)))
+        margin = options.descent * max(1.0, abs(steered(best)))
         trials = []
         for neighbour in eligibility.model.neighbours(current[i]):
             trial = current.copy()
             trial[i] = neighbour
             trials.append(trial)
         if options.screen:
-            bar = value(best) - margin
+            bar = steered(best) - margin
             ranked = sorted(
                 ((*screen(trial, best.direction, bar), trial) for trial in trials),
                 key=lambda item: item[0],
@@ -351,19 +382,19 @@ def iterative(
                 # values only rise along the ranking, and a full value is never below its own
                 if light >= bar:
                     break
-                if candidate is not None and light >= value(candidate):
+                if candidate is not None and light >= steered(candidate):
                     break
                 # only a value below the bar and the candidate's can change the step's choice
-                stop = bar if candidate is None else min(bar, value(candidate))
+                stop = bar if candidate is None else min(bar, steered(candidate))
                 found = evaluate(trial, direction, stop)
-                if found is not None and (candidate is None or value(found) < value(candidate)):
+                if found is not None and (candidate is None or steered(found) < steered(candidate)):
                     candidate = found
         else:
             for trial in trials:
                 found = evaluate(trial, best.direction)
-                if candidate is None or value(found) < value(candidate):
+                if candidate is None or steered(found) < steered(candidate):
                     candidate = found
-        if candidate is not None and value(candidate) < value(best) - margin:
+        if candidate is not None and steered(candidate) < steered(best) - margin:
             best, current, count = candidate, list(candidate.elements), 0
         else:
             count += 1
@@ -371,7 +402,7 @@ def iterative(
         if progress:
             progress("iterative", step, best.rho_hat)
     others = sorted(
-        (value(r), r.rho_hat, r.elements) for r in seen.values() if r.eligible and r is not best
+        (steered(r), r.rho_hat, r.elements) for r in seen.values() if r.eligible and r is not best
     )
     unproven = sorted(
         (light, elements)
@@ -386,7 +417,7 @@ def iterative(
         if key not in seen and key not in unfinished and light < 0 and stopped is not None
     )
     return _certified_result(
-        eligibility,
+        source,
         best,
         history,
         evaluations0,
@@ -461,17 +492,20 @@ def run_selection(
     seed: int | None = 0,
     options: SelectionOptions = SelectionOptions(),
     progress: Progress | None = None,
+    value=None,
 ) -> SelectionResult:
     """``heuristic``, or ``iterative`` (from ``start`` if it names m elements, else from the
-    heuristic's result; evaluations and seconds then include the heuristic's)."""
+    heuristic's result; evaluations and seconds then include the heuristic's); ``value`` ranks
+    the sets instead of rho_hat (see :func:`heuristic`)."""
+    common = dict(options=options, progress=progress, value=value)
     if algorithm == "heuristic":
-        return heuristic(eligibility, start=start, seed=seed, options=options, progress=progress)
+        return heuristic(eligibility, start=start, seed=seed, **common)
     if algorithm != "iterative":
         raise ValueError(f"algorithm: expected 'heuristic' or 'iterative', got {algorithm!r}")
     if start is not None and len(start) == eligibility.m:
-        return iterative(eligibility, start, options=options, progress=progress)
-    first = heuristic(eligibility, start=start, seed=seed, options=options, progress=progress)
-    result = iterative(eligibility, first.elements, options=options, progress=progress)
+        return iterative(eligibility, start, **common)
+    first = heuristic(eligibility, start=start, seed=seed, **common)
+    result = iterative(eligibility, first.elements, **common)
     return replace(
         result,
         evaluations=result.evaluations + first.evaluations,

@@ -32,6 +32,7 @@ from closure_nlp.contact.contact_set import (
     contact_set_from_dict,
 )
 from closure_nlp.contact.count import closure_count_problem
+from closure_nlp.contact.loads import as_loads, load_loads
 from closure_nlp.model.elements import load_model
 from closure_nlp.model.fixed_contacts import fixed_contacts
 from closure_nlp.model.regions import excluded_elements
@@ -51,6 +52,7 @@ STUDY_KEYS = {
     *GRID_AXES,
     *INTENT_KEYS,
 }
+STUDY_KEYS |= {"loads", "objective"}
 REQUIRED_KEYS = {"models", "contacts"}
 MODEL_SUFFIX = ".model.json"
 
@@ -84,6 +86,11 @@ class Study:
         Grid order (models, types, counts, parameters, then seeds innermost), without repeats.
     duplicates : int
         Grid points dropped because they repeat a task (e.g. several ``mu`` for FPC).
+    loads : str or None
+        The load cases every task reports the factors of (canonical JSON of a LOADS.json).
+    objective : str or None
+        ``"loads"`` (the default with loads: plans steered by the least load factor) or
+        ``"rho"``; ``None`` without loads.
     """
 
     name: str
@@ -97,6 +104,8 @@ class Study:
     tasks: tuple[Task, ...]
     duplicates: int
     intent: dict = field(default_factory=dict)
+    loads: str | None = None
+    objective: str | None = None
 
     def to_dict(self) -> dict:
         """The resolved study as JSON values (written as ``OUT/study.json``)."""
@@ -114,6 +123,8 @@ class Study:
             "tasks": len(self.tasks),
             "duplicates": self.duplicates,
             **{k: (list(v) if isinstance(v, tuple) else v) for k, v in self.intent.items()},
+            **({} if self.loads is None else {"loads": json.loads(self.loads)}),
+            **({} if self.objective is None else {"objective": self.objective}),
         }
 
 
@@ -179,7 +190,10 @@ def study_from_dict(
             fixed_contacts(model, fixed)
         except ValueError as exc:
             raise ValueError(f"{ref.label}: {exc}") from None
-    tasks, duplicates = _expand(models, grid, seeds, selection, placement, intent)
+    loads, objective = _loads(data, Path(base_dir))
+    tasks, duplicates = _expand(
+        models, grid, seeds, selection, placement, intent, (loads, objective)
+    )
     return Study(
         name,
         description,
@@ -192,6 +206,8 @@ def study_from_dict(
         tasks,
         duplicates,
         dict(intent, **({"fixed": str(data["fixed"])} if fixed is not None else {})),
+        loads,
+        objective,
     )
 
 
@@ -226,6 +242,33 @@ def _intent(data: dict, base_dir: Path):
             raise ValueError(f"fixed: {data['fixed']!r}: {exc}") from None
         intent["fixed"] = json.dumps(raw, sort_keys=True, separators=(",", ":"))
     return intent, fixed
+
+
+def _loads(data: dict, base_dir: Path) -> tuple[str | None, str | None]:
+    """``loads`` (a LOADS.json path relative to the study file, or its content inline) as
+    canonical JSON, and ``objective`` (default ``"loads"`` with loads, ``"rho"`` the other)."""
+    objective = data.get("objective")
+    if objective is not None and objective not in ("loads", "rho"):
+        raise ValueError(f"objective: expected 'loads' or 'rho', got {objective!r}")
+    if "loads" not in data:
+        if objective is not None:
+            raise ValueError(f"objective: {objective!r} needs a loads key (the load cases)")
+        return None, None
+    value = data["loads"]
+    try:
+        if isinstance(value, str):
+            loads = load_loads(base_dir / value)
+        elif isinstance(value, (dict, list)):
+            loads = as_loads(value)
+        else:
+            raise TypeError(f"expected a LOADS.json path or the cases inline, got {value!r}")
+    except OSError as exc:
+        raise ValueError(f"loads: cannot read {value!r}: {exc.strerror or exc}") from None
+    except (TypeError, ValueError) as exc:
+        where = f"loads: {value!r}" if isinstance(value, str) else "loads"
+        raise type(exc)(f"{where}: {exc}") from None
+    text = json.dumps(loads.to_dict(), sort_keys=True, separators=(",", ":"))
+    return text, objective or "loads"
 
 
 def _check_size(data: dict, grid: dict) -> None:
@@ -360,8 +403,9 @@ def _model_ref(path: Path, where: str) -> ModelRef:
     return ModelRef(label, path, digest, raw.decode("utf-8"))
 
 
-def _expand(models, grid, seeds, selection, placement, intent) -> tuple[tuple[Task, ...], int]:
-    """Tasks in grid order, seeds innermost (so a worker meets the same solvers in a row)."""
+def _expand(models, grid, seeds, selection, placement, intent, loads=(None, None)):
+    """Tasks in grid order, seeds innermost (so a worker meets the same solvers in a row), and
+    the number of grid points dropped as repeats; ``loads``: (cases, objective) of every task."""
     sel = tuple(sorted(asdict(selection).items()))
     # without a spacing, the tasks' ids stay those of studies that had none
     plc = tuple(
@@ -387,6 +431,7 @@ def _expand(models, grid, seeds, selection, placement, intent) -> tuple[tuple[Ta
             sel,
             plc,
             kept,
+            *loads,
         )
         tasks.setdefault(task.task_id, task)
     return tuple(tasks.values()), points - len(tasks)

@@ -69,6 +69,13 @@ class Task:
         Where contacts may go and the contacts already in place, for every task of the study:
         ``only`` and ``exclude`` (tuples of regions) and ``fixed`` (the contact-set file's
         content as canonical JSON text, or None); empty when the study gives none.
+    loads : str or None
+        The load cases (canonical JSON of a LOADS.json) whose certified factors the row
+        reports; part of :attr:`task_id` only when given.
+    objective : str or None
+        ``"loads"``: the plan steered by the least load factor
+        (:func:`~closure_nlp.planning.load_steering.steer_by_loads`); ``"rho"``; ``None``
+        without loads.
     """
 
     model: str
@@ -84,15 +91,22 @@ class Task:
     selection: tuple[tuple[str, object], ...]
     placement: tuple[tuple[str, object], ...]
     intent: tuple[tuple[str, object], ...] = ()
+    loads: str | None = None
+    objective: str | None = None
 
     def inputs(self) -> dict:
-        """Everything the result depends on, as plain JSON values (the model by its digest)."""
+        """Everything the result depends on, as plain JSON values (the model by its digest;
+        no ``loads`` or ``objective`` without loads, so such a task's id is as before)."""
         data = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "model_file"}
         data["selection"] = dict(self.selection)
         data["placement"] = dict(self.placement)
         data["intent"] = dict(self.intent)
         if not self.intent:  # the ids of studies without it stay as they were
             del data["intent"]
+        if self.loads is None:
+            del data["loads"], data["objective"]
+        else:
+            data["loads"] = json.loads(self.loads)
         return {"version": TASK_VERSION, **data}
 
     @cached_property  # a run asks for it several times per task; hashing is most of its cost
@@ -140,6 +154,7 @@ GRID_AXES = tuple(
     for f in fields(Task)
     if f.name
     not in {"model", "model_file", "model_digest", "seed", "selection", "placement", "intent"}
+    and f.name not in {"loads", "objective"}  # one value for the whole study
 )
 
 _CACHE_SIZE = 8
@@ -263,6 +278,9 @@ def run_task(task: Task, model_text: str | None = None) -> dict:
             placer=placer,
             memo=memo,
         )
+        factors = None
+        if task.loads is not None:
+            result, factors = _with_loads(task, eligibility, placer, result)
         first, second, placed, seconds, attempts, reused = (
             result.heuristic,
             result.iterative,
@@ -313,7 +331,28 @@ def run_task(task: Task, model_text: str | None = None) -> dict:
         wall_seconds=time.perf_counter() - t0,
         **worker_memory(),
     )
+    if factors is not None:
+        lo, hi = factors.bounds
+        row.update(
+            load_factor=float(factors.load_factor),
+            load_factor_lo=float(lo),
+            load_factor_hi=float(hi),
+            load_factors=json.dumps(factors.to_dict()["loads"]),
+        )
     return row
+
+
+def _with_loads(task: Task, eligibility, placer, result):
+    """The plan steered by the task's loads when its objective says so, and the certified
+    factors of the loads on its placed contacts."""
+    from closure_nlp.contact.loads import as_loads
+    from closure_nlp.criterion.load_factor import load_factors
+    from closure_nlp.planning.load_steering import steer_by_loads
+
+    loads = as_loads(json.loads(task.loads))
+    if task.objective == "loads":
+        result = steer_by_loads(eligibility, result, loads, placer.options)
+    return result, load_factors(result.placement.contact_set, loads)
 
 
 def _bounds(bounds) -> tuple[float | None, float | None]:
@@ -340,7 +379,9 @@ def worker_memory() -> dict:
 
 # The task's fields that a row holds as they are (the options go in as JSON).
 _TASK_COLUMNS = tuple(
-    f.name for f in fields(Task) if f.name not in {"model_file", "selection", "placement", "intent"}
+    f.name
+    for f in fields(Task)
+    if f.name not in {"model_file", "selection", "placement", "intent", "loads"}
 )
 
 
