@@ -39,3 +39,32 @@ def test_far_contacts_are_hollow_and_chosen_facets_outlined():
         assert edges.sum() == 1 and not fills.any()  # the chosen facet outlined, not filled
     finally:
         plt.close(fig)
+
+
+def test_contacts_already_in_place_are_drawn_black_and_named(tmp_path):
+    """``show`` draws the first contacts of a plan's contacts.json marked ``fixed`` in black."""
+    import json
+
+    from closure_nlp.cli.show_command import fixed_count
+
+    model = characterize_mesh(trimesh.creation.box((1.0, 1.0, 1.0))).model
+    top = next(e for e in model.elements if e.inward_normal[2] < -0.9)
+    entry = {"position": [0.0, 0.0, 0.5], "inward_normal": top.inward_normal.tolist()}
+    path = tmp_path / "contacts.json"
+    path.write_text(json.dumps({"contacts": [{**entry, "fixed": True}, entry, entry]}))
+    assert fixed_count(str(path)) == 1
+    pts = np.array([[0.0, 0.0, 0.5]] * 3)
+    nrm = np.array([top.inward_normal] * 3)
+    plt = pyplot()
+    fig = plt.figure()
+    try:
+        ax = fig.add_subplot(projection="3d")
+        draw_model(model, (pts, nrm), ax, show_mesh=False, view=(30.0, -60.0), fixed=1)
+        balls = [c for c in ax.collections if c.get_zorder() == 31]
+        colours = [tuple(np.round(b.get_facecolor()[0][:3], 3)) for b in balls]
+        assert sorted(len(b._offsets3d[0]) for b in balls) == [1, 2]
+        assert (0.0, 0.0, 0.0) in colours  # the one in place, black
+        labels = [t.get_text() for t in ax.get_legend().get_texts()]
+        assert any(t.startswith("fixed contacts") for t in labels)
+    finally:
+        plt.close(fig)

@@ -35,7 +35,7 @@ def _redirect(argv: list[str], renamed: dict[str, Path], tmp_path: Path) -> None
 
 
 def test_there_are_howtos_with_commands():
-    assert HOWTOS
+    assert len(HOWTOS) >= 2
     for page in HOWTOS:
         commands = doc_blocks.shown(page, "sh")
         assert commands, page
@@ -74,3 +74,22 @@ def test_every_picture_shown_is_drawn_by_a_command(page):
     for picture in pictures:
         assert (page.parent / picture).exists(), picture
         assert Path(picture).name in drawn, picture
+
+
+SNIPPETS = [
+    pytest.param(page, i, marks=pytest.mark.slow, id=f"{page.stem}-python{i}")
+    for page in HOWTOS
+    for i, (lang, _) in enumerate(doc_blocks.fenced_blocks(page.read_text()))
+    if lang == "python"
+]
+
+
+@pytest.mark.parametrize(("page", "index"), SNIPPETS)
+def test_howto_python_runs(page, index, monkeypatch, capsys):
+    """The page's Python runs as written and prints a number where it prints one."""
+    lang, code = doc_blocks.fenced_blocks(page.read_text())[index]
+    monkeypatch.chdir(ROOT)
+    exec(compile(code, f"{page.name} block {index}", "exec"), {"__name__": "howto"})
+    printed = capsys.readouterr().out
+    if "print(" in code:
+        assert doc_blocks.NUMBER.search(printed), printed

@@ -40,6 +40,8 @@ def test_wrenches_about_the_reference_point(tmp_path):
     # no point: applied at the reference point, no moment
     np.testing.assert_allclose(W[2], [0, 0, -5, 0, 0, 0])
     assert as_loads(loads.to_dict()).wrenches(ref, ts).tolist() == W.tolist()
+    for given in (path, str(path)):  # the API takes the file's path as the command line does
+        assert as_loads(given).wrenches(ref, ts).tolist() == W.tolist()
 
 
 @pytest.mark.parametrize(

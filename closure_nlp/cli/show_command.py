@@ -51,16 +51,31 @@ def add_show(sub, common) -> None:
     p.set_defaults(run=cmd_show)
 
 
-def contact_elements(path: str) -> list[int]:
-    """The ``element`` ids named by the contacts of a contact-set file (for highlighting)."""
+def _entries(path: str) -> list:
+    """The contact entries of a contact-set file (or of a plan's report.json), as written."""
     from closure_nlp.base.files import load_json
 
     data = load_json(path)
     if isinstance(data, dict) and isinstance(data.get("contact_set"), dict):
         data = data["contact_set"]  # a plan's report.json
     entries = data.get("contacts", []) if isinstance(data, dict) else []
-    ids = [e.get("element") for e in entries if isinstance(e, dict)]
+    return [e for e in entries if isinstance(e, dict)]
+
+
+def contact_elements(path: str) -> list[int]:
+    """The ``element`` ids named by the contacts of a contact-set file (for highlighting)."""
+    ids = [e.get("element") for e in _entries(path)]
     return [i for i in ids if isinstance(i, int) and not isinstance(i, bool)]
+
+
+def fixed_count(path: str) -> int:
+    """How many contacts at the start of a contact-set file were already in place."""
+    count = 0
+    for entry in _entries(path):
+        if entry.get("fixed") is not True:
+            break
+        count += 1
+    return count
 
 
 def show_title(model, contacts) -> str | None:
@@ -87,10 +102,11 @@ def cmd_show(args) -> None:
     model = read_model(args, marked)
     with output.reading(args.model):  # excluded elements drawn grey
         model = with_exclusions(model, args.only, args.exclude)
-    contacts, highlight = None, []
+    contacts, highlight, fixed = None, [], 0
     if args.contacts:
         [(_, contacts)] = output.load_each([args.contacts], load_contacts)
         highlight = contact_elements(args.contacts)
+        fixed = fixed_count(args.contacts)
     if args.highlight:
         try:
             highlight = [arguments.int_value(part) for part in args.highlight.split(",")]
@@ -118,7 +134,9 @@ def cmd_show(args) -> None:
         )
     options = {"up": args.up, "title": show_title(model, contacts)}
     if suffix not in SCENE_SUFFIXES:
-        options.update(view=(args.elev, args.azim), show_mesh=not args.no_mesh, ids=args.ids)
+        options.update(
+            view=(args.elev, args.azim), show_mesh=not args.no_mesh, ids=args.ids, fixed=fixed
+        )
     if loads is not None:
         from closure_nlp.criterion.load_factor import load_factors
 

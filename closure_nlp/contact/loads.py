@@ -10,6 +10,7 @@ A case becomes one wrench about the contact set's reference point, its torque ro
 from __future__ import annotations
 
 from dataclasses import dataclass
+from os import PathLike
 
 import numpy as np
 
@@ -144,9 +145,12 @@ def loads_from_dict(data) -> Loads:
 
 
 def as_loads(value) -> Loads:
-    """:class:`Loads` from itself, a dict as in LOADS.json, or a list of cases."""
+    """:class:`Loads` from itself, a LOADS.json file's path, a dict as in LOADS.json, or a list
+    of cases."""
     if isinstance(value, Loads):
         return value
+    if isinstance(value, (str, PathLike)):
+        return load_loads(value)
     if isinstance(value, list):
         value = {"loads": value}
     return loads_from_dict(value)

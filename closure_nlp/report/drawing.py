@@ -23,6 +23,7 @@ SEGMENT_COLOUR = np.array([0.12, 0.31, 0.47])
 POINT_COLOUR = np.array([0.16, 0.5, 0.38])
 HIGHLIGHT_COLOUR = np.array([0.95, 0.55, 0.15])
 MARKED_COLOUR = np.array([0.85, 0.1, 0.55])  # elements a check refused (shown, not hidden)
+FIXED_COLOUR = "black"  # contacts already in place
 UNUSABLE_COLOUR = np.array([0.6, 0.6, 0.6])  # elements no contact may use (excluded, margins)
 CONTACT_COLOUR = "#c0392b"
 LIGHT = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
@@ -97,6 +98,7 @@ def draw_model(
     ids: bool = False,
     legend: bool = True,
     contact_label: str = "contacts",
+    fixed: int = 0,
 ):
     """Draw a model's elements (and contacts) into 3-D axes.
 
@@ -128,6 +130,9 @@ def draw_model(
         A legend of what is drawn (elements, chosen elements, contacts, reference point).
     contact_label : str
         Legend entry of ``contacts``.
+    fixed : int
+        The first ``fixed`` contacts were already in place (a plan's ``contacts.json`` lists
+        them first): drawn black, as "fixed contacts".
 
     Contacts are drawn last and above everything else, so no facet hides them; a contact whose
     surface faces away from the viewer (on the far side of the part) is drawn hollow, with a
@@ -161,10 +166,21 @@ def draw_model(
             ax.text(x, y, z, str(i), fontsize=6, color="#222222", zorder=20)
     p = _shown(ax, model.reference_point)
     ax.scatter(*p, marker="x", s=40, c="black", depthshade=False, zorder=5)
+    pos, nrm = contact_arrays(contacts)
+    sizes = np.broadcast_to(np.asarray(contact_sizes, dtype=float), (len(pos),))
+    if fixed:
+        draw_contacts(
+            ax,
+            (pos[:fixed], nrm[:fixed]),
+            sizes=sizes[:fixed],
+            colour=FIXED_COLOUR,
+            scale=model_extent(model),
+            label="fixed contacts",
+        )
     draw_contacts(
         ax,
-        contacts,
-        sizes=contact_sizes,
+        (pos[fixed:], nrm[fixed:]),
+        sizes=sizes[fixed:],
         colour=contact_colour,
         scale=model_extent(model),
         label=contact_label,

@@ -254,6 +254,7 @@ def _figures(model, result: PlanResult, out: Path, up: str | None = None, loads=
     the model's; ``loads``: (cases, their factors) drawn as arrows) and ``history.png`` (its
     Fig. 3)."""
     from closure_nlp.report.drawing import (
+        FIXED_COLOUR,
         draw_contacts,
         draw_loads,
         draw_model,
@@ -289,7 +290,7 @@ def _figures(model, result: PlanResult, out: Path, up: str | None = None, loads=
             ax,
             final.contacts[:fixed],
             sizes=140.0,
-            colour="black",
+            colour=FIXED_COLOUR,
             scale=model_extent(model),
             label="fixed contacts",
         )
