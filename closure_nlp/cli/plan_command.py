@@ -98,7 +98,9 @@ def cmd_plan(args) -> None:
         if args.objective == "loads":
             from closure_nlp.planning.load_steering import steer_by_loads
 
-            result = steer_by_loads(eligibility, result, loads, placement_options, progress)
+            result = steer_by_loads(
+                eligibility, result, loads, placement_options, progress, seed=args.seed
+            )
     finally:
         close()
     if args.margin:  # contacts' weights on the file's elements: the same positions

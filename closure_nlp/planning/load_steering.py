@@ -1,8 +1,10 @@
 """A plan steered by load factors (``objective="loads"``): its element sets re-placed for the
 largest least load factor.
 
-The plan selects element sets by rho_hat and places contacts by rho (every seed alike). Each
-distinct element set its seeds ended on is then placed again with the load objective
+The plan selects element sets by rho_hat and places contacts by rho (every seed alike). One more
+element set is selected by the least load factor itself (the iterative algorithm ranking sets by
+:class:`~closure_nlp.selection.load_value.LoadValue`, from the plan's seed) and placed by rho.
+Each distinct element set of these is then placed again with the load objective
 (:mod:`~closure_nlp.placement.load_objective`), started from that set's rho placement, and the
 set whose placement holds the loads most times is kept; the sets go in the order of their
 elements' own load factor (an upper bound on any placement's on them), and a set that cannot beat
@@ -21,7 +23,10 @@ from closure_nlp.contact.wrenches import WrenchSlots
 from closure_nlp.criterion.rho_hat import Eligibility
 from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.placement.place import Placer
+from closure_nlp.placement.spacing import SpacingError
 from closure_nlp.planning.single import PlanResult
+from closure_nlp.selection.algorithms import SelectionOptions, run_selection
+from closure_nlp.selection.load_value import LoadValue
 
 
 def steer_by_loads(
@@ -30,10 +35,12 @@ def steer_by_loads(
     loads,
     options: PlacementOptions = PlacementOptions(),
     progress: Progress | None = None,
+    seed: int | None = 0,
+    selection: SelectionOptions = SelectionOptions(),
 ) -> PlanResult:
     """``result`` with its placement replaced by the best load-steered placement over the
     element sets of its seeds (force-closure placements first, the plan's own when none is);
-    its ``seconds`` count this step too."""
+    its ``seconds`` count this step too. ``seed`` and ``selection``: the loads' own selection's."""
     t0 = time.perf_counter()
     runs = [run.result for run in result.seeds.runs if run.ok] if result.seeds else [result]
     placements = [r.placement for r in runs if r.placement.force_closure] or [result.placement]
@@ -42,6 +49,19 @@ def steer_by_loads(
         starts.setdefault(placement.elements, placement)
     placer = Placer(eligibility, options, loads=loads)
     objective = placer.objective
+    chosen = run_selection(
+        eligibility,
+        "iterative",
+        seed=seed,
+        options=selection,
+        value=LoadValue(eligibility, objective),
+    )
+    if chosen.eligible and chosen.elements not in starts:  # holds every case: placed by rho
+        try:
+            placed = Placer(eligibility, options)(list(chosen.elements))
+            starts.setdefault(placed.elements, placed)  # it may end on neighbours
+        except SpacingError:
+            pass  # no placement on it keeps the spacing
     # most promising first: no placement on a set holds more than the set's elements do, so a
     # set whose elements cannot beat the best placement so far is not placed again
     ceilings = {e: -objective.upper_bound(eligibility.slots(e)) for e in starts}

@@ -351,7 +351,7 @@ def _with_loads(task: Task, eligibility, placer, result):
 
     loads = as_loads(json.loads(task.loads))
     if task.objective == "loads":
-        result = steer_by_loads(eligibility, result, loads, placer.options)
+        result = steer_by_loads(eligibility, result, loads, placer.options, seed=task.seed)
     return result, load_factors(result.placement.contact_set, loads)
 
 
