@@ -1277,8 +1277,9 @@ def bench_dexnet(cases: int = 200, sets: int = 200, linf_sets: int = 5, seed: in
         "sets": cases,
         "force_closure": len(fc),
         "linf_outside_certified_max": float(max(off, default=0.0)),
-        "linf_minus_minus_rho_max": float(max((abs(r[2] + r[0].rho) / r[6] for r in fc),
-                                              default=0.0)),  # fmt: skip
+        "linf_minus_minus_rho_max": float(
+            max((abs(r[2] + r[0].rho) / r[6] for r in fc), default=0.0)
+        ),  # fmt: skip
         "l1_over_minus_rho": _stats([r[4] / -r[0].rho for r in fc]) if fc else None,
         "median_ms": {
             "rho": float(np.median([r[1] for r in rows])),
@@ -1309,9 +1310,7 @@ def bench_dexnet(cases: int = 200, sets: int = 200, linf_sets: int = 5, seed: in
         rows.append(row)
     fc = [r for r in rows if r["ours"].force_closure]
     unit = max(abs(r["ours"].rho) for r in rows)
-    l1_off = [
-        _within(r["l1"], _floor(r["inner"]) / m, -r["ours"].bounds[0], unit) for r in fc
-    ]
+    l1_off = [_within(r["l1"], _floor(r["inner"]) / m, -r["ours"].bounds[0], unit) for r in fc]
     linf_off = [_within(x, _floor(inner), -o.bounds[0], unit) for o, inner, x, _ in linf_rows]
     ours_ms = np.array([r["ours_ms"] for r in rows])
     l1_ms = np.array([r["l1_ms"] for r in rows])
@@ -1329,7 +1328,8 @@ def bench_dexnet(cases: int = 200, sets: int = 200, linf_sets: int = 5, seed: in
             "sets": len(linf_rows),
             "outside_sandwich_max": float(max(linf_off, default=0.0)),
             "over_minus_rho": _stats([x / -o.rho for o, _, x, _ in linf_rows])
-            if linf_rows else None,
+            if linf_rows
+            else None,
             "median_ms": float(np.median([r[3] for r in linf_rows])) if linf_rows else None,
         },
         "median_ms": {
