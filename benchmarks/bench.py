@@ -196,6 +196,21 @@ def opposite_pair(mu: float, mu_s: float) -> ContactSet:
     )
 
 
+def tetrahedral(kind: str = "pcwf", mu: float = 0.5, mu_s: float = 0.2) -> ContactSet:
+    """Four contacts at the vertices of a regular tetrahedron pushing to its centre: isotropic,
+    its symmetry axes run through a contact or between two."""
+    v = np.array([[1, 1, 1], [1, -1, -1], [-1, 1, -1], [-1, -1, 1]]) / np.sqrt(3)
+    return ContactSet(tuple(Contact(p, -p, kind, mu=mu, mu_s=mu_s) for p in v))
+
+
+def ring(kind: str, m: int, mu: float = 0.5, mu_s: float = 0.2) -> ContactSet:
+    """``m`` contacts equally spaced round a circle in one plane, pushing to its centre: a
+    turn, a mirror, and the flip across that plane."""
+    a = 2 * np.pi * np.arange(m) / m
+    P = np.column_stack([np.cos(a), np.sin(a), np.zeros(m)])
+    return ContactSet(tuple(Contact(p, -p, kind, mu=mu, mu_s=mu_s) for p in P))
+
+
 def engine_families(cases: int, seed: int = 0) -> dict:
     """The certified-rho families of ``bench engine``: name -> list of ContactSet, or
     ``("lamp", element lists)`` for rho_hat of 4 lamp facets."""
@@ -214,7 +229,10 @@ def engine_families(cases: int, seed: int = 0) -> dict:
     families["2 opposite SFCe"] = [
         opposite_pair(mu, mu_s) for mu, mu_s in ((0.5, 0.5), (0.5, 1.0), (0.2, 0.2))
     ]
-    for m in (200, 2000):
+    families["tetrahedral 4 PCwF"] = [tetrahedral(mu=mu) for mu in (0.5, 0.2)]
+    families["ring of 4 SFCe"] = [ring("sfce", 4)]
+    families["ring of 6 SFCe"] = [ring("sfce", 6)]
+    for m in (200, 1000, 2000):
         families[f"{m} PCwF"] = [
             random_contact_set(np.random.default_rng(seed + k), ["pcwf"] * m)
             for k in range(max(1, cases // (10 if m == 200 else 20)))
