@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import json
 import re
 from pathlib import Path
 
@@ -108,3 +109,15 @@ def test_l1_epsilon_sandwich_on_random_pcwf_sets():
         closure += 1
         assert _inner_floor(P, N, 0.5, 8) / 4 - tol <= l1 <= -result.bounds[0] + tol, seed
     assert closure >= 3
+
+
+def test_bench_dexnet_reports_every_check_as_json(capsys):
+    from benchmarks import bench
+
+    assert bench.main(["dexnet", "--cases", "12", "--sets", "12", "--linf-sets", "1"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    fpc, pcwf = report["7 FPC"], report["4 PCwF"]
+    assert fpc["sets"] == 12 and pcwf["sets"] == 12
+    assert fpc["linf_outside_certified_max"] == 0.0
+    assert pcwf["l1_outside_sandwich_max"] == 0.0 and pcwf["l1_closure_not_ours"] == 0
+    assert pcwf["median_ms"]["rho"] > 0 and pcwf["median_ms"]["l1_qhull"] > 0
