@@ -1,6 +1,6 @@
 """Benchmarks that print JSON: ``python -m benchmarks.bench WHAT`` (``rho``, ``rho-hat``,
 ``certify``, ``engine``, ``batch``, ``startup``, ``select``, ``plan``, ``plans``, ``seeds``,
-``gap``, ``characterize``, ``real-meshes``).
+``gap``, ``characterize``, ``real-meshes``, ``intent``, ``dexnet``).
 
 Timings are medians over seeded random cases with every solver built and warmed up first, and
 each is compared in the same process with a paper-style baseline: scipy SLSQP started from the
@@ -196,6 +196,21 @@ def opposite_pair(mu: float, mu_s: float) -> ContactSet:
     )
 
 
+def tetrahedral(kind: str = "pcwf", mu: float = 0.5, mu_s: float = 0.2) -> ContactSet:
+    """Four contacts at the vertices of a regular tetrahedron pushing to its centre: isotropic,
+    its symmetry axes run through a contact or between two."""
+    v = np.array([[1, 1, 1], [1, -1, -1], [-1, 1, -1], [-1, -1, 1]]) / np.sqrt(3)
+    return ContactSet(tuple(Contact(p, -p, kind, mu=mu, mu_s=mu_s) for p in v))
+
+
+def ring(kind: str, m: int, mu: float = 0.5, mu_s: float = 0.2) -> ContactSet:
+    """``m`` contacts equally spaced round a circle in one plane, pushing to its centre: a
+    turn, a mirror, and the flip across that plane."""
+    a = 2 * np.pi * np.arange(m) / m
+    P = np.column_stack([np.cos(a), np.sin(a), np.zeros(m)])
+    return ContactSet(tuple(Contact(p, -p, kind, mu=mu, mu_s=mu_s) for p in P))
+
+
 def engine_families(cases: int, seed: int = 0) -> dict:
     """The certified-rho families of ``bench engine``: name -> list of ContactSet, or
     ``("lamp", element lists)`` for rho_hat of 4 lamp facets."""
@@ -214,7 +229,10 @@ def engine_families(cases: int, seed: int = 0) -> dict:
     families["2 opposite SFCe"] = [
         opposite_pair(mu, mu_s) for mu, mu_s in ((0.5, 0.5), (0.5, 1.0), (0.2, 0.2))
     ]
-    for m in (200, 2000):
+    families["tetrahedral 4 PCwF"] = [tetrahedral(mu=mu) for mu in (0.5, 0.2)]
+    families["ring of 4 SFCe"] = [ring("sfce", 4)]
+    families["ring of 6 SFCe"] = [ring("sfce", 6)]
+    for m in (200, 1000, 2000):
         families[f"{m} PCwF"] = [
             random_contact_set(np.random.default_rng(seed + k), ["pcwf"] * m)
             for k in range(max(1, cases // (10 if m == 200 else 20)))
@@ -1330,6 +1348,128 @@ def bench_throughput(sets: int = 1000, seed: int = 0, workers=(1, 2)) -> dict:
     }
 
 
+def _within(value: float, lo: float, hi: float, scale: float) -> float:
+    """How far ``value`` lies outside ``[lo, hi]``, relative to ``scale`` (0 inside)."""
+    return max(lo - value, value - hi, 0.0) / scale
+
+
+def _floor(inner) -> float:
+    """The lower end of an epsilon's sandwich: ``-hi`` of the inscribed cones' rho where that
+    set is force closure; none otherwise (an epsilon is then the origin's signed distance to
+    a facet, which these bounds do not hold)."""
+    return -inner.bounds[1] if inner.bounds[1] < 0 else -np.inf
+
+
+def bench_dexnet(cases: int = 200, sets: int = 200, linf_sets: int = 5, seed: int = 0) -> dict:
+    """Ferrari-Canny epsilons of linearised cones (``benchmarks.ferrari_canny``: qhull, written
+    from Dex-Net's and GraspIt!'s conventions) against certified rho on the same contacts, each
+    timed in this process.
+
+    * ``7 FPC`` (random sets): a frictionless cone is one ray, so the L-infinity set (each normal
+      force at most 1) *is* W_c^M with ``f_max`` 1: on closure sets epsilon_Linf must lie in the
+      certified ``[-hi, -lo]``.
+    * ``4 PCwF`` (mesh-sampled on the lamp, mu 0.5, Dex-Net's 8 edges): the L1 set (normal forces
+      summing to at most 1) lies inside W_c^M and holds W_c^M of ``mu cos(pi / k)`` shrunk by
+      ``m``, so ``-hi(mu cos(pi / k)) / m <= epsilon_L1 <= -lo(mu)`` on closure sets (the left
+      side where ``mu cos(pi / k)`` is force closure);
+      epsilon_Linf of 4 edges on ``linf_sets`` closure sets, between ``-hi(mu cos(pi / 4))`` and
+      ``-lo(mu)`` ((k + 1)^m points: 625 for 4 edges, 6561 for 8).
+    """
+    from benchmarks.ferrari_canny import edge_wrenches, epsilon_l1, epsilon_linf
+    from closure_nlp import ContactSet, rho
+
+    def timed(call):
+        t = time.perf_counter()
+        value = call()
+        return value, 1e3 * (time.perf_counter() - t)
+
+    def arrays(cs):
+        P = np.array([c.position for c in cs.contacts])
+        N = np.array([c.inward_normal for c in cs.contacts])
+        return P, N
+
+    report = {"benchmark": "dexnet"}
+    rows = []
+    for k in range(cases):
+        cs = random_contact_set(np.random.default_rng(seed + k), ["fpc"] * 7)
+        P, N = arrays(cs)
+        W = edge_wrenches(P, N, 0.0, 1, cs.torque_scale, cs.reference_point)
+        ours, ours_ms = timed(lambda cs=cs: rho(cs))
+        linf, linf_ms = timed(lambda W=W: epsilon_linf(W))
+        l1, l1_ms = timed(lambda W=W: epsilon_l1(W))
+        rows.append((ours, ours_ms, linf, linf_ms, l1, l1_ms, float(np.abs(W).max())))
+    fc = [r for r in rows if r[0].force_closure]
+    off = [_within(r[2], -r[0].bounds[1], -r[0].bounds[0], r[6]) for r in fc]
+    report["7 FPC"] = {
+        "sets": cases,
+        "force_closure": len(fc),
+        "linf_outside_certified_max": float(max(off, default=0.0)),
+        "linf_minus_minus_rho_max": float(
+            max((abs(r[2] + r[0].rho) / r[6] for r in fc), default=0.0)
+        ),  # fmt: skip
+        "l1_over_minus_rho": _stats([r[4] / -r[0].rho for r in fc]) if fc else None,
+        "median_ms": {
+            "rho": float(np.median([r[1] for r in rows])),
+            "linf_qhull": float(np.median([r[3] for r in rows])),
+            "l1_qhull": float(np.median([r[5] for r in rows])),
+        },
+    }
+    P, U, scale, centre = mesh_sampled_sets(sets, seed=seed)
+    mu, edges, m = 0.5, 8, P.shape[1]
+    rows, linf_rows = [], []
+    for j in range(sets):
+        cs = ContactSet.from_arrays(P[j], U[j], mu=mu, torque_scale=scale, reference_point=centre)
+        W = edge_wrenches(P[j], U[j], mu, edges, scale, centre)
+        ours, ours_ms = timed(lambda cs=cs: rho(cs))
+        l1, l1_ms = timed(lambda W=W: epsilon_l1(W))
+        row = {"ours": ours, "ours_ms": ours_ms, "l1": l1, "l1_ms": l1_ms}
+        if ours.force_closure:
+            row["inner"] = rho(ContactSet.from_arrays(
+                P[j], U[j], mu=mu * np.cos(np.pi / edges), torque_scale=scale,
+                reference_point=centre))  # fmt: skip
+            if len(linf_rows) < linf_sets:
+                W4 = edge_wrenches(P[j], U[j], mu, 4, scale, centre)
+                linf, linf_ms = timed(lambda W4=W4: epsilon_linf(W4))
+                inner4 = rho(ContactSet.from_arrays(
+                    P[j], U[j], mu=mu * np.cos(np.pi / 4), torque_scale=scale,
+                    reference_point=centre))  # fmt: skip
+                linf_rows.append((ours, inner4, linf, linf_ms))
+        rows.append(row)
+    fc = [r for r in rows if r["ours"].force_closure]
+    unit = max(abs(r["ours"].rho) for r in rows)
+    l1_off = [_within(r["l1"], _floor(r["inner"]) / m, -r["ours"].bounds[0], unit) for r in fc]
+    linf_off = [_within(x, _floor(inner), -o.bounds[0], unit) for o, inner, x, _ in linf_rows]
+    ours_ms = np.array([r["ours_ms"] for r in rows])
+    l1_ms = np.array([r["l1_ms"] for r in rows])
+    fc_mask = np.array([r["ours"].force_closure for r in rows])
+    report["4 PCwF"] = {
+        "sets": sets,
+        "mu": mu,
+        "edges": edges,
+        "force_closure": len(fc),
+        "l1_closure": int(sum(r["l1"] > 0 for r in rows)),
+        "l1_closure_not_ours": int(sum(r["l1"] > 0 and not r["ours"].force_closure for r in rows)),
+        "l1_outside_sandwich_max": float(max(l1_off, default=0.0)),
+        "l1_over_minus_rho": _stats([r["l1"] / -r["ours"].rho for r in fc]) if fc else None,
+        "linf_4_edges": {
+            "sets": len(linf_rows),
+            "outside_sandwich_max": float(max(linf_off, default=0.0)),
+            "over_minus_rho": _stats([x / -o.rho for o, _, x, _ in linf_rows])
+            if linf_rows
+            else None,
+            "median_ms": float(np.median([r[3] for r in linf_rows])) if linf_rows else None,
+        },
+        "median_ms": {
+            "rho": float(np.median(ours_ms)),
+            "l1_qhull": float(np.median(l1_ms)),
+            "rho_closure": float(np.median(ours_ms[fc_mask])) if fc_mask.any() else None,
+            "l1_qhull_closure": float(np.median(l1_ms[fc_mask])) if fc_mask.any() else None,
+        },
+        "ratio_l1_over_rho_median": float(np.median(l1_ms) / np.median(ours_ms)),
+    }
+    return report
+
+
 def machine(load_before: tuple[float, ...]) -> dict:
     """Where and when a report was measured: cores, CPU model, the 1-minute load average before
     and after the run (other processes share the cores; the milliseconds move with them), date."""
@@ -1407,6 +1547,11 @@ def main(argv=None) -> int:
     p.add_argument("--workers", default="1,2", help="worker counts, comma-separated")
     p = sub.add_parser("intent", help="the block's fixture with intent against without")
     p.add_argument("--seeds", default="0,1,2", help="comma-separated seeds")
+    p = sub.add_parser("dexnet", help="Ferrari-Canny L1 / L-inf epsilons (qhull) against rho")
+    p.add_argument("--cases", type=int, default=200, help="7-FPC sets")
+    p.add_argument("--sets", type=int, default=200, help="mesh-sampled 4-PCwF sets")
+    p.add_argument("--linf-sets", type=int, default=5, help="closure sets given L-inf")
+    p.add_argument("--seed", type=int, default=0)
     p = sub.add_parser("units", help="pybullet's domino in m and mm, placed under margins")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--cells", type=int, default=200, help="cells of each ceiling (default 200)")
@@ -1453,6 +1598,8 @@ def main(argv=None) -> int:
         from benchmarks.intent import bench_intent
 
         report = bench_intent([int(x) for x in args.seeds.split(",")])
+    elif args.what == "dexnet":
+        report = bench_dexnet(args.cases, args.sets, args.linf_sets, args.seed)
     elif args.what == "units":
         report = bench_units(seed=args.seed, cells=args.cells, lp_centre=args.lp_centre)
     elif args.what == "real-meshes":

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from benchmarks.bench import cylinder_set, opposite_pair
+from benchmarks.bench import cylinder_set, opposite_pair, ring, tetrahedral
 from closure_nlp.contact.contact_set import Contact, ContactSet
 from closure_nlp.contact.random_sets import random_contact_set
 from closure_nlp.contact.wrenches import WrenchSlots
@@ -42,13 +42,33 @@ def _mirror(symmetry):
     return R
 
 
+def _flip(symmetry):
+    """The map of wrenches (6, 6) of the reflection across the plane normal to the axis."""
+    a = symmetry.axis
+    Q = np.eye(3) - 2 * np.outer(a, a)
+    R = np.zeros((6, 6))
+    R[:3, :3], R[3:, 3:] = Q, -Q
+    return R
+
+
 def _group(symmetry):
-    """Every element (6, 6) of a finite group found: turns, and turns after a mirror."""
+    """Every element (6, 6) of a finite group found: turns, turns after a mirror, and all of
+    these after the flip."""
     n = symmetry.order
     turns = [_turn(symmetry, 2 * np.pi * j / n) for j in range(n)]
-    if symmetry.mirror is None:
-        return turns
-    return turns + [R @ _mirror(symmetry) for R in turns]
+    if symmetry.mirror is not None:
+        turns += [R @ _mirror(symmetry) for R in turns]
+    if symmetry.flip:
+        turns += [R @ _flip(symmetry) for R in turns]
+    return turns
+
+
+def named_set(name: str) -> ContactSet:
+    if name == "tetrahedral pcwf":
+        return tetrahedral()
+    if name.startswith("ring"):
+        return ring("sfce", int(name.split("=")[1]))
+    return dict(symmetric_sets())[name]
 
 
 def _units(rng, count):
@@ -57,20 +77,24 @@ def _units(rng, count):
 
 
 FOUND = [
-    ("cylinder sfce m=4", 4, True, True),
-    ("cylinder pcwf m=6", 6, True, True),
-    ("box sfcl faces (0, 1, 2, 3)", 2, False, True),
+    ("cylinder sfce m=4", 4, True, True, False),
+    ("cylinder pcwf m=6", 6, True, True, False),
+    ("box sfcl faces (0, 1, 2, 3)", 2, False, True, True),
+    ("tetrahedral pcwf", 4, True, True, False),  # S4 about an axis between two contacts
+    ("ring sfce m=3", 3, False, True, True),
+    ("ring sfce m=6", 6, False, True, True),
 ]
 
 
-@pytest.mark.parametrize(("name", "order", "improper", "has_mirror"), FOUND)
-def test_found_turns_keep_the_reference_support_function(name, order, improper, has_mirror):
-    cs = dict(symmetric_sets())[name]
+@pytest.mark.parametrize(("name", "order", "improper", "has_mirror", "flip"), FOUND)
+def test_found_turns_keep_the_reference_support_function(name, order, improper, has_mirror, flip):
+    cs = named_set(name)
     symmetry = find_symmetry(WrenchSlots.from_contacts(cs))
-    assert (symmetry.order, symmetry.improper) == (order, improper)
+    assert (symmetry.order, symmetry.improper, symmetry.flip) == (order, improper, flip)
     ref = reference.from_contact_set(cs)
     assert (symmetry.mirror is not None) == has_mirror
     maps = [_turn(symmetry, 2 * np.pi / order)] + ([_mirror(symmetry)] if has_mirror else [])
+    maps += [_flip(symmetry)] if flip else []
     for u in _units(np.random.default_rng(order), 30):
         value = reference.support(u, ref)
         for R in maps:
@@ -107,11 +131,14 @@ def test_sets_without_turns_have_none():
     assert symmetry is not None and symmetry.order == 0  # each cone is round: every turn still
 
 
-@pytest.mark.parametrize("name", ["cylinder sfce m=6", "cylinder pcwf m=4", "opposite"])
+@pytest.mark.parametrize(
+    "name",
+    ["cylinder sfce m=6", "cylinder pcwf m=4", "opposite", "tetrahedral pcwf", "ring sfce m=6"],
+)
 def test_every_orbit_meets_the_domain(name):
     """For random directions, some element of the group takes the direction into the union
     of the domain's cells (its preimage under the cells' map lies in one of the boxes)."""
-    cs = opposite_pair(0.5, 0.5) if name == "opposite" else dict(symmetric_sets())[name]
+    cs = opposite_pair(0.5, 0.5) if name == "opposite" else named_set(name)
     symmetry = find_symmetry(WrenchSlots.from_contacts(cs))
     metric = np.array([1, 1, 1, 0.5, 0.5, 0.5])
     rng = np.random.default_rng(2)
@@ -142,6 +169,10 @@ CASES = [
     ("2 opposite SFCe 0.5/0.5", opposite_pair(0.5, 0.5)),
     ("2 opposite SFCe 0.5/1.0", opposite_pair(0.5, 1.0)),
     ("2 opposite SFCe 0.2/0.2", opposite_pair(0.2, 0.2)),
+    ("tetrahedral 4 PCwF", tetrahedral()),
+    ("tetrahedral 4 PCwF mu 0.2", tetrahedral(mu=0.2)),
+    ("ring of 3 SFCe", ring("sfce", 3)),
+    ("ring of 4 SFCe", ring("sfce", 4)),
 ]
 
 

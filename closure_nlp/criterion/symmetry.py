@@ -40,7 +40,7 @@ searched, so a circle of minima away from the axis's own wrenches is a single po
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -54,6 +54,8 @@ RTOL = 1e-9
 ORDERS = (12, 8, 6, 5, 4, 3, 2)
 # Sets of more rows are not examined (their symmetry is rare and the matching is quadratic).
 MAX_ROWS = 64
+# Isotropic sets of at most this many rows try the axes through their contacts and between two.
+ISOTROPIC_ROWS = 12
 
 
 @dataclass(frozen=True, eq=False)
@@ -78,6 +80,11 @@ class AxialSymmetry:
         then half the wedge.
     reflects : bool
         The mirror map is the reflection (else the half turn).
+    flip : bool
+        With a proper turn of order ``n``: the reflection across the plane normal to the axis
+        maps the set onto itself too (contacts round a ring in that plane); it changes neither
+        the force pair nor the torque along the axis, so the domain keeps the half of the wedge
+        whose force along the axis is not negative.
     """
 
     axis: np.ndarray = field(repr=False)
@@ -86,6 +93,15 @@ class AxialSymmetry:
     slack: float
     mirror: np.ndarray | None = field(default=None, repr=False)
     reflects: bool = False
+    flip: bool = False
+
+    @property
+    def size(self) -> float:
+        """Elements of the group used: how many times smaller than the sphere its domain is
+        (infinite for every turn)."""
+        if self.order == 0:
+            return np.inf
+        return self.order * (2 if self.mirror is not None else 1) * (2 if self.flip else 1)
 
     def domain(self, metric, incumbent=None, splits: int = 1):
         """The cube's boxes that cover a fundamental domain, and the map that takes them there.
@@ -123,6 +139,8 @@ class AxialSymmetry:
             angle = 2 * np.pi / self.order / (1 if self.mirror is None else 2)
             shear[:2, 1] = np.cos(angle), np.sin(angle)
             ranges[0] = ranges[1] = (0.0, 1.0)
+        if self.flip and self.order:
+            ranges[2] = (0.0, 1.0)
         frame = np.zeros((6, 6))
         frame[:3, :3] = frame[3:, 3:] = P
         frame = frame @ shear @ np.diag(np.asarray(metric, dtype=float))
@@ -149,7 +167,11 @@ def find_symmetry(slots: WrenchSlots, rtol: float = RTOL) -> AxialSymmetry | Non
 
     Candidate axes are the simple eigenvectors of the second moments of the rows' normal
     wrenches (force and torque parts), which every such map preserves; each candidate is then
-    verified row by row (module docstring), so a wrong candidate costs only time.
+    verified row by row (module docstring), so a wrong candidate costs only time. Isotropic
+    second moments (a tetrahedral grasp) name no true axis; when none of those candidates holds,
+    a set of at most :data:`ISOTROPIC_ROWS` rows tries its rows' normal forces and the sums of
+    two of them (the axes through a contact, and between two), and the largest group found is
+    used.
     """
     G = slots.G
     K = len(G)
@@ -157,25 +179,49 @@ def find_symmetry(slots: WrenchSlots, rtol: float = RTOL) -> AxialSymmetry | Non
         return None
     rows = _Rows(slots)
     tol = rtol * rows.scale
-    for a in _candidate_axes(slots):
-        angles = rows.partner_angles(a, tol)
-        if angles is None:
+    axes = _candidate_axes(slots)
+    for a in axes:
+        found = _about(rows, a, tol)
+        if found is not None:
+            return found
+    if K > ISOTROPIC_ROWS:
+        return None
+    best = None
+    for a in _isotropic_axes(slots):
+        found = _about(rows, a, tol)
+        if found is not None and (best is None or found.size > best.size):
+            best = found
+    return best
+
+
+def _about(rows: _Rows, a: np.ndarray, tol: float) -> AxialSymmetry | None:
+    """The turns about ``a`` that map the set onto itself: every turn if there are, else the
+    largest cyclic group of :data:`ORDERS` (with a mirror and a flip when there are), or None."""
+    angles = rows.partner_angles(a, tol)
+    if angles is None:
+        return None
+    slack = rows.every_turn(a, tol)
+    if slack is not None:
+        return AxialSymmetry(a, 0, False, slack)
+    for n in ORDERS:
+        # a turn of 2 pi / n takes the first moving row onto one of its partners
+        if not any(abs(np.remainder(n * phi / (2 * np.pi) + 0.5, 1.0) - 0.5) < 1e-9
+                   for phi in angles):  # fmt: skip
             continue
-        slack = rows.every_turn(a, tol)
-        if slack is not None:
-            return AxialSymmetry(a, 0, False, slack)
-        for n in ORDERS:
-            # a turn of 2 pi / n takes the first moving row onto one of its partners
-            if not any(abs(np.remainder(n * phi / (2 * np.pi) + 0.5, 1.0) - 0.5) < 1e-9
-                       for phi in angles):  # fmt: skip
+        for improper in (False, True):
+            slack = rows.turn(a, n, improper, tol)
+            if slack is None:
                 continue
-            for improper in (False, True):
-                slack = rows.turn(a, n, improper, tol)
-                if slack is not None:
-                    mirror, reflects, more = rows.mirror(a, tol)
-                    if mirror is None:
-                        return AxialSymmetry(a, n, improper, (n - 1) * slack)
-                    return AxialSymmetry(a, n, improper, n * slack + more, mirror, reflects)
+            mirror, reflects, more = rows.mirror(a, tol)
+            if mirror is None:
+                found = AxialSymmetry(a, n, improper, (n - 1) * slack)
+            else:
+                found = AxialSymmetry(a, n, improper, n * slack + more, mirror, reflects)
+            if not improper:  # a flip after a proper turn: one more application at most
+                flip = rows.maps(np.eye(3) - 2 * np.outer(a, a), tol)
+                if flip is not None:
+                    return replace(found, slack=found.slack + flip, flip=True)
+            return found
     return None
 
 
@@ -207,6 +253,22 @@ def _paired(slots: WrenchSlots, rtol: float) -> bool:
     paired[1:] |= close
     paired[:-1] |= close
     return bool(np.all(paired | on_axis))
+
+
+def _isotropic_axes(slots: WrenchSlots) -> list:
+    """Unit normal forces of the rows and normalised sums of two of them, without repeats."""
+    F = slots.G[:, :3, 0]
+    F = F / np.linalg.norm(F, axis=1, keepdims=True)
+    sums = [F[i] + F[j] for i in range(len(F)) for j in range(i + 1, len(F))]
+    out = []
+    for a in [*F, *sums]:
+        length = np.linalg.norm(a)
+        if length < 1e-6:
+            continue
+        a = a / length
+        if all(abs(a @ b) < 1 - 1e-9 for b in out):
+            out.append(a)
+    return out
 
 
 def _candidate_axes(slots: WrenchSlots) -> list:
