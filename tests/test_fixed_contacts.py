@@ -268,3 +268,38 @@ def test_ceiling_holds_the_fixed_contacts_and_the_spacing(planned):
     assert not _room(([point], [near]), 2.0, 1)  # wholly within 2 of the fixed point
     assert _room(([point], [near, far]), 2.0, 1)  # a piece of it lies far enough
     assert _room(([point], [point]), 2.0, 2)  # two fixed contacts: nothing to decide
+
+
+@pytest.mark.parametrize("base_f_max", [1.0, 1000.0])
+def test_opposite_faces_half_circle_of_minima(block, tmp_path, base_f_max):
+    """Two PCwF on each of two opposite faces above three locators: every force-only direction
+    with ``u_y = -mu / sqrt(1 + mu^2)`` and ``u_z <= 0`` (a half circle) meets the -y face's cones
+    on their edge, so ``min p = 4 mu / sqrt(1 + mu^2)`` (analytic, f_max 1) on a continuum of
+    directions; the locators push no such direction, whatever their f_max. The certified bracket
+    holds that value within its gap, relative to the larger of |rho| and the set's scale (the
+    locators' f_max 1000 makes that scale 1000x the new contacts')."""
+    from closure_nlp.base.tolerances import Tolerances
+    from closure_nlp.criterion.certificate import tolerance_unit
+    from closure_nlp.criterion.support_minimum import SupportMinimizer
+
+    mu, certify = 0.3, 1e-4  # looser than the default 1e-6: the cells along the half circle
+    exact = -4.0 * mu / np.sqrt(1.0 + mu**2)
+    eligibility = Eligibility(
+        block,
+        contact_specs(4, type="pcwf", mu=mu),
+        minimizer=SupportMinimizer(tolerances=Tolerances(certify=certify)),
+        fixed=base_file(tmp_path, defaults={"type": "fpc", "f_max": base_f_max}),
+    )
+    elements = [0, 0, 66, 66]  # the -y and +y faces
+    assert [block.elements[e].inward_normal[1] for e in elements] == [1.0, 1.0, -1.0, -1.0]
+    result = eligibility(elements)
+    lo, hi = result.bounds
+    unit = tolerance_unit(eligibility.slots(elements))
+    assert result.converged and result.eligible
+    assert lo <= exact <= hi and hi - lo <= certify * max(abs(lo), unit)
+    slots = eligibility.slots(elements)
+    uy = -mu / np.sqrt(1.0 + mu**2)
+    phi = np.linspace(np.pi, 2.0 * np.pi, 7)
+    r = np.sqrt(1.0 - uy**2)
+    arc = np.c_[r * np.cos(phi), np.full_like(phi, uy), r * np.sin(phi), np.zeros((7, 3))]
+    assert np.allclose(slots.support(arc), -exact, rtol=1e-12)

@@ -17,7 +17,10 @@ class Tolerances:
         ``|rho|`` at or below this (relative to ``max(1, scale)``) is reported as exactly 0
         and is not force closure: the set has no interior or the origin is on its boundary.
     certify : float
-        Relative gap ``hi - lo <= certify * max(1, |rho|)`` at which certified bounds stop.
+        Relative gap ``hi - lo <= certify * max(|rho|, unit)`` at which certified bounds stop,
+        ``unit`` the set's own wrench scale (the certificate's ``tolerance_unit``, set by its
+        strongest contacts): locators with 1000x the new contacts' ``f_max`` make the bracket
+        of a rho_hat that the weak contacts set up to about 1e-3 of it wide.
     geometry : float
         Relative tolerance for planarity, perpendicular normals and distinct vertices,
         measured against an element's size.
