@@ -1067,6 +1067,58 @@ def bench_gap(
     return report
 
 
+# Contact sets of every type the default placement's gap is measured on (bench gap --family):
+# 3 and 4 contacts with friction, 7 frictionless (fewer are never force closure).
+GAP_FAMILY = (("pcwf", 3), ("pcwf", 4), ("sfcl", 3), ("sfcl", 4), ("sfce", 3), ("sfce", 4))
+GAP_FAMILY_FRICTIONLESS = (("fpc", 7),)
+
+
+def bench_gap_family(
+    names=None, seed: int = 1, variants=None, models_dir=MODELS_DIR, mu: float = 0.5
+) -> dict:
+    """The default placement's certified gap on contact sets of every type (:data:`GAP_FAMILY`,
+    mu ``mu``; 7 FPC on the pistol) on each example: one plan of ``seed`` per set (automatic
+    torque scale), its placement's gap and seconds under each of ``variants`` (name ->
+    PlacementOptions keyword arguments; default: the defaults alone), in the same process, so
+    that their times compare at the same load."""
+    from closure_nlp.model.scale import resolve
+
+    variants = variants or {"default": {}}
+    report = {"benchmark": "gap-family", "seed": seed, "mu": mu, "rows": []}
+    for name in names or PAPER_EXAMPLES:
+        model = load_model(Path(models_dir) / f"{name}.model.json")
+        scale = resolve(model)
+        family = GAP_FAMILY + (GAP_FAMILY_FRICTIONLESS if name == "pistol" else ())
+        for kind, m in family:
+            specs = contact_specs(m, type=kind, mu=mu, mu_s=scale.mu_s)
+            eligibility = Eligibility(model, specs, scale.torque_scale)
+            row = {"model": name, "type": kind, "contacts": m}
+            for label, settings in variants.items():
+                placer = Placer(eligibility, PlacementOptions(**settings))
+                load = _load()
+                t0 = time.perf_counter()
+                placed = plan(eligibility, seed=seed, placer=placer).placement
+                row[label] = {
+                    "rho": placed.rho,
+                    "capacity_bound": placed.capacity_bound,
+                    "gap": placed.gap,
+                    "gap_reached": placed.gap_reached,
+                    "bound_nodes": placed.bound_nodes,
+                    "bound_seconds": placed.bound_seconds,
+                    "placement_seconds": placed.seconds,
+                    "plan_seconds": time.perf_counter() - t0,
+                    "load": load,
+                }
+            report["rows"].append(row)
+    for label in variants:
+        gaps = [r[label]["gap"] for r in report["rows"] if r[label]["gap"] is not None]
+        bound = [r[label]["bound_seconds"] for r in report["rows"]]
+        report[f"{label}_gap_median"] = float(np.median(gaps)) if gaps else None
+        report[f"{label}_gap_max"] = max(gaps) if gaps else None
+        report[f"{label}_bound_seconds_median"] = float(np.median(bound))
+    return report
+
+
 UNITS_GRASPS = {"4 PCwF": (4, "pcwf"), "7 FPC": (7, "fpc")}
 
 
@@ -1285,6 +1337,8 @@ def main(argv=None) -> int:
     p.add_argument("--neighbours", action="store_true", help="the ceiling over neighbours too")
     p.add_argument("--compare", action="store_true", help="the exhaustive settings too, after")
     p.add_argument("--budget", type=float, help="seconds per model (default: 30, pistol 60)")
+    p.add_argument("--family", action="store_true", help="default placements of every type")
+    p.add_argument("--variants", help='JSON: name -> PlacementOptions keywords, e.g. {"a": {}}')
     p = sub.add_parser("startup", help="cold compile and warm start of a command line")
     p.add_argument("--repeats", type=int, default=5)
     p.add_argument("--baseline", help="folder of another checkout (e.g. a git worktree)")
@@ -1335,6 +1389,9 @@ def main(argv=None) -> int:
         report = bench_throughput(args.sets, args.seed, counts)
     elif args.what == "units":
         report = bench_units(seed=args.seed, cells=args.cells, lp_centre=args.lp_centre)
+    elif args.what == "gap" and args.family:
+        variants = json.loads(args.variants) if args.variants else None
+        report = bench_gap_family(args.models.split(","), args.seed, variants)
     elif args.what == "gap":
         names = args.models.split(",")
         budgets = {name: args.budget for name in names} if args.budget else None

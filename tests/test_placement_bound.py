@@ -213,16 +213,44 @@ def test_gap_text_says_what_was_proved():
 
     from closure_nlp.placement.ceiling import gap_text
 
-    base = dict(capacity_bound=0.6, bound_nodes=12, bound_elements=((1,), (2,)))
-    held = SimpleNamespace(**base, gap=0.013, gap_reached=True)
-    assert gap_text(held).startswith("within 1.3% of the best placement on these elements (")
-    late = SimpleNamespace(**base, gap=0.1, gap_reached=False)
-    assert "budget" in gap_text(late)
+    base = dict(
+        capacity_bound=0.7928, bound_nodes=12, bound_elements=((1,), (2,)), bounds=(-0.5162, -0.516)
+    )
+    held = SimpleNamespace(**base, gap=0.021, gap_reached=True)
+    assert gap_text(held) == (
+        "certified: no placement on these elements holds more than 0.7928; "
+        "this one holds 0.5160, within 2.1% (12 cells)"
+    )
+    # a budget ended first: how fast the gap was still falling, never "a budget ended"
+    late = SimpleNamespace(
+        **base, gap=0.1, gap_reached=False, bound_seconds=4.0, root_gap=0.3, gap_per_second=0.005
+    )
+    text = gap_text(late)
+    assert "within 10%" in text and "from 30%" in text and "0.5 points a second" in text
+    assert "budget" not in text
+    root = SimpleNamespace(**{**base, "bound_nodes": 1}, gap=0.35, gap_reached=False)
+    assert "the root cell" in gap_text(root) and "--bound-cells" in gap_text(root)
     nowhere = SimpleNamespace(**{**base, "capacity_bound": 1e-12}, gap=None, gap_reached=True)
-    assert gap_text(nowhere).startswith("no placement on these elements is force closure")
+    assert gap_text(nowhere).startswith("certified: no placement on these elements is force")
+    short = SimpleNamespace(**base, gap=None, gap_reached=False)
+    assert gap_text(short).endswith("this one is not force closure (12 cells)")
     near = SimpleNamespace(**{**base, "bound_elements": ((1, 3), (2,))}, gap=0.2, gap_reached=True)
     assert "and their neighbours" in gap_text(near)
     assert gap_text(SimpleNamespace(capacity_bound=None)) == ""
+
+
+def test_the_trend_is_the_gap_falling_over_the_search():
+    """``trend()`` reads the search's history: the root's gap, and the fall per second over
+    its last quarter."""
+    from closure_nlp.placement.ceiling import CapacityBound
+
+    history = ((0.0, 1.0, 0.5), (2.0, 0.8, 0.5), (8.0, 0.625, 0.5), (10.0, 0.5556, 0.5))
+    found = CapacityBound(0.5556, 0.5, 0.1, None, 40, 3, False, ((1,),), 10.0, history=history)
+    root, rate = found.trend()
+    assert root == pytest.approx(0.5)
+    assert rate == pytest.approx((0.2 - (0.5556 - 0.5) / 0.5556) / 2.0)
+    alone = CapacityBound(1.0, 0.5, 0.5, None, 1, 1, False, ((1,),), 1.0, history=history[:1])
+    assert alone.trend() == (pytest.approx(0.5), None)
 
 
 def test_the_two_lp_solvers_agree():

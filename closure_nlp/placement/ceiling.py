@@ -291,8 +291,28 @@ class CapacityBound:
     polishes: int = 0
     history: tuple = field(default=(), repr=False)
 
+    def trend(self) -> tuple[float | None, float | None]:
+        """``(root_gap, gap_per_second)``: the gap after the root cell, and how fast the gap
+        fell over the last quarter of the search's time (relative gap per second; None without
+        a force-closure placement, or when the search did not go past its root cell)."""
+        gaps = [(t, relative_gap(c, b)) for t, c, b in self.history]
+        root = gaps[0][1] if gaps else None
+        if self.nodes <= 1 or len(gaps) < 2 or gaps[-1][1] is None:
+            return root, None
+        end, last = gaps[-1]
+        recent = [(t, g) for t, g in gaps if t >= 0.75 * end and g is not None]
+        start, first = recent[0] if recent else gaps[-1]
+        if end - start <= 0.0:  # a single step: the rate over the whole search
+            start, first = next(((t, g) for t, g in gaps if g is not None), (end, last))
+        if end - start <= 0.0:
+            return root, None
+        return root, max(0.0, (first - last) / (end - start))
+
     def to_dict(self) -> dict:
+        root_gap, rate = self.trend()
         return {
+            "root_gap": root_gap,
+            "gap_per_second": rate,
             "capacity_bound": self.value,
             "gap": self.gap,
             "gap_reached": self.reached,
@@ -785,11 +805,14 @@ def bounded(placer, elements, result, t0: float, progress=None):
             rounds=result.rounds + better.rounds,
             moves=(),
         )
+    root_gap, rate = found.trend()
     return replace(
         chosen,
         capacity_bound=found.value,
         gap=found.gap,
         gap_reached=found.reached,
+        root_gap=root_gap,
+        gap_per_second=rate,
         bound_elements=found.domain,
         bound_nodes=found.nodes,
         bound_seconds=found.seconds,
@@ -799,22 +822,49 @@ def bounded(placer, elements, result, t0: float, progress=None):
 
 
 def gap_text(result) -> str:
-    """The ceiling in words, e.g. ``within 1.3% of the best placement on these elements``."""
+    """The ceiling in words: what it proves and where the placement stands, e.g. ``certified:
+    no placement on these elements holds more than 0.7928; this one holds 0.5160, within 2.1%``;
+    when a budget ended first, how fast the gap was still falling (what more time would buy)."""
     if result.capacity_bound is None:
         return ""
     where = "these elements"
     if any(len(ids) > 1 for ids in result.bound_elements):
         where += " and their neighbours"
-    cells = f"{result.bound_nodes} cell" + ("s" if result.bound_nodes != 1 else "")
-    ceiling = f"certified ceiling {result.capacity_bound:.6g}, {cells}"
+    nodes = result.bound_nodes
+    cells = f"{nodes} cell" + ("s" if nodes != 1 else "")
+    ceiling = _digits(result.capacity_bound)
     if result.gap is None:
         if result.gap_reached:
-            return f"no placement on {where} is force closure ({ceiling})"
-        return f"no placement on {where} holds more than {result.capacity_bound:.6g} ({ceiling})"
-    text = f"within {100 * result.gap:.3g}% of the best placement on {where} ({ceiling}"
-    if not result.gap_reached:
-        text += "; a budget (cells or seconds) ended before the gap target"
-    return text + ")"
+            return f"certified: no placement on {where} is force closure ({cells})"
+        return (
+            f"certified: no placement on {where} holds more than {ceiling}; "
+            f"this one is not force closure ({cells})"
+        )
+    held = _digits(_capacity(result))
+    text = (
+        f"certified: no placement on {where} holds more than {ceiling}; "
+        f"this one holds {held}, within {_percent(result.gap)}"
+    )
+    if result.gap_reached:
+        return f"{text} ({cells})"
+    seconds = getattr(result, "bound_seconds", 0.0)
+    rate = getattr(result, "gap_per_second", None)
+    if nodes <= 1 or rate is None:
+        return f"{text} (the root cell; more cells narrow it: --bound-cells, --time-budget)"
+    root = getattr(result, "root_gap", None)
+    since = f" from {_percent(root)}" if root is not None else ""
+    pace = f"{100 * rate:.2g} points a second lately" if rate > 0 else "flat lately"
+    return f"{text} (narrowed{since} in {seconds:.3g} s over {cells}; {pace})"
+
+
+def _digits(value: float) -> str:
+    """Four significant digits, trailing zeros kept (0.5160)."""
+    text = f"{value:#.4g}"
+    return text[:-1] if text.endswith(".") else text
+
+
+def _percent(gap: float) -> str:
+    return f"{100 * gap:.3g}%"
 
 
 def _capacity(result) -> float:
