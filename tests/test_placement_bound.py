@@ -183,6 +183,29 @@ def test_capacity_bound_on_the_box():
         assert capacity <= result.value
 
 
+def test_a_searched_ceiling_over_neighbours_is_above_every_sampled_placement():
+    """After cells past the root (neighbours in the domain, exchange runs finding incumbents),
+    no placement sampled anywhere in the domain holds more than the ceiling; some do hold."""
+    model = box_model(1.0)
+    specs = contact_specs(4, type="sfce", mu=0.4, mu_s=0.2)
+    eligibility = Eligibility(model, specs, 0.7)
+    placer = Placer(eligibility, PlacementOptions(starts=1, extra_starts=0, bound=False))
+    elements = (0, 1, 2, 3)
+    placed = placer(elements)
+    options = BoundOptions(gap=0.0, time_budget=np.inf, max_nodes=40, polish_every=10)
+    result = capacity_bound(placer, elements, placed, options)
+    assert result.nodes > 1 and any(len(ids) > 1 for ids in result.domain)
+    assert result.value >= result.capacity >= -placed.bounds[1]
+    rng = np.random.default_rng(5)
+    cell = tuple([element_pieces(eligibility, e)[0] for e in ids] for ids in result.domain)
+    held = 0
+    for _ in range(40):
+        capacity = -rho(_sample(rng, eligibility, cell)).bounds[1]
+        held += capacity > 0
+        assert capacity <= result.value
+    assert held >= 5
+
+
 def test_no_force_closure_gives_a_zero_ceiling():
     """All four contacts on one face push one way: the ceiling is 0 (a proof that no placement
     there is force closure) and the gap is undefined."""
