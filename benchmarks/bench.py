@@ -993,9 +993,7 @@ def _gap_run(placer, elements, exchange, budget: float, **settings) -> dict:
     )
     reached = {}
     for target in (0.05, 0.02, 0.01):
-        times = [
-            t for t, ceiling, best in found.history if (relative_gap(ceiling, best) or 1) <= target
-        ]
+        times = [t for t, c, best, _ in found.history if (relative_gap(c, best) or 1) <= target]
         reached[f"seconds_to_{target:g}"] = times[0] if times else None
     return {
         "exchange_gap": relative_gap(found.value, -exchange.bounds[1]),

@@ -246,10 +246,11 @@ def test_gap_text_says_what_was_proved():
     )
     # a budget ended first: how fast the gap was still falling, never "a budget ended"
     late = SimpleNamespace(
-        **base, gap=0.1, gap_reached=False, bound_seconds=4.0, root_gap=0.3, gap_per_second=0.005
+        **base, gap=0.1, gap_reached=False, bound_seconds=4.0, root_gap=0.3, gap_per_cell=0.005
     )
     text = gap_text(late)
-    assert "within 10%" in text and "from 30%" in text and "0.5 points a second" in text
+    assert "within 10%" in text and "from 30%" in text and "0.5 points a cell" in text
+    assert "12 cells in 4 s" in text
     assert "budget" not in text
     root = SimpleNamespace(**{**base, "bound_nodes": 1}, gap=0.35, gap_reached=False)
     assert "the root cell" in gap_text(root) and "--bound-cells" in gap_text(root)
@@ -263,17 +264,24 @@ def test_gap_text_says_what_was_proved():
 
 
 def test_the_trend_is_the_gap_falling_over_the_search():
-    """``trend()`` reads the search's history: the root's gap, and the fall per second over
-    its last quarter."""
+    """``trend()`` reads the search's history: the root's gap, and the fall per second and
+    per cell over the last quarter of each."""
     from closure_nlp.placement.ceiling import CapacityBound
 
-    history = ((0.0, 1.0, 0.5), (2.0, 0.8, 0.5), (8.0, 0.625, 0.5), (10.0, 0.5556, 0.5))
+    history = (
+        (0.0, 1.0, 0.5, 1),
+        (2.0, 0.8, 0.5, 30),
+        (8.0, 0.625, 0.5, 32),
+        (10.0, 0.5556, 0.5, 40),
+    )
     found = CapacityBound(0.5556, 0.5, 0.1, None, 40, 3, False, ((1,),), 10.0, history=history)
-    root, rate = found.trend()
+    root, per_second, per_cell = found.trend()
     assert root == pytest.approx(0.5)
-    assert rate == pytest.approx((0.2 - (0.5556 - 0.5) / 0.5556) / 2.0)
+    last = (0.5556 - 0.5) / 0.5556
+    assert per_second == pytest.approx((0.2 - last) / 2.0)
+    assert per_cell == pytest.approx((0.375 - last) / 10.0)  # cells 30 to 40
     alone = CapacityBound(1.0, 0.5, 0.5, None, 1, 1, False, ((1,),), 1.0, history=history[:1])
-    assert alone.trend() == (pytest.approx(0.5), None)
+    assert alone.trend() == (pytest.approx(0.5), None, None)
 
 
 def test_the_two_lp_solvers_agree():

@@ -38,6 +38,8 @@ def patch_plan(monkeypatch, fake) -> None:
     workers would import the real plan)."""
     monkeypatch.setattr(single, "plan_one", fake)
     monkeypatch.setattr(seeds, "_context", lambda: multiprocessing.get_context("fork"))
+    # the fake placements have no elements to search: the chosen one stays as it is
+    monkeypatch.setattr(seeds, "_searched", lambda placer, placed, progress: placed)
 
 
 def comparable(result: PlanResult) -> dict:
@@ -312,5 +314,6 @@ def test_the_ceiling_searches_past_its_root_for_the_chosen_seed_alone():
     others = [r.result.placement for r in runs if r.result.placement is not chosen]
     assert all(p.bound_nodes == 1 for p in others)
     assert chosen.capacity_bound >= -chosen.bounds[1] - 1e-9
-    alone = plan(hand(), seed=runs[found.seeds.chosen].seed, selection=FEW, placement=QUICK)
+    root = replace(QUICK, bound_cells=1)
+    alone = plan(hand(), seed=runs[found.seeds.chosen].seed, selection=FEW, placement=root)
     assert chosen.rho <= alone.placement.rho + 1e-9

@@ -291,28 +291,23 @@ class CapacityBound:
     polishes: int = 0
     history: tuple = field(default=(), repr=False)
 
-    def trend(self) -> tuple[float | None, float | None]:
-        """``(root_gap, gap_per_second)``: the gap after the root cell, and how fast the gap
-        fell over the last quarter of the search's time (relative gap per second; None without
-        a force-closure placement, or when the search did not go past its root cell)."""
-        gaps = [(t, relative_gap(c, b)) for t, c, b in self.history]
-        root = gaps[0][1] if gaps else None
-        if self.nodes <= 1 or len(gaps) < 2 or gaps[-1][1] is None:
-            return root, None
-        end, last = gaps[-1]
-        recent = [(t, g) for t, g in gaps if t >= 0.75 * end and g is not None]
-        start, first = recent[0] if recent else gaps[-1]
-        if end - start <= 0.0:  # a single step: the rate over the whole search
-            start, first = next(((t, g) for t, g in gaps if g is not None), (end, last))
-        if end - start <= 0.0:
-            return root, None
-        return root, max(0.0, (first - last) / (end - start))
+    def trend(self) -> tuple[float | None, float | None, float | None]:
+        """``(root_gap, gap_per_second, gap_per_cell)``: the gap after the root cell, and how
+        fast the gap fell over the last quarter of the search's time and of its cells (relative
+        gap per second and per cell; None without a force-closure placement, or when the
+        search did not go past its root cell)."""
+        gaps = [(t, n, relative_gap(c, b)) for t, c, b, n in self.history]
+        root = gaps[0][2] if gaps else None
+        if self.nodes <= 1 or len(gaps) < 2 or gaps[-1][2] is None:
+            return root, None, None
+        return root, _fall(gaps, 0), _fall(gaps, 1)
 
     def to_dict(self) -> dict:
-        root_gap, rate = self.trend()
+        root_gap, per_second, per_cell = self.trend()
         return {
             "root_gap": root_gap,
-            "gap_per_second": rate,
+            "gap_per_second": per_second,
+            "gap_per_cell": per_cell,
             "capacity_bound": self.value,
             "gap": self.gap,
             "gap_reached": self.reached,
@@ -322,6 +317,19 @@ class CapacityBound:
             "bound_elements": [list(d) for d in self.domain],
             "bound_seconds": self.seconds,
         }
+
+
+def _fall(gaps, at: int) -> float | None:
+    """How fast the gap fell over the last quarter of ``gaps`` ((seconds, cells, gap) rows) in
+    their column ``at`` (seconds or cells): gap per unit, ``>= 0``; None over no span."""
+    end, last = gaps[-1][at], gaps[-1][2]
+    recent = [(row[at], row[2]) for row in gaps if row[at] >= 0.75 * end and row[2] is not None]
+    start, first = recent[0]
+    if end - start <= 0:  # one step in the last quarter: the rate over the whole search
+        start, first = next((row[at], row[2]) for row in gaps if row[2] is not None)
+    if end - start <= 0:
+        return None
+    return max(0.0, (first - last) / (end - start))
 
 
 def relative_gap(ceiling: float, capacity: float) -> float | None:
@@ -665,7 +673,7 @@ def capacity_bound(
     root = lp.bound(root_cell, options.root_cuts, options.cut_tolerance, deadline)
     heap = [_Cell(root_cell, root, 0)]
     closed = -np.inf  # the largest bound of a closed cell
-    nodes, polishes, history = 1, 0, [(0.0, root.value, best_value)]
+    nodes, polishes, history = 1, 0, [(0.0, root.value, best_value, 1)]
     polish_seconds, polished_at = 0.0, -np.inf
     polisher = ExchangePlacer(
         eligibility,
@@ -759,7 +767,7 @@ def capacity_bound(
                 closed = max(closed, bound.value)
             else:
                 heapq.heappush(heap, child)
-        history.append((time.perf_counter() - t0, ceiling(), best_value))
+        history.append((time.perf_counter() - t0, ceiling(), best_value, nodes))
         if progress:
             progress("capacity bound", nodes, ceiling())
     value = ceiling()
@@ -786,15 +794,22 @@ def capacity_bound(
 def bounded(placer, elements, result, t0: float, progress=None):
     """``result`` (the exchange method's placement on ``elements``, started at ``t0``) with the
     certified ceiling of :func:`capacity_bound` under the placer's options, and replaced by a
-    better placement the bound's search found (certified; never a worse one)."""
+    better placement the bound's search found (certified; never a worse one). The ceiling
+    covers the elements the contacts sit on, or with ``bound_neighbours`` ``elements``, their
+    neighbours (when the placer moves contacts to neighbours) and the contacts' elements."""
     options = placer.options
     budget = np.inf if options.time_budget is None else float(options.time_budget)
+    domain = None
+    if not options.bound_neighbours:  # the elements the contacts sit on
+        elements = result.elements
+        domain = tuple((e,) for e in elements)
     found = capacity_bound(
         placer,
         elements,
         result,
         BoundOptions(gap=options.target_gap, time_budget=budget, max_nodes=options.bound_cells),
-        progress=progress,
+        domain,
+        progress,
     )
     chosen = result
     if found.placement is not None and _capacity(found.placement) > _capacity(result):
@@ -805,14 +820,15 @@ def bounded(placer, elements, result, t0: float, progress=None):
             rounds=result.rounds + better.rounds,
             moves=(),
         )
-    root_gap, rate = found.trend()
+    root_gap, per_second, per_cell = found.trend()
     return replace(
         chosen,
         capacity_bound=found.value,
         gap=found.gap,
         gap_reached=found.reached,
         root_gap=root_gap,
-        gap_per_second=rate,
+        gap_per_second=per_second,
+        gap_per_cell=per_cell,
         bound_elements=found.domain,
         bound_nodes=found.nodes,
         bound_seconds=found.seconds,
@@ -847,14 +863,14 @@ def gap_text(result) -> str:
     )
     if result.gap_reached:
         return f"{text} ({cells})"
-    seconds = getattr(result, "bound_seconds", 0.0)
-    rate = getattr(result, "gap_per_second", None)
+    rate = getattr(result, "gap_per_cell", None)
     if nodes <= 1 or rate is None:
         return f"{text} (the root cell; more cells narrow it: --bound-cells, --time-budget)"
     root = getattr(result, "root_gap", None)
     since = f" from {_percent(root)}" if root is not None else ""
-    pace = f"{100 * rate:.2g} points a second lately" if rate > 0 else "flat lately"
-    return f"{text} (narrowed{since} in {seconds:.3g} s over {cells}; {pace})"
+    seconds = getattr(result, "bound_seconds", 0.0)
+    pace = f"{100 * rate:.2g} points a cell lately" if rate > 0 else "flat lately"
+    return f"{text} (narrowed{since} over {cells} in {seconds:.3g} s; {pace})"
 
 
 def _digits(value: float) -> str:

@@ -87,9 +87,10 @@ class PlacementResult:
         The bound's part of ``seconds``.
     root_gap : float or None
         The gap after the ceiling's root cell (None as for ``gap``).
-    gap_per_second : float or None
-        How fast the gap fell over the last quarter of the ceiling's search (relative gap per
-        second; None when the search stopped at its root cell): what more time would buy.
+    gap_per_second, gap_per_cell : float or None
+        How fast the gap fell over the last quarter of the ceiling's search, per second and
+        per cell (relative gap; None when the search stopped at its root cell): what more time
+        or cells would buy.
     exchange_rho : float or None
         The exchange method's own certified rho, before the bound's search (equal to ``rho``
         unless that search found better contacts).
@@ -126,6 +127,7 @@ class PlacementResult:
     exchange_rho: float | None = None
     root_gap: float | None = None
     gap_per_second: float | None = None
+    gap_per_cell: float | None = None
     robust: bool | None = None
     shift: float = 0.0
     exchange_solver: str = "ipopt"
@@ -167,6 +169,7 @@ class PlacementResult:
             "bound_nodes": self.bound_nodes,
             "root_gap": self.root_gap,
             "gap_per_second": self.gap_per_second,
+            "gap_per_cell": self.gap_per_cell,
             "exchange_rho": self.exchange_rho,
             "timing": {
                 "exchange": self.seconds - self.bound_seconds,
