@@ -820,14 +820,13 @@ def bounded(placer, elements, result, t0: float, progress=None):
             rounds=result.rounds + better.rounds,
             moves=(),
         )
-    root_gap, per_second, per_cell = found.trend()
+    root_gap, _, per_cell = found.trend()
     return replace(
         chosen,
         capacity_bound=found.value,
         gap=found.gap,
         gap_reached=found.reached,
         root_gap=root_gap,
-        gap_per_second=per_second,
         gap_per_cell=per_cell,
         bound_elements=found.domain,
         bound_nodes=found.nodes,

@@ -87,10 +87,10 @@ class PlacementResult:
         The bound's part of ``seconds``.
     root_gap : float or None
         The gap after the ceiling's root cell (None as for ``gap``).
-    gap_per_second, gap_per_cell : float or None
-        How fast the gap fell over the last quarter of the ceiling's search, per second and
-        per cell (relative gap; None when the search stopped at its root cell): what more time
-        or cells would buy.
+    gap_per_cell : float or None
+        How fast the gap fell over the last quarter of the ceiling's cells (relative gap per
+        cell; None when the search stopped at its root cell): what more cells would buy, and
+        with ``bound_seconds`` over ``bound_nodes`` what more seconds would.
     exchange_rho : float or None
         The exchange method's own certified rho, before the bound's search (equal to ``rho``
         unless that search found better contacts).
@@ -126,7 +126,6 @@ class PlacementResult:
     bound_seconds: float = 0.0
     exchange_rho: float | None = None
     root_gap: float | None = None
-    gap_per_second: float | None = None
     gap_per_cell: float | None = None
     robust: bool | None = None
     shift: float = 0.0
@@ -168,7 +167,6 @@ class PlacementResult:
             "bound_elements": [list(ids) for ids in self.bound_elements],
             "bound_nodes": self.bound_nodes,
             "root_gap": self.root_gap,
-            "gap_per_second": self.gap_per_second,
             "gap_per_cell": self.gap_per_cell,
             "exchange_rho": self.exchange_rho,
             "timing": {
