@@ -1,6 +1,6 @@
 """Benchmarks that print JSON: ``python -m benchmarks.bench WHAT`` (``rho``, ``rho-hat``,
 ``certify``, ``engine``, ``batch``, ``startup``, ``select``, ``plan``, ``plans``, ``seeds``,
-``gap``, ``characterize``).
+``gap``, ``part-ceiling``, ``characterize``).
 
 Timings are medians over seeded random cases with every solver built and warmed up first, and
 each is compared in the same process with a paper-style baseline: scipy SLSQP started from the
@@ -1117,6 +1117,46 @@ def bench_gap_family(
     return report
 
 
+def bench_part_ceiling(
+    names=None, seeds: int = 8, cells: int = 200, budget: float = 600.0, models_dir=MODELS_DIR
+) -> dict:
+    """The certified ceiling on any placement anywhere on each example (every element set:
+    :func:`~closure_nlp.placement.ceiling.part_ceiling`) after at most ``cells`` cells or
+    ``budget`` seconds, against the default plan of ``seeds`` seeds (CLI defaults: mu 0.2,
+    automatic torque scale and mu_s): the plan's gap to the best possible on the whole part."""
+    from closure_nlp.model.scale import resolve
+    from closure_nlp.placement.ceiling import BoundOptions, part_ceiling
+
+    report = {"benchmark": "part-ceiling", "seeds": seeds, "cells": cells, "models": {}}
+    for name in names or PAPER_EXAMPLES:
+        setup = PAPER_EXAMPLES[name]
+        model = load_model(Path(models_dir) / f"{name}.model.json")
+        scale = resolve(model)
+        specs = contact_specs(setup["m"], type=setup["type"], mu=0.2, mu_s=scale.mu_s)
+        eligibility = Eligibility(model, specs, scale.torque_scale)
+        t0 = time.perf_counter()
+        planned = plan(eligibility, seed=0, seeds=seeds).placement
+        plan_seconds = time.perf_counter() - t0
+        load = _load()
+        options = BoundOptions(gap=0.0, time_budget=budget, max_nodes=cells)
+        found = part_ceiling(Placer(eligibility, PlacementOptions()), planned, options)
+        report["models"][name] = {
+            "type": setup["type"],
+            "contacts": setup["m"],
+            "plan_rho": planned.rho,
+            "plan_seconds": plan_seconds,
+            "plan_elements_ceiling": planned.capacity_bound,
+            "part_root_bound": found.root_value,
+            "part_ceiling": found.value,
+            "gap": found.gap,
+            "cells": found.nodes,
+            "seconds": found.seconds,
+            "load_before": load,
+            "load_after": _load(),
+        }
+    return report
+
+
 UNITS_GRASPS = {"4 PCwF": (4, "pcwf"), "7 FPC": (7, "fpc")}
 
 
@@ -1337,6 +1377,11 @@ def main(argv=None) -> int:
     p.add_argument("--budget", type=float, help="seconds per model (default: 30, pistol 60)")
     p.add_argument("--family", action="store_true", help="default placements of every type")
     p.add_argument("--variants", help='JSON: name -> PlacementOptions keywords, e.g. {"a": {}}')
+    p = sub.add_parser("part-ceiling", help="certified ceiling over the whole part vs the plan")
+    p.add_argument("--models", default=",".join(PAPER_EXAMPLES), help="e.g. lamp,cup")
+    p.add_argument("--seeds", type=int, default=8, help="seeds of the plan (default 8)")
+    p.add_argument("--cells", type=int, default=200, help="cells of the ceiling (default 200)")
+    p.add_argument("--budget", type=float, default=600.0, help="seconds of it (default 600)")
     p = sub.add_parser("startup", help="cold compile and warm start of a command line")
     p.add_argument("--repeats", type=int, default=5)
     p.add_argument("--baseline", help="folder of another checkout (e.g. a git worktree)")
@@ -1387,6 +1432,9 @@ def main(argv=None) -> int:
         report = bench_throughput(args.sets, args.seed, counts)
     elif args.what == "units":
         report = bench_units(seed=args.seed, cells=args.cells, lp_centre=args.lp_centre)
+    elif args.what == "part-ceiling":
+        names = args.models.split(",")
+        report = bench_part_ceiling(names, args.seeds, args.cells, args.budget)
     elif args.what == "gap" and args.family:
         variants = json.loads(args.variants) if args.variants else None
         report = bench_gap_family(args.models.split(","), args.seed, variants)

@@ -206,6 +206,41 @@ def test_a_searched_ceiling_over_neighbours_is_above_every_sampled_placement():
     assert held >= 5
 
 
+def test_the_part_ceiling_is_above_placements_on_any_elements(tmp_path, capsys):
+    """The ceiling over the whole part bounds placements sampled on random element sets
+    (contacts sharing an element too), and ``plan --part-ceiling`` reports it above its plan."""
+    import json
+
+    from closure_nlp.cli import main as cli
+    from closure_nlp.model.elements import save_model
+    from closure_nlp.placement.ceiling import part_ceiling
+
+    model = box_model(1.0)
+    specs = contact_specs(4, type="pcwf", mu=0.5)
+    eligibility = Eligibility(model, specs, 1.0)
+    placer = Placer(eligibility, PlacementOptions(starts=1, extra_starts=0, bound=False))
+    found = part_ceiling(placer, None, BoundOptions(time_budget=np.inf, max_nodes=12))
+    assert found.domain == (tuple(range(6)),) * 4 and found.gap is None
+    rng = np.random.default_rng(4)
+    held = 0
+    for _ in range(30):
+        elements = rng.integers(0, 6, 4)
+        cell = tuple(element_pieces(eligibility, int(e)) for e in elements)
+        capacity = -rho(_sample(rng, eligibility, cell)).bounds[1]
+        held += capacity > 0
+        assert capacity <= found.value
+    assert held >= 5
+    path = tmp_path / "box.model.json"
+    save_model(model, path)
+    argv = ["plan", str(path), "--contacts", "4", "--seeds", "1", "--starts", "1"]
+    flags = ["--torque-scale", "1", "--mu", "0.5", "--bound-cells", "4", "--part-ceiling"]
+    assert cli.main([*argv, *flags, "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    part, placed = data["part_ceiling"], data["placement"]
+    assert part["capacity_bound"] >= -placed["bounds"][1]
+    assert part["gap"] == pytest.approx(relative_gap(part["capacity_bound"], -placed["bounds"][1]))
+
+
 def test_no_force_closure_gives_a_zero_ceiling():
     """All four contacts on one face push one way: the ceiling is 0 (a proof that no placement
     there is force closure) and the gap is undefined."""

@@ -836,6 +836,35 @@ def bounded(placer, elements, result, t0: float, progress=None):
     )
 
 
+def part_ceiling(placer, incumbent=None, options: BoundOptions = BoundOptions()) -> CapacityBound:
+    """Certified ceiling on ``-rho`` of every placement of the placer's contacts anywhere on the
+    part: each contact's domain is every usable element, so the bound covers every element set
+    (a set's placements are a part of that domain; several contacts may share an element).
+    ``incumbent`` (a placement, e.g. a plan's) closes the cells it beats and gives the gap;
+    no exchange runs (``polish_every`` 0): the ceiling alone."""
+    eligibility = placer.eligibility
+    usable = tuple(int(e) for e in np.flatnonzero(eligibility.model.usable))
+    if not usable:
+        raise ValueError("model: no usable element to place contacts on")
+    m = eligibility.m
+    elements = incumbent.elements if incumbent is not None else usable[:m]
+    elements = tuple(elements) + tuple(usable[i % len(usable)] for i in range(len(elements), m))
+    options = replace(options, polish_every=0)
+    return capacity_bound(placer, elements, incumbent, options, (usable,) * m)
+
+
+def part_text(found: CapacityBound, m: int) -> str:
+    """The part's ceiling in words: what it proves and where the plan stands."""
+    cells = f"{found.nodes} cell" + ("s" if found.nodes != 1 else "")
+    text = (
+        f"certified: no placement of {m} contacts anywhere on the part holds more than "
+        f"{_digits(found.value)} ({cells})"
+    )
+    if found.gap is None:
+        return text
+    return f"{text}; this plan holds {_digits(found.capacity)}, within {_percent(found.gap)}"
+
+
 def gap_text(result) -> str:
     """The ceiling in words: what it proves and where the placement stands, e.g. ``certified:
     no placement on these elements holds more than 0.7928; this one holds 0.5160, within 2.1%``;
@@ -997,5 +1026,7 @@ __all__ = [
     "domain_of",
     "dual_bound",
     "gap_text",
+    "part_ceiling",
+    "part_text",
     "relative_gap",
 ]
