@@ -1,6 +1,6 @@
 """Benchmarks that print JSON: ``python -m benchmarks.bench WHAT`` (``rho``, ``rho-hat``,
 ``certify``, ``engine``, ``batch``, ``startup``, ``select``, ``plan``, ``plans``, ``seeds``,
-``gap``, ``characterize``, ``real-meshes``, ``intent``, ``dexnet``).
+``gap``, ``part-ceiling``, ``characterize``, ``real-meshes``, ``intent``, ``dexnet``).
 
 Timings are medians over seeded random cases with every solver built and warmed up first, and
 each is compared in the same process with a paper-style baseline: scipy SLSQP started from the
@@ -1011,9 +1011,7 @@ def _gap_run(placer, elements, exchange, budget: float, **settings) -> dict:
     )
     reached = {}
     for target in (0.05, 0.02, 0.01):
-        times = [
-            t for t, ceiling, best in found.history if (relative_gap(ceiling, best) or 1) <= target
-        ]
+        times = [t for t, c, best, _ in found.history if (relative_gap(c, best) or 1) <= target]
         reached[f"seconds_to_{target:g}"] = times[0] if times else None
     return {
         "exchange_gap": relative_gap(found.value, -exchange.bounds[1]),
@@ -1082,6 +1080,98 @@ def bench_gap(
                 placer, planned.iterative.elements, exchange, budget, **EXHAUSTIVE_BOUND
             )
         report["models"][name] = entry
+    return report
+
+
+# Contact sets of every type the default placement's gap is measured on (bench gap --family):
+# 3 and 4 contacts with friction, 7 frictionless (fewer are never force closure).
+GAP_FAMILY = (("pcwf", 3), ("pcwf", 4), ("sfcl", 3), ("sfcl", 4), ("sfce", 3), ("sfce", 4))
+GAP_FAMILY_FRICTIONLESS = (("fpc", 7),)
+
+
+def bench_gap_family(
+    names=None, seed: int = 1, variants=None, models_dir=MODELS_DIR, mu: float = 0.5
+) -> dict:
+    """The default placement's certified gap on contact sets of every type (:data:`GAP_FAMILY`,
+    mu ``mu``; 7 FPC on the pistol) on each example: one plan of ``seed`` per set (automatic
+    torque scale), its placement's gap and seconds under each of ``variants`` (name ->
+    PlacementOptions keyword arguments; default: the defaults alone), in the same process, so
+    that their times compare at the same load."""
+    from closure_nlp.model.scale import resolve
+
+    variants = variants or {"default": {}}
+    report = {"benchmark": "gap-family", "seed": seed, "mu": mu, "rows": []}
+    for name in names or PAPER_EXAMPLES:
+        model = load_model(Path(models_dir) / f"{name}.model.json")
+        scale = resolve(model)
+        family = GAP_FAMILY + (GAP_FAMILY_FRICTIONLESS if name == "pistol" else ())
+        for kind, m in family:
+            specs = contact_specs(m, type=kind, mu=mu, mu_s=scale.mu_s)
+            eligibility = Eligibility(model, specs, scale.torque_scale)
+            row = {"model": name, "type": kind, "contacts": m}
+            for label, settings in variants.items():
+                placer = Placer(eligibility, PlacementOptions(**settings))
+                load = _load()
+                t0 = time.perf_counter()
+                placed = plan(eligibility, seed=seed, placer=placer).placement
+                row[label] = {
+                    "rho": placed.rho,
+                    "capacity_bound": placed.capacity_bound,
+                    "gap": placed.gap,
+                    "gap_reached": placed.gap_reached,
+                    "bound_nodes": placed.bound_nodes,
+                    "bound_seconds": placed.bound_seconds,
+                    "placement_seconds": placed.seconds,
+                    "plan_seconds": time.perf_counter() - t0,
+                    "load": load,
+                }
+            report["rows"].append(row)
+    for label in variants:
+        gaps = [r[label]["gap"] for r in report["rows"] if r[label]["gap"] is not None]
+        bound = [r[label]["bound_seconds"] for r in report["rows"]]
+        report[f"{label}_gap_median"] = float(np.median(gaps)) if gaps else None
+        report[f"{label}_gap_max"] = max(gaps) if gaps else None
+        report[f"{label}_bound_seconds_median"] = float(np.median(bound))
+    return report
+
+
+def bench_part_ceiling(
+    names=None, seeds: int = 8, cells: int = 200, budget: float = 600.0, models_dir=MODELS_DIR
+) -> dict:
+    """The certified ceiling on any placement anywhere on each example (every element set:
+    :func:`~closure_nlp.placement.ceiling.part_ceiling`) after at most ``cells`` cells or
+    ``budget`` seconds, against the default plan of ``seeds`` seeds (CLI defaults: mu 0.2,
+    automatic torque scale and mu_s): the plan's gap to the best possible on the whole part."""
+    from closure_nlp.model.scale import resolve
+    from closure_nlp.placement.ceiling import BoundOptions, part_ceiling
+
+    report = {"benchmark": "part-ceiling", "seeds": seeds, "cells": cells, "models": {}}
+    for name in names or PAPER_EXAMPLES:
+        setup = PAPER_EXAMPLES[name]
+        model = load_model(Path(models_dir) / f"{name}.model.json")
+        scale = resolve(model)
+        specs = contact_specs(setup["m"], type=setup["type"], mu=0.2, mu_s=scale.mu_s)
+        eligibility = Eligibility(model, specs, scale.torque_scale)
+        t0 = time.perf_counter()
+        planned = plan(eligibility, seed=0, seeds=seeds).placement
+        plan_seconds = time.perf_counter() - t0
+        load = _load()
+        options = BoundOptions(gap=0.0, time_budget=budget, max_nodes=cells)
+        found = part_ceiling(Placer(eligibility, PlacementOptions()), planned, options)
+        report["models"][name] = {
+            "type": setup["type"],
+            "contacts": setup["m"],
+            "plan_rho": planned.rho,
+            "plan_seconds": plan_seconds,
+            "plan_elements_ceiling": planned.capacity_bound,
+            "part_root_bound": found.root_value,
+            "part_ceiling": found.value,
+            "gap": found.gap,
+            "cells": found.nodes,
+            "seconds": found.seconds,
+            "load_before": load,
+            "load_after": _load(),
+        }
     return report
 
 
@@ -1534,6 +1624,13 @@ def main(argv=None) -> int:
     p.add_argument("--neighbours", action="store_true", help="the ceiling over neighbours too")
     p.add_argument("--compare", action="store_true", help="the exhaustive settings too, after")
     p.add_argument("--budget", type=float, help="seconds per model (default: 30, pistol 60)")
+    p.add_argument("--family", action="store_true", help="default placements of every type")
+    p.add_argument("--variants", help='JSON: name -> PlacementOptions keywords, e.g. {"a": {}}')
+    p = sub.add_parser("part-ceiling", help="certified ceiling over the whole part vs the plan")
+    p.add_argument("--models", default=",".join(PAPER_EXAMPLES), help="e.g. lamp,cup")
+    p.add_argument("--seeds", type=int, default=8, help="seeds of the plan (default 8)")
+    p.add_argument("--cells", type=int, default=200, help="cells of the ceiling (default 200)")
+    p.add_argument("--budget", type=float, default=600.0, help="seconds of it (default 600)")
     p = sub.add_parser("startup", help="cold compile and warm start of a command line")
     p.add_argument("--repeats", type=int, default=5)
     p.add_argument("--baseline", help="folder of another checkout (e.g. a git worktree)")
@@ -1606,6 +1703,12 @@ def main(argv=None) -> int:
         report = bench_real_meshes(
             args.meshes.split(","), args.seed, args.seeds, extra=args.flags.split()
         )
+    elif args.what == "part-ceiling":
+        names = args.models.split(",")
+        report = bench_part_ceiling(names, args.seeds, args.cells, args.budget)
+    elif args.what == "gap" and args.family:
+        variants = json.loads(args.variants) if args.variants else None
+        report = bench_gap_family(args.models.split(","), args.seed, variants)
     elif args.what == "gap":
         names = args.models.split(",")
         budgets = {name: args.budget for name in names} if args.budget else None

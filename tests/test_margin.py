@@ -103,7 +103,7 @@ def test_unusable_elements_are_never_selected_nor_neighbours():
     free = Eligibility(replace(model, unusable=()), specs, 1.0)
     assert set(heuristic(free, seed=0).elements) & set(range(6))  # the copies win the ties
     eligibility = Eligibility(model, specs, 1.0)
-    options = PlacementOptions(starts=1, bound_cells=1)
+    options = PlacementOptions(starts=1, bound_cells=1, bound_neighbours=True)
     for seed in range(3):
         found = plan(eligibility, seed=seed, placement=options, alternatives=0)
         used = {*found.heuristic.elements, *found.iterative.elements, *found.placement.elements}

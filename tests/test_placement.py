@@ -425,7 +425,15 @@ def test_cli_place_and_plan_end_to_end(capsys, tmp_path):
     assert code == 0 and data["force_closure"] and len(data["contacts"]) == 4
     assert set(data["contacts"][0]) >= {"element", "weights", "position", "inward_normal"}
     assert data["capacity_bound"] >= -data["rho"] * (1 - 1e-9)  # the ceiling on -rho
+    # by default the ceiling covers the elements the contacts sit on, with --bound-neighbours
+    # their neighbours too
+    assert data["bound_elements"] == [[c["element"]] for c in data["contacts"]]
     _check_contact_file(capsys, placed_file, data, 0.1)
+    wide = ["place", str(path), "--elements", "0,1,2,3", "--bound-cells", "1", *common]
+    assert cli.main([*wide, "--bound-neighbours"]) == 0
+    around = json.loads(capsys.readouterr().out)
+    assert all(len(ids) > 1 for ids in around["bound_elements"])
+    assert around["capacity_bound"] >= -around["rho"] * (1 - 1e-9)
     out = tmp_path / "run"
     # The plan without its ceiling (70% of this test's time; the ceiling has its own tests).
     argv = ["plan", str(path), "--contacts", "4", "--seeds", "1", "--out", str(out), *common]

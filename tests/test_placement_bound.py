@@ -183,6 +183,64 @@ def test_capacity_bound_on_the_box():
         assert capacity <= result.value
 
 
+def test_a_searched_ceiling_over_neighbours_is_above_every_sampled_placement():
+    """After cells past the root (neighbours in the domain, exchange runs finding incumbents),
+    no placement sampled anywhere in the domain holds more than the ceiling; some do hold."""
+    model = box_model(1.0)
+    specs = contact_specs(4, type="sfce", mu=0.4, mu_s=0.2)
+    eligibility = Eligibility(model, specs, 0.7)
+    placer = Placer(eligibility, PlacementOptions(starts=1, extra_starts=0, bound=False))
+    elements = (0, 1, 2, 3)
+    placed = placer(elements)
+    options = BoundOptions(gap=0.0, time_budget=np.inf, max_nodes=40, polish_every=10)
+    result = capacity_bound(placer, elements, placed, options)
+    assert result.nodes > 1 and any(len(ids) > 1 for ids in result.domain)
+    assert result.value >= result.capacity >= -placed.bounds[1]
+    rng = np.random.default_rng(5)
+    cell = tuple([element_pieces(eligibility, e)[0] for e in ids] for ids in result.domain)
+    held = 0
+    for _ in range(40):
+        capacity = -rho(_sample(rng, eligibility, cell)).bounds[1]
+        held += capacity > 0
+        assert capacity <= result.value
+    assert held >= 5
+
+
+def test_the_part_ceiling_is_above_placements_on_any_elements(tmp_path, capsys):
+    """The ceiling over the whole part bounds placements sampled on random element sets
+    (contacts sharing an element too), and ``plan --part-ceiling`` reports it above its plan."""
+    import json
+
+    from closure_nlp.cli import main as cli
+    from closure_nlp.model.elements import save_model
+    from closure_nlp.placement.ceiling import part_ceiling
+
+    model = box_model(1.0)
+    specs = contact_specs(4, type="pcwf", mu=0.5)
+    eligibility = Eligibility(model, specs, 1.0)
+    placer = Placer(eligibility, PlacementOptions(starts=1, extra_starts=0, bound=False))
+    found = part_ceiling(placer, None, BoundOptions(time_budget=np.inf, max_nodes=12))
+    assert found.domain == (tuple(range(6)),) * 4 and found.gap is None
+    rng = np.random.default_rng(4)
+    held = 0
+    for _ in range(30):
+        elements = rng.integers(0, 6, 4)
+        cell = tuple(element_pieces(eligibility, int(e)) for e in elements)
+        capacity = -rho(_sample(rng, eligibility, cell)).bounds[1]
+        held += capacity > 0
+        assert capacity <= found.value
+    assert held >= 5
+    path = tmp_path / "box.model.json"
+    save_model(model, path)
+    argv = ["plan", str(path), "--contacts", "4", "--seeds", "1", "--starts", "1"]
+    flags = ["--torque-scale", "1", "--mu", "0.5", "--bound-cells", "4", "--part-ceiling"]
+    assert cli.main([*argv, *flags, "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    part, placed = data["part_ceiling"], data["placement"]
+    assert part["capacity_bound"] >= -placed["bounds"][1]
+    assert part["gap"] == pytest.approx(relative_gap(part["capacity_bound"], -placed["bounds"][1]))
+
+
 def test_no_force_closure_gives_a_zero_ceiling():
     """All four contacts on one face push one way: the ceiling is 0 (a proof that no placement
     there is force closure) and the gap is undefined."""
@@ -213,16 +271,52 @@ def test_gap_text_says_what_was_proved():
 
     from closure_nlp.placement.ceiling import gap_text
 
-    base = dict(capacity_bound=0.6, bound_nodes=12, bound_elements=((1,), (2,)))
-    held = SimpleNamespace(**base, gap=0.013, gap_reached=True)
-    assert gap_text(held).startswith("within 1.3% of the best placement on these elements (")
-    late = SimpleNamespace(**base, gap=0.1, gap_reached=False)
-    assert "budget" in gap_text(late)
+    base = dict(
+        capacity_bound=0.7928, bound_nodes=12, bound_elements=((1,), (2,)), bounds=(-0.5162, -0.516)
+    )
+    held = SimpleNamespace(**base, gap=0.021, gap_reached=True)
+    assert gap_text(held) == (
+        "certified: no placement on these elements holds more than 0.7928; "
+        "this one holds 0.5160, within 2.1% (12 cells)"
+    )
+    # a budget ended first: how fast the gap was still falling, never "a budget ended"
+    late = SimpleNamespace(
+        **base, gap=0.1, gap_reached=False, bound_seconds=4.0, root_gap=0.3, gap_per_cell=0.005
+    )
+    text = gap_text(late)
+    assert "within 10%" in text and "from 30%" in text and "0.5 points a cell" in text
+    assert "12 cells in 4 s" in text
+    assert "budget" not in text
+    root = SimpleNamespace(**{**base, "bound_nodes": 1}, gap=0.35, gap_reached=False)
+    assert "the root cell" in gap_text(root) and "--bound-cells" in gap_text(root)
     nowhere = SimpleNamespace(**{**base, "capacity_bound": 1e-12}, gap=None, gap_reached=True)
-    assert gap_text(nowhere).startswith("no placement on these elements is force closure")
+    assert gap_text(nowhere).startswith("certified: no placement on these elements is force")
+    short = SimpleNamespace(**base, gap=None, gap_reached=False)
+    assert gap_text(short).endswith("this one is not force closure (12 cells)")
     near = SimpleNamespace(**{**base, "bound_elements": ((1, 3), (2,))}, gap=0.2, gap_reached=True)
     assert "and their neighbours" in gap_text(near)
     assert gap_text(SimpleNamespace(capacity_bound=None)) == ""
+
+
+def test_the_trend_is_the_gap_falling_over_the_search():
+    """``trend()`` reads the search's history: the root's gap, and the fall per second and
+    per cell over the last quarter of each."""
+    from closure_nlp.placement.ceiling import CapacityBound
+
+    history = (
+        (0.0, 1.0, 0.5, 1),
+        (2.0, 0.8, 0.5, 30),
+        (8.0, 0.625, 0.5, 32),
+        (10.0, 0.5556, 0.5, 40),
+    )
+    found = CapacityBound(0.5556, 0.5, 0.1, None, 40, 3, False, ((1,),), 10.0, history=history)
+    root, per_second, per_cell = found.trend()
+    assert root == pytest.approx(0.5)
+    last = (0.5556 - 0.5) / 0.5556
+    assert per_second == pytest.approx((0.2 - last) / 2.0)
+    assert per_cell == pytest.approx((0.375 - last) / 10.0)  # cells 30 to 40
+    alone = CapacityBound(1.0, 0.5, 0.5, None, 1, 1, False, ((1,),), 1.0, history=history[:1])
+    assert alone.trend() == (pytest.approx(0.5), None, None)
 
 
 def test_the_two_lp_solvers_agree():

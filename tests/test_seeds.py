@@ -38,6 +38,8 @@ def patch_plan(monkeypatch, fake) -> None:
     workers would import the real plan)."""
     monkeypatch.setattr(single, "plan_one", fake)
     monkeypatch.setattr(seeds, "_context", lambda: multiprocessing.get_context("fork"))
+    # the fake placements have no elements to search: the chosen one stays as it is
+    monkeypatch.setattr(seeds, "_searched", lambda placer, placed, progress: placed)
 
 
 def comparable(result: PlanResult) -> dict:
@@ -298,3 +300,20 @@ def test_memo_entries_cross_to_a_copy_of_the_eligibility():
         ("placement", other, (0, 1, 2, 3), QUICK): "their own",  # kept, not overwritten
         ("iterative", other, (1,), FEW): "run",
     }
+
+
+@pytest.mark.slow  # three small plans
+def test_the_ceiling_searches_past_its_root_for_the_chosen_seed_alone():
+    """With a cell budget, every seed's ceiling is its root cell and the chosen seed's placement
+    gets the cells: its ceiling still bounds it, and no worse than that seed's own placement."""
+    options = replace(QUICK, bound_cells=6)
+    found = plan(hand(), seed=4, seeds=2, workers=1, selection=FEW, placement=options)
+    runs = found.seeds.runs
+    chosen = runs[found.seeds.chosen].result.placement
+    assert found.placement is chosen and chosen.bound_nodes > 1
+    others = [r.result.placement for r in runs if r.result.placement is not chosen]
+    assert all(p.bound_nodes == 1 for p in others)
+    assert chosen.capacity_bound >= -chosen.bounds[1] - 1e-9
+    root = replace(QUICK, bound_cells=1)
+    alone = plan(hand(), seed=runs[found.seeds.chosen].seed, selection=FEW, placement=root)
+    assert chosen.rho <= alone.placement.rho + 1e-9

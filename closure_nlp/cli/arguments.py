@@ -111,9 +111,15 @@ def add_bound_options(parser) -> None:
         type=bounded_int(1, 10**6, "the number of cells"),
         default=PlacementOptions.bound_cells,
         metavar="N",
-        help="cells of that search's branch and bound at most (default 1, the root ceiling; "
-        "40 tightens it by a few points at several times the cost; the same answer on any "
+        help=f"cells of that search's branch and bound at most (default "
+        f"{PlacementOptions.bound_cells}; 1: the root ceiling alone; the same answer on any "
         "machine)",
+    )
+    g.add_argument(
+        "--bound-neighbours",
+        action="store_true",
+        help="the ceiling covers each contact's neighbouring elements too (the elements the "
+        "exchange method may move it to; far looser), not only the element it sits on",
     )
     g.add_argument(
         "--time-budget",

@@ -16,6 +16,8 @@ from closure_nlp.base.validation import (
 )
 from closure_nlp.cli import arguments, output, setup
 from closure_nlp.cli.loads_option import add_loads_option, factors_answer, read_loads
+from closure_nlp.placement.ceiling import BoundOptions, part_ceiling, part_text
+from closure_nlp.placement.place import Placer
 from closure_nlp.planning.plan import plan
 from closure_nlp.planning.seeds import DEFAULT_BUDGET, DEFAULT_SEEDS, MAX_PLAN_SEEDS
 from closure_nlp.report.plan_report import write_report
@@ -58,6 +60,12 @@ def add_plan(sub, common) -> None:
         default=4,
         metavar="N",
         help="further element sets placed when placement fails (default 4)",
+    )
+    p.add_argument(
+        "--part-ceiling",
+        action="store_true",
+        help="also the certified ceiling on any placement of the contacts anywhere on the part "
+        "(every element set), with the plan's gap to it; --bound-cells cells",
     )
     p.add_argument(
         "--out", metavar="DIR", help="write report.json, contacts.json, pictures and summary.md"
@@ -103,9 +111,20 @@ def cmd_plan(args) -> None:
             )
     finally:
         close()
+    part = None
+    if args.part_ceiling:
+        part = _part_ceiling(eligibility, placement_options, result)
     if args.margin:  # contacts' weights on the file's elements: the same positions
         result = dataclasses.replace(result, placement=on_original(result.placement, original))
     payload = result.to_dict()
+    if part is not None:
+        payload["part_ceiling"] = {
+            "capacity_bound": part.value,
+            "gap": part.gap,
+            "cells": part.nodes,
+            "root_bound": part.root_value,
+            "seconds": part.seconds,
+        }
     payload["margin"] = args.margin
     payload.update(intent)
     factors = None
@@ -152,6 +171,7 @@ def cmd_plan(args) -> None:
         + f"{setup.placement_text(result.placement, original)}"
         + f"{setup.margin_text(args, eligibility.model)}{factors_text}\n"
         + ("" if result.seeds is None else result.seeds.line() + "\n")
+        + ("" if part is None else f"{part_text(part, eligibility.m)}\n")
         + f"total {result.seconds:.2f} s"
         + _compile_text(args)
         + (f"; report in {output.shown(args.out)}" if args.out else "")
@@ -166,6 +186,14 @@ def cmd_plan(args) -> None:
             f"{result.placement.shift:.3g} against -hi = {-result.placement.bounds[1]:.3g}); "
             + result.placement.to_be_robust_text(eligibility.model.units)
         )
+
+
+def _part_ceiling(eligibility, options, result):
+    """The certified ceiling over every placement on the part, the plan's placement its
+    incumbent; ``--bound-cells`` cells (and ``--time-budget`` seconds) at most."""
+    budget = float("inf") if options.time_budget is None else float(options.time_budget)
+    bound = BoundOptions(gap=options.target_gap, time_budget=budget, max_nodes=options.bound_cells)
+    return part_ceiling(Placer(eligibility, options), result.placement, bound)
 
 
 def _compile_text(args) -> str:

@@ -190,6 +190,7 @@ def placement_options(args, seeded: bool) -> PlacementOptions:
         "bound": not args.no_bound,
         "target_gap": args.gap,
         "bound_cells": args.bound_cells,
+        "bound_neighbours": args.bound_neighbours,
         "time_budget": args.time_budget,
     }
     try:

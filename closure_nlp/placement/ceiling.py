@@ -292,8 +292,23 @@ class CapacityBound:
     polishes: int = 0
     history: tuple = field(default=(), repr=False)
 
+    def trend(self) -> tuple[float | None, float | None, float | None]:
+        """``(root_gap, gap_per_second, gap_per_cell)``: the gap after the root cell, and how
+        fast the gap fell over the last quarter of the search's time and of its cells (relative
+        gap per second and per cell; None without a force-closure placement, or when the
+        search did not go past its root cell)."""
+        gaps = [(t, n, relative_gap(c, b)) for t, c, b, n in self.history]
+        root = gaps[0][2] if gaps else None
+        if self.nodes <= 1 or len(gaps) < 2 or gaps[-1][2] is None:
+            return root, None, None
+        return root, _fall(gaps, 0), _fall(gaps, 1)
+
     def to_dict(self) -> dict:
+        root_gap, per_second, per_cell = self.trend()
         return {
+            "root_gap": root_gap,
+            "gap_per_second": per_second,
+            "gap_per_cell": per_cell,
             "capacity_bound": self.value,
             "gap": self.gap,
             "gap_reached": self.reached,
@@ -303,6 +318,19 @@ class CapacityBound:
             "bound_elements": [list(d) for d in self.domain],
             "bound_seconds": self.seconds,
         }
+
+
+def _fall(gaps, at: int) -> float | None:
+    """How fast the gap fell over the last quarter of ``gaps`` ((seconds, cells, gap) rows) in
+    their column ``at`` (seconds or cells): gap per unit, ``>= 0``; None over no span."""
+    end, last = gaps[-1][at], gaps[-1][2]
+    recent = [(row[at], row[2]) for row in gaps if row[at] >= 0.75 * end and row[2] is not None]
+    start, first = recent[0]
+    if end - start <= 0:  # one step in the last quarter: the rate over the whole search
+        start, first = next((row[at], row[2]) for row in gaps if row[2] is not None)
+    if end - start <= 0:
+        return None
+    return max(0.0, (first - last) / (end - start))
 
 
 def relative_gap(ceiling: float, capacity: float) -> float | None:
@@ -655,7 +683,7 @@ def capacity_bound(
     root = lp.bound(root_cell, options.root_cuts, options.cut_tolerance, deadline)
     heap = [_Cell(root_cell, root, 0)]
     closed = -np.inf  # the largest bound of a closed cell
-    nodes, polishes, history = 1, 0, [(0.0, root.value, best_value)]
+    nodes, polishes, history = 1, 0, [(0.0, root.value, best_value, 1)]
     polish_seconds, polished_at = 0.0, -np.inf
     polisher = ExchangePlacer(
         eligibility,
@@ -756,7 +784,7 @@ def capacity_bound(
                 closed = max(closed, bound.value)
             else:
                 heapq.heappush(heap, child)
-        history.append((time.perf_counter() - t0, ceiling(), best_value))
+        history.append((time.perf_counter() - t0, ceiling(), best_value, nodes))
         if progress:
             progress("capacity bound", nodes, ceiling())
     value = ceiling()
@@ -783,15 +811,22 @@ def capacity_bound(
 def bounded(placer, elements, result, t0: float, progress=None):
     """``result`` (the exchange method's placement on ``elements``, started at ``t0``) with the
     certified ceiling of :func:`capacity_bound` under the placer's options, and replaced by a
-    better placement the bound's search found (certified; never a worse one)."""
+    better placement the bound's search found (certified; never a worse one). The ceiling
+    covers the elements the contacts sit on, or with ``bound_neighbours`` ``elements``, their
+    neighbours (when the placer moves contacts to neighbours) and the contacts' elements."""
     options = placer.options
     budget = np.inf if options.time_budget is None else float(options.time_budget)
+    domain = None
+    if not options.bound_neighbours:  # the elements the contacts sit on
+        elements = result.elements
+        domain = tuple((e,) for e in elements)
     found = capacity_bound(
         placer,
         elements,
         result,
         BoundOptions(gap=options.target_gap, time_budget=budget, max_nodes=options.bound_cells),
-        progress=progress,
+        domain,
+        progress,
     )
     chosen = result
     if found.placement is not None and _capacity(found.placement) > _capacity(result):
@@ -802,11 +837,14 @@ def bounded(placer, elements, result, t0: float, progress=None):
             rounds=result.rounds + better.rounds,
             moves=(),
         )
+    root_gap, _, per_cell = found.trend()
     return replace(
         chosen,
         capacity_bound=found.value,
         gap=found.gap,
         gap_reached=found.reached,
+        root_gap=root_gap,
+        gap_per_cell=per_cell,
         bound_elements=found.domain,
         bound_nodes=found.nodes,
         bound_seconds=found.seconds,
@@ -815,23 +853,79 @@ def bounded(placer, elements, result, t0: float, progress=None):
     )
 
 
+def part_ceiling(placer, incumbent=None, options: BoundOptions = BoundOptions()) -> CapacityBound:
+    """Certified ceiling on ``-rho`` of every placement of the placer's contacts anywhere on the
+    part: each contact's domain is every usable element, so the bound covers every element set
+    (a set's placements are a part of that domain; several contacts may share an element).
+    ``incumbent`` (a placement, e.g. a plan's) closes the cells it beats and gives the gap;
+    no exchange runs (``polish_every`` 0): the ceiling alone."""
+    eligibility = placer.eligibility
+    usable = tuple(int(e) for e in np.flatnonzero(eligibility.model.usable))
+    if not usable:
+        raise ValueError("model: no usable element to place contacts on")
+    m = eligibility.m
+    elements = incumbent.elements if incumbent is not None else usable[:m]
+    elements = tuple(elements) + tuple(usable[i % len(usable)] for i in range(len(elements), m))
+    options = replace(options, polish_every=0)
+    return capacity_bound(placer, elements, incumbent, options, (usable,) * m)
+
+
+def part_text(found: CapacityBound, m: int) -> str:
+    """The part's ceiling in words: what it proves and where the plan stands."""
+    cells = f"{found.nodes} cell" + ("s" if found.nodes != 1 else "")
+    text = (
+        f"certified: no placement of {m} contacts anywhere on the part holds more than "
+        f"{_digits(found.value)} ({cells})"
+    )
+    if found.gap is None:
+        return text
+    return f"{text}; this plan holds {_digits(found.capacity)}, within {_percent(found.gap)}"
+
+
 def gap_text(result) -> str:
-    """The ceiling in words, e.g. ``within 1.3% of the best placement on these elements``."""
+    """The ceiling in words: what it proves and where the placement stands, e.g. ``certified:
+    no placement on these elements holds more than 0.7928; this one holds 0.5160, within 2.1%``;
+    when a budget ended first, how fast the gap was still falling (what more time would buy)."""
     if result.capacity_bound is None:
         return ""
     where = "these elements"
     if any(len(ids) > 1 for ids in result.bound_elements):
         where += " and their neighbours"
-    cells = f"{result.bound_nodes} cell" + ("s" if result.bound_nodes != 1 else "")
-    ceiling = f"certified ceiling {result.capacity_bound:.6g}, {cells}"
+    nodes = result.bound_nodes
+    cells = f"{nodes} cell" + ("s" if nodes != 1 else "")
+    ceiling = _digits(result.capacity_bound)
     if result.gap is None:
         if result.gap_reached:
-            return f"no placement on {where} is force closure ({ceiling})"
-        return f"no placement on {where} holds more than {result.capacity_bound:.6g} ({ceiling})"
-    text = f"within {100 * result.gap:.3g}% of the best placement on {where} ({ceiling}"
-    if not result.gap_reached:
-        text += "; a budget (cells or seconds) ended before the gap target"
-    return text + ")"
+            return f"certified: no placement on {where} is force closure ({cells})"
+        return (
+            f"certified: no placement on {where} holds more than {ceiling}; "
+            f"this one is not force closure ({cells})"
+        )
+    held = _digits(_capacity(result))
+    text = (
+        f"certified: no placement on {where} holds more than {ceiling}; "
+        f"this one holds {held}, within {_percent(result.gap)}"
+    )
+    if result.gap_reached:
+        return f"{text} ({cells})"
+    rate = getattr(result, "gap_per_cell", None)
+    if nodes <= 1 or rate is None:
+        return f"{text} (the root cell; more cells narrow it: --bound-cells, --time-budget)"
+    root = getattr(result, "root_gap", None)
+    since = f" from {_percent(root)}" if root is not None else ""
+    seconds = getattr(result, "bound_seconds", 0.0)
+    pace = f"{100 * rate:.2g} points a cell lately" if rate > 0 else "flat lately"
+    return f"{text} (narrowed{since} over {cells} in {seconds:.3g} s; {pace})"
+
+
+def _digits(value: float) -> str:
+    """Four significant digits, trailing zeros kept (0.5160)."""
+    text = f"{value:#.4g}"
+    return text[:-1] if text.endswith(".") else text
+
+
+def _percent(gap: float) -> str:
+    return f"{100 * gap:.3g}%"
 
 
 def _capacity(result) -> float:
@@ -962,5 +1056,7 @@ __all__ = [
     "domain_of",
     "dual_bound",
     "gap_text",
+    "part_ceiling",
+    "part_text",
     "relative_gap",
 ]

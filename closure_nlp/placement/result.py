@@ -86,6 +86,12 @@ class PlacementResult:
         Cells of the branch and bound.
     bound_seconds : float
         The bound's part of ``seconds``.
+    root_gap : float or None
+        The gap after the ceiling's root cell (None as for ``gap``).
+    gap_per_cell : float or None
+        How fast the gap fell over the last quarter of the ceiling's cells (relative gap per
+        cell; None when the search stopped at its root cell): what more cells would buy, and
+        with ``bound_seconds`` over ``bound_nodes`` what more seconds would.
     exchange_rho : float or None
         The exchange method's own certified rho, before the bound's search (equal to ``rho``
         unless that search found better contacts).
@@ -120,6 +126,8 @@ class PlacementResult:
     bound_nodes: int = 0
     bound_seconds: float = 0.0
     exchange_rho: float | None = None
+    root_gap: float | None = None
+    gap_per_cell: float | None = None
     robust: bool | None = None
     shift: float = 0.0
     exchange_solver: str = "ipopt"
@@ -178,6 +186,8 @@ class PlacementResult:
             "gap_reached": self.gap_reached,
             "bound_elements": [list(ids) for ids in self.bound_elements],
             "bound_nodes": self.bound_nodes,
+            "root_gap": self.root_gap,
+            "gap_per_cell": self.gap_per_cell,
             "exchange_rho": self.exchange_rho,
             "timing": {
                 "exchange": self.seconds - self.bound_seconds,

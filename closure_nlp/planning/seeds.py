@@ -31,6 +31,7 @@ from closure_nlp.base.tolerances import DEFAULT_TOLERANCES
 from closure_nlp.base.validation import MAX_SEED
 from closure_nlp.criterion.certificate import tolerance_unit
 from closure_nlp.criterion.rho_hat import Eligibility
+from closure_nlp.placement.ceiling import bounded
 from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.placement.place import Placer
 from closure_nlp.planning import single
@@ -299,26 +300,54 @@ def plan_seeds(
     if placer is not None and placer.eligibility is not eligibility:
         raise ValueError("placer: must be built on the same Eligibility as the plan")
     options = placement if placer is None else placer.options
+    # Every seed's ceiling is its root cell; the cells beyond it go to the chosen seed's
+    # placement alone, the best the seeds found (the other seeds' would be dropped).
+    seed_options = options
+    if _searches(options):
+        seed_options = replace(options, bound_cells=1, time_budget=None)
     t0 = time.perf_counter()
     if workers == 1:
         placer = placer or Placer(eligibility, options)
+        runner = placer
+        if seed_options is not options:  # the same exchange NLPs, the root ceiling
+            runner = Placer(eligibility, seed_options, placer._caches)
         memo = {} if memo is None else memo
         outcomes = []
         for k in range(seeds):
             if outcomes and budget is not None and time.perf_counter() - t0 >= budget:
                 break
-            outcomes.append(_run_one(eligibility, placer, memo, progress, plan_options, seed + k))
+            outcomes.append(_run_one(eligibility, runner, memo, progress, plan_options, seed + k))
             _report(progress, outcomes)
     else:
         outcomes = _in_processes(
-            eligibility, options, plan_options, seed, seeds, workers, budget, t0, progress
+            eligibility, seed_options, plan_options, seed, seeds, workers, budget, t0, progress
         )
-    runs = tuple(run for run, _ in outcomes)
+    runs = list(run for run, _ in outcomes)
     if not any(run.ok for run in runs):
         raise outcomes[0][1]
     chosen = best_index(runs, eligibility.minimizer.tolerances.certify)
-    spread = SeedSpread(runs, chosen, seeds, workers, budget)
+    if seed_options is not options:
+        run = runs[chosen]
+        placed = _searched(placer or Placer(eligibility, options), run.result.placement, progress)
+        runs[chosen] = replace(run, result=replace(run.result, placement=placed))
+    spread = SeedSpread(tuple(runs), chosen, seeds, workers, budget)
     return replace(runs[chosen].result, seconds=time.perf_counter() - t0, seeds=spread)
+
+
+def _searches(options: PlacementOptions) -> bool:
+    """The options' ceiling goes past its root cell (more cells, and time for them)."""
+    return options.bound and options.bound_cells > 1 and options.time_budget != 0
+
+
+def _searched(placer: Placer, placed, progress):
+    """``placed`` (a seed's placement with its root ceiling) with the ceiling's search under
+    ``placer``'s options over its own elements and their neighbours, and the better placement
+    that search found, if any."""
+    t0 = time.perf_counter() - placed.seconds
+    found = bounded(placer, placed.elements, placed, t0, progress)
+    if placed.exchange_rho is not None:  # the exchange method's own, before any search
+        found = replace(found, exchange_rho=placed.exchange_rho)
+    return found
 
 
 def _run_one(eligibility, placer, memo, progress, kwargs, seed: int):
