@@ -811,9 +811,10 @@ def capacity_bound(
 def bounded(placer, elements, result, t0: float, progress=None):
     """``result`` (the exchange method's placement on ``elements``, started at ``t0``) with the
     certified ceiling of :func:`capacity_bound` under the placer's options, and replaced by a
-    better placement the bound's search found (certified; never a worse one). The ceiling
-    covers the elements the contacts sit on, or with ``bound_neighbours`` ``elements``, their
-    neighbours (when the placer moves contacts to neighbours) and the contacts' elements."""
+    better placement the bound's search found (certified, and by the capacity left within the
+    tolerance when there is one; never a worse one). The ceiling covers the elements the
+    contacts sit on, or with ``bound_neighbours`` ``elements``, their neighbours (when the
+    placer moves contacts to neighbours) and the contacts' elements."""
     options = placer.options
     budget = np.inf if options.time_budget is None else float(options.time_budget)
     domain = None
@@ -829,7 +830,7 @@ def bounded(placer, elements, result, t0: float, progress=None):
         progress,
     )
     chosen = result
-    if found.placement is not None and _capacity(found.placement) > _capacity(result):
+    if found.placement is not None and _kept_by(found.placement) > _kept_by(result):
         better = found.placement
         chosen = replace(
             better,
@@ -935,6 +936,13 @@ def _capacity(result) -> float:
     if result.bounds is not None:
         return -float(result.bounds[1])
     return -float(result.rho)
+
+
+def _kept_by(result) -> float:
+    """What decides between two placements: the certified capacity left within the tolerance
+    (``-robust_rho``), which placement steers by; ``-hi`` without a tolerance."""
+    robust = result.robust_rho
+    return _capacity(result) if robust is None else -float(robust)
 
 
 def _heaviest(cell: _Cell) -> tuple[list[Piece], list[np.ndarray]]:
