@@ -163,7 +163,7 @@ def test_plan_out_onto_a_full_disk_keeps_the_old_report(tmp_path, capsys, monkey
         def to_dict(self):
             return {"rho": -0.1}
 
-    def full(model, result, staged, options):
+    def full(model, result, staged, options, **_):
         (Path(staged) / "report.json").write_text("half")
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(Path(staged) / "x.png"))
 

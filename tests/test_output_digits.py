@@ -52,6 +52,14 @@ def test_lengths_with_a_tolerance_near_1e_15_stop_at_7_significant_digits_of_the
     assert lengths([-0.04016741361234567, 0.0001234567891234], metres) == "-0.04016741 0.00012346"
 
 
+class _Contacts(list):
+    """What placement_text reads of a contact set: its length and its contacts."""
+
+    @property
+    def contacts(self) -> tuple:
+        return tuple(self)
+
+
 def fake_result(robust=None, shift=0.0):
     """What placement_text reads of a placement: rho certified to 1e-15, one contact."""
     return SimpleNamespace(
@@ -66,6 +74,7 @@ def fake_result(robust=None, shift=0.0):
         seconds=1.0,
         capacity_bound=None,
         contacts=[SimpleNamespace(element=3, position=np.array([0.1234567891234, 0.0, -40.0]))],
+        contact_set=_Contacts([None]),  # the one placed contact, none already in place
     )
 
 

@@ -144,8 +144,8 @@ def _placed_with_problem_kinds(placer, elements):
     used = []
     build = placer._problem
 
-    def recorded(rows, count, solver=None):
-        problem = build(rows, count, solver)
+    def recorded(rows, count, *args):
+        problem = build(rows, count, *args)
         used.append(type(problem))
         return problem
 
