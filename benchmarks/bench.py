@@ -1436,8 +1436,16 @@ def bench_throughput(sets: int = 1000, seed: int = 0, workers=(1, 2)) -> dict:
                 same &= bool(np.array_equal(first.bounds, columns.bounds))
                 same &= bool(np.array_equal(first.direction, columns.direction))
     fc = first.force_closure
-    # widths relative to the bracket's own size (a set without interior has rho 0: no ratio)
-    unit = np.maximum(np.abs(first.bounds).max(axis=1), 1e-12)
+    # widths relative to max(|rho|, the set's scale), as the certificate's 1e-6 is (a set
+    # without interior has rho 0 and a bracket of round-off round it)
+    from closure_nlp.contact.wrenches import WrenchSlots
+    from closure_nlp.criterion.certificate import tolerance_unit
+
+    scales = [
+        tolerance_unit(WrenchSlots.from_contacts(ContactSet.from_arrays(p, u, **kwargs)))
+        for p, u in zip(P, U)
+    ]
+    unit = np.maximum(np.abs(first.rho), scales)
     return {
         "sets": sets,
         "force_closure_share": float(fc.mean()),
