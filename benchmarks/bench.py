@@ -1414,25 +1414,47 @@ def mesh_sampled_sets(count: int, m: int = 4, seed: int = 0, model: str = "lamp"
 def bench_throughput(sets: int = 1000, seed: int = 0, workers=(1, 2)) -> dict:
     """Certified rho per second of mesh-sampled 4-PCwF sets (mu 0.5; mixed verdicts) by
     rho_many, one worker and each count of ``workers`` in threads and in processes, in this
-    process, alternated; every run's columns checked equal to the first's."""
-    from closure_nlp import rho_many
+    process, alternated; every run's columns checked equal to the first's.
+
+    Each run gives the sets as arrays (``runs``) and, right after, as ContactSets built one by
+    one from the same arrays, the building timed too (``per_set_runs``): the path that certifies
+    each set through :func:`rho` from its ContactSet, with the same answers."""
+    from closure_nlp import ContactSet, rho_many
 
     P, U, scale, centre = mesh_sampled_sets(sets, seed=seed)
     kwargs = {"mu": 0.5, "torque_scale": scale, "reference_point": centre}
     rho_many(P[:8], U[:8], workers=1, **kwargs)  # solvers built outside the timings
-    runs, first, same = {}, None, True
+
+    def arrays(k, pool):
+        return rho_many(P, U, workers=k, pool=pool, **kwargs)
+
+    def per_set(k, pool):
+        made = [ContactSet.from_arrays(p, u, **kwargs) for p, u in zip(P, U)]
+        return rho_many(made, workers=k, pool=pool)
+
+    runs, per_set_runs, first, same = {}, {}, None, True
     for pool in ("threads", "processes"):
         for k in workers:
-            t = time.perf_counter()
-            columns = rho_many(P, U, workers=k, pool=pool, **kwargs)
-            seconds = time.perf_counter() - t
-            runs[f"{pool} {k}"] = {"seconds": seconds, "sets_per_second": sets / seconds}
-            if first is None:
-                first = columns
-            same &= bool(np.array_equal(first.bounds, columns.bounds))
+            for table, call in ((runs, arrays), (per_set_runs, per_set)):
+                t = time.perf_counter()
+                columns = call(k, pool)
+                seconds = time.perf_counter() - t
+                table[f"{pool} {k}"] = {"seconds": seconds, "sets_per_second": sets / seconds}
+                if first is None:
+                    first = columns
+                same &= bool(np.array_equal(first.bounds, columns.bounds))
+                same &= bool(np.array_equal(first.direction, columns.direction))
     fc = first.force_closure
-    # widths relative to the bracket's own size (a set without interior has rho 0: no ratio)
-    unit = np.maximum(np.abs(first.bounds).max(axis=1), 1e-12)
+    # widths relative to max(|rho|, the set's scale), as the certificate's 1e-6 is (a set
+    # without interior has rho 0 and a bracket of round-off round it)
+    from closure_nlp.contact.wrenches import WrenchSlots
+    from closure_nlp.criterion.certificate import tolerance_unit
+
+    scales = [
+        tolerance_unit(WrenchSlots.from_contacts(ContactSet.from_arrays(p, u, **kwargs)))
+        for p, u in zip(P, U)
+    ]
+    unit = np.maximum(np.abs(first.rho), scales)
     return {
         "sets": sets,
         "force_closure_share": float(fc.mean()),
@@ -1443,6 +1465,7 @@ def bench_throughput(sets: int = 1000, seed: int = 0, workers=(1, 2)) -> dict:
         "widest_relative_bracket": float(np.max(np.diff(first.bounds, axis=1)[:, 0] / unit)),
         "converged": int(first.converged.sum()),
         "runs": runs,
+        "per_set_runs": per_set_runs,
         "same_columns_every_run": same,
     }
 

@@ -137,3 +137,35 @@ def test_one_contact_set_from_arrays():
         ContactSet.from_arrays(P[0], U[0][:2])
     with pytest.raises(ValueError, match="inward_normal"):
         ContactSet.from_arrays(P[0], np.zeros((3, 3)))
+
+
+def test_the_one_pass_slots_are_the_per_set_slots_to_the_bit():
+    """The batch's slots (one numpy pass) hold the numbers that ContactSet.from_arrays and
+    WrenchSlots.from_contacts give each set, for every type, per-contact parameters, per-set
+    torque scales and reference points, and normals of any length."""
+    from closure_nlp.contact.slot_arrays import slots_of_arrays
+    from closure_nlp.contact.wrenches import WrenchSlots
+
+    rng = np.random.default_rng(7)
+    _, P, U = _arrays(30, m=5, seed=7)
+    U = U * rng.uniform(1e-3, 1e3, size=(30, 5, 1))
+    kinds = rng.choice(["fpc", "pcwf", "sfcl", "sfce"], size=(30, 5)).astype(object)
+    mu, mu_s = rng.uniform(0, 1, size=(30, 5)), rng.uniform(0, 0.1, size=(30, 5))
+    f_max, scales = rng.uniform(0.5, 3, size=(30, 5)), rng.uniform(0.1, 2, size=30)
+    points = rng.normal(size=(30, 3))
+    batch = slots_of_arrays(P, U, kinds, mu, mu_s, f_max, scales, points)
+    for k, slots in enumerate(batch):
+        one = WrenchSlots.from_contacts(
+            ContactSet.from_arrays(
+                P[k], U[k], type=list(kinds[k]), mu=mu[k], mu_s=mu_s[k], f_max=f_max[k],
+                torque_scale=scales[k], reference_point=points[k],
+            )
+        )  # fmt: skip
+        for name in ("G", "starts", "f_max", "pieces"):
+            assert np.array_equal(getattr(slots, name), getattr(one, name)), name
+        assert slots.types == one.types and slots.n_pieces == one.n_pieces
+    huge = U.copy()
+    huge[0, 0] *= 1e200  # its squares overflow: the per-set path rescales it first
+    assert slots_of_arrays(P, huge, kinds, mu, mu_s, f_max, scales, points) is None
+    columns = rho_many(P[:2], huge[:2], mu=0.5, workers=1)
+    assert columns.rho[0] == rho(ContactSet.from_arrays(P[0], huge[0], mu=0.5)).rho

@@ -136,12 +136,13 @@ def grasp_matrices(positions: np.ndarray, normal: np.ndarray, torque_scale: floa
 
 def frame_grasp_matrices(r: np.ndarray, frames: np.ndarray, torque_scale: float) -> np.ndarray:
     """Grasp matrices (k, 6, 4) of contacts at ``r`` (k, 3) with the frames ``frames`` (k or 1,
-    3, 3) of :func:`local_frames`."""
+    3, 3) of :func:`local_frames`; ``torque_scale`` one for all or (k,) one per contact."""
     G = np.zeros((r.shape[0], 6, 4))
     G[:, :3, :3] = frames
     axes = frames.transpose(0, 2, 1)  # the frames' columns as rows
-    G[:, 3:, :3] = torque_scale * cross(r[:, None, :], axes).transpose(0, 2, 1)
-    G[:, 3:, 3] = torque_scale * frames[:, :, 0]
+    scale = np.asarray(torque_scale, dtype=float).reshape(-1, 1, 1)
+    G[:, 3:, :3] = scale * cross(r[:, None, :], axes).transpose(0, 2, 1)
+    G[:, 3:, 3] = scale[:, :, 0] * frames[:, :, 0]
     return G
 
 

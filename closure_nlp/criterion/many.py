@@ -25,7 +25,9 @@ from closure_nlp.contact.contact_set import (
     DEFAULT_MU_S,
     ContactSet,
 )
-from closure_nlp.criterion.support_minimum import rho
+from closure_nlp.contact.slot_arrays import slots_of_arrays
+from closure_nlp.contact.wrenches import WrenchSlots
+from closure_nlp.criterion.support_minimum import _DEFAULT_MINIMIZER, certified_search, rho
 
 # Sets per task: large enough that sending a task costs little against certifying it (about a
 # millisecond a set), small enough that the workers finish together.
@@ -170,7 +172,7 @@ def rho_many(
         return RhoColumns.from_results(_certify_chunk(sets))
     chunks = [sets[k : k + CHUNK] for k in range(0, len(sets), CHUNK)]
     if pool == "processes" and "fork" in multiprocessing.get_all_start_methods():
-        rho(sets[0])  # kernels loaded before the fork: the workers inherit them
+        _certify_chunk(sets[:1])  # kernels loaded before the fork: the workers inherit them
         context = multiprocessing.get_context("fork")
         with ProcessPoolExecutor(workers, mp_context=context) as executor:
             parts = list(executor.map(_certify_chunk, chunks))
@@ -181,7 +183,12 @@ def rho_many(
 
 
 def _certify_chunk(sets) -> list:
-    return [rho(s) for s in sets]
+    """Certified rho of each set: a ContactSet by :func:`rho`, the slots of one given as arrays
+    (no tolerance) by the same search and certificate that :func:`rho` runs on them."""
+    return [
+        certified_search(_DEFAULT_MINIMIZER, s) if isinstance(s, WrenchSlots) else rho(s)
+        for s in sets
+    ]
 
 
 def rho_hat_many(eligibility, element_sets, *, workers: int | None = None) -> RhoHatColumns:
@@ -223,7 +230,9 @@ def _workers(workers, count: int) -> int:
 
 
 def _contact_sets(positions, normals, kind, mu, mu_s, f_max, torque_scale, reference_point):
-    """The N ContactSets the arguments describe (see :func:`rho_many`)."""
+    """The N sets the arguments describe (see :func:`rho_many`): the ContactSets given, or for
+    arrays their slots built in one pass (:func:`slots_of_arrays`), or ContactSets where that
+    pass leaves the input to the per-set checks."""
     if normals is None:
         sets = list(positions) if isinstance(positions, (list, tuple)) else None
         if sets is None or not sets:
@@ -250,6 +259,9 @@ def _contact_sets(positions, normals, kind, mu, mu_s, f_max, torque_scale, refer
     points = (
         None if reference_point is None else _per_set(reference_point, N, "reference_point", (3,))
     )
+    slots = slots_of_arrays(P, U, kinds, *columns.values(), scales, points)
+    if slots is not None:
+        return slots
     return [
         ContactSet.from_arrays(
             P[k],
