@@ -416,9 +416,10 @@ def test_exchange_runs_keep_to_their_share_of_the_time(monkeypatch):
     assert runs[np.inf, 0.0] == runs[np.inf, 1.0] == runs[60.0, 1.0]
 
 
-def test_the_split_halves_the_piece_largest_against_its_element():
-    """Several elements' pieces are separated first; then the piece largest relative to its
-    element is halved; a cell of points is not split."""
+def test_the_split_halves_the_piece_of_largest_moment():
+    """Several elements' pieces are separated first; then the piece whose size times its
+    contact's f_max is largest is halved (whatever its element's size); a cell of points is not
+    split."""
     model = box_model(2.0)
     eligibility = Eligibility(model, contact_specs(3, type="pcwf", mu=0.5), 0.5)
     lp = CellLP(eligibility)
@@ -431,6 +432,13 @@ def test_the_split_halves_the_piece_largest_against_its_element():
     split = placement_bound._split(lp, placement_bound._Cell(cell, bound, 0))
     assert [c[1][0].size for c in split] == [p.size for p in half.halves()]
     assert all(c[0] == (quarter,) and c[2] == (tiny,) for c in split)
+    # a contact pushing eight times harder: its smaller piece moves the bound more
+    strong = Eligibility(model, contact_specs(3, type="pcwf", mu=0.5, f_max=(8.0, 1.0, 1.0)), 0.5)
+    strong_lp = CellLP(strong)
+    bound = strong_lp.bound(cell, rounds=0, tolerance=1e-3)
+    split = placement_bound._split(strong_lp, placement_bound._Cell(cell, bound, 0))
+    assert [c[0][0].size for c in split] == [p.size for p in quarter.halves()]
+    assert all(c[1] == (half,) and c[2] == (tiny,) for c in split)
     mixed = ((quarter,), (half,), (tiny, whole[2]))
     bound = lp.bound(mixed, rounds=0, tolerance=1e-3)
     split = placement_bound._split(lp, placement_bound._Cell(mixed, bound, 0))

@@ -49,12 +49,24 @@ by
 ``lam_ir``) are added to ``U`` while they lie below the LP value. *Branching*: a contact with
 several pieces is split into its heaviest piece and the rest; a contact on one piece has it
 halved (longest edge of a triangle, longest diagonal of a polygon, midpoint of a segment); the
-interpolation error of (2) shrinks with the square of the piece's size. The contact split is the
-one whose piece is largest against its element: the bound depends on the whole piece, not on
-the LP's point in it (lamp, 2000 cells: ceiling 0.5404 against 0.5443 when splitting the contact
-of largest dual-weighted Jensen gap at the LP's point). Cells whose bound is at most
-the certified capacity of the best placement known are closed; the ceiling is the largest bound
-of all leaves (open or closed).
+interpolation error of (2) shrinks with the piece's size. The contact split is the one whose
+piece has the largest moment ``size * f_max``: the torque its force can make across the piece,
+which (2) lets the vertices' weights make as if several contacts pushed there. The bound depends
+on the whole piece, not on the LP's point in it (lamp, 2000 cells: ceiling 0.5404 against 0.5443
+when splitting the contact of largest dual-weighted Jensen gap at the LP's point); measured
+against the piece's size relative to its element, the moment narrows the gap on elements of
+unequal sizes (the pistol's 3 contacts, 300 cells: ceiling 0.123 against 0.212). Cells whose
+bound is at most the certified capacity of the best placement known are closed; the ceiling is
+the largest bound of all leaves (open or closed).
+
+Why cells, not a tighter LP: the points ``(a_ir(u_k))_k`` of a contact's vertices are values
+of the contact at those points, and (2) puts every other point of the piece below their convex
+hull, so the rows of ``lam_i`` describe exactly the convex hull of the contact's values
+``(max(0, P_i(u_k; c_i)))_k`` over its piece. No relaxation of one contact at a time (exact
+friction cones, McCormick envelopes of its force-position products, a Lagrangian bound, whose
+value ``min_y sum_i max_r (y^T A)_ir`` is the LP's) can be tighter. What the LP loses is
+only the minimum over directions taken on that hull, a coupling of the contacts that only a
+partition of the placements (cells) narrows.
 
 *Facets*: with frictionless contacts only, a cell whose pieces are all small (at most
 :data:`FACET_SIZE` of their elements) is also bounded by the facets of its zonotope
@@ -1026,17 +1038,16 @@ def _room(cell, spacing: float, fixed: int) -> bool:
 
 def _split(lp: CellLP, cell: _Cell):
     """Two cells covering ``cell``: a contact on pieces of several elements has its heaviest
-    piece (by the LP's weights) split from the rest; otherwise the contact whose piece is
-    largest against its element is halved. None when every contact is on a point."""
+    piece (by the LP's weights) split from the rest; otherwise the contact whose piece has the
+    largest moment (size times f_max) is halved. None when every contact is on a point."""
     sizes = []
-    for pieces in cell.pieces:
+    for spec, pieces in zip(lp.eligibility.all_specs, cell.pieces):
         if len(pieces) > 1:
             sizes.append(np.inf)  # pieces of several elements: separate them first
         elif len(pieces[0].vertices) == 1:
             sizes.append(-1.0)  # a point: nothing to split
-        else:
-            element = lp.eligibility.model.elements[pieces[0].element]
-            sizes.append(pieces[0].size / element.size)
+        else:  # the moment its force can make across the piece, what (2) mixes
+            sizes.append(pieces[0].size * spec.f_max)
     i = int(np.argmax(sizes))
     if sizes[i] < 0.0:
         return None
