@@ -37,6 +37,7 @@ def patch_plan(monkeypatch, fake) -> None:
     too: those are forked here whatever threads earlier tests left behind (a forkserver's
     workers would import the real plan)."""
     monkeypatch.setattr(single, "plan_one", fake)
+    monkeypatch.setattr(single, "select_one", lambda *args, **kwargs: None)  # seed order
     monkeypatch.setattr(seeds, "_context", lambda: multiprocessing.get_context("fork"))
     # the fake placements have no elements to search: the chosen one stays as it is
     monkeypatch.setattr(seeds, "_searched", lambda placer, placed, progress: placed)
