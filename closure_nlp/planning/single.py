@@ -126,7 +126,8 @@ class CannotWin(Exception):
 
     def __init__(self, elements, floor: float, beat: float):
         super().__init__(
-            f"its set's rho_hat >= {floor:.6g} cannot beat an earlier seed's rho {beat:.6g}"
+            f"its set's rho_hat >= {floor:.6g} cannot beat the rho {beat:.6g} of a seed "
+            "placed before it"
         )
         self.elements, self.floor, self.beat = tuple(elements), float(floor), float(beat)
 
@@ -153,8 +154,8 @@ def select_one(
     """The selection :func:`plan_one` makes from ``seed`` (heuristic, then iterative, kept in
     ``memo`` for the plan), and the certified lower end of its set's rho_hat
     (:func:`selection_floor`): what ranks the seeds of a plan before any is placed."""
-    found = heuristic(eligibility, start=start, seed=seed, options=selection)
     recall = _Recall(memo, eligibility, selection, None, None)
+    found = recall.heuristic(seed, start)
     return selection_floor(recall.iterative(found.elements, "iterative"))
 
 
@@ -178,7 +179,7 @@ def plan_one(
     alternatives = check_plan_arguments(alternatives, memo)
     t0 = time.perf_counter()
     recall = _Recall(memo, eligibility, selection, placer, progress)
-    first = heuristic(eligibility, start=start, seed=seed, options=selection, progress=progress)
+    first = recall.heuristic(seed, start)
     second = recall.iterative(first.elements, "iterative")
     floor = selection_floor(second)
     bar = None if beat is None else beat()
@@ -229,8 +230,8 @@ MEMO_SIZE = 256
 
 
 class _Recall:
-    """The plan's iterative runs and placements, through its ``memo`` when it has one; the
-    names of the steps it took from the memo are in ``reused``.
+    """The plan's heuristic and iterative runs and placements, through its ``memo`` when it has
+    one; the names of the steps it took from the memo are in ``reused``.
 
     Placements are the exchange method's alone; the certified ceiling (when the placer's
     options ask for one) is computed once, for the placement the plan returns
@@ -241,6 +242,25 @@ class _Recall:
         self.memo, self.eligibility, self.selection = memo, eligibility, selection
         self.placer, self.progress = placer, progress
         self.reused: list[str] = []
+
+    def heuristic(self, seed, start) -> SelectionResult:
+        return self._recall(
+            (
+                "heuristic",
+                self.eligibility,
+                seed,
+                None if start is None else tuple(start),
+                self.selection,
+            ),
+            lambda: heuristic(
+                self.eligibility,
+                start=start,
+                seed=seed,
+                options=self.selection,
+                progress=self.progress,
+            ),
+            "heuristic",
+        )
 
     def iterative(self, start, name: str) -> SelectionResult:
         return self._recall(
