@@ -961,7 +961,7 @@ def bench_seeds(
             model = load_model(root / path)
             eligibility = Eligibility(model, contact_specs(7, type="fpc"), torque_scale=1.0)
             load = _load()
-            t0 = time.perf_counter()
+            t0, cpu = time.perf_counter(), _cpu_seconds()
             result = plan(
                 eligibility,
                 seed=0,
@@ -971,6 +971,7 @@ def bench_seeds(
             )
             entry = _seed_entry(result, time.perf_counter() - t0)
             entry.update(
+                cpu_s=_cpu_seconds() - cpu,  # this process's and its workers'
                 load_before=load,
                 load_after=_load(),
                 study_best_rho=study_best,

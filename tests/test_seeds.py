@@ -365,3 +365,14 @@ def test_seeds_that_cannot_win_stop_after_their_selection_whatever_the_workers(
     assert "cannot beat the rho -0.5 of a seed placed before it" in stopped["stopped"]
     assert "3 stopped after selection (could not win)" in best.seeds.line()
     assert spread["median_rho"] == pytest.approx(-0.45)  # of the placed seeds 1 and 3
+
+
+def test_without_the_stop_rule_every_seed_is_placed(monkeypatch):
+    patch_plan(monkeypatch, floored_plan)
+    monkeypatch.setattr(single, "select_one", lambda el, seed, **kw: FLOORED[seed][0])
+    from closure_nlp.planning.seeds import plan_seeds
+
+    best = plan_seeds(hand(), seed=0, seeds=5, workers=2, stop=False)
+    spread = best.seeds.to_dict()
+    assert spread["chosen_seed"] == 1 and (spread["stopped"], spread["run"]) == (0, 5)
+    assert [r["rho"] for r in spread["runs"]] == [FLOORED[k][1] for k in range(5)]

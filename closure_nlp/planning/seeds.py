@@ -284,6 +284,7 @@ def plan_seeds(
     progress: Progress | None = None,
     placer: Placer | None = None,
     memo: dict | None = None,
+    stop: bool = True,
     **plan_options,
 ):
     """The plans of seeds ``seed, seed + 1, ..., seed + seeds - 1``; the best, with the spread.
@@ -301,6 +302,9 @@ def plan_seeds(
         them one by one in this process (sharing ``memo`` and ``placer``).
     budget : float, optional
         Seconds after which no further seed is started (the seeds running finish).
+    stop : bool
+        Seeds are placed in the order of :func:`rank` and one that cannot win stops after its
+        selection (:func:`stop_rule`); False: in seed order, every one placed.
 
     Returns
     -------
@@ -338,21 +342,31 @@ def plan_seeds(
         for k in range(seeds):
             if floors and budget is not None and time.perf_counter() - t0 >= budget:
                 break
-            floors.append(_select(eligibility, memo, plan_options, seed + k))
+            floors.append(_select(eligibility, memo, plan_options, seed + k) if stop else None)
         outcomes = []
         for k in rank(floors):
             if outcomes and budget is not None and time.perf_counter() - t0 >= budget:
                 break
-            beat = functools.partial(_to_beat, [run for run, _ in outcomes])
+            beat = functools.partial(_to_beat, [run for run, _ in outcomes]) if stop else None
             outcomes.append(
                 _run_one(eligibility, runner, memo, progress, plan_options, seed + k, beat)
             )
             _report(progress, outcomes)
     else:
         outcomes = _in_processes(
-            eligibility, seed_options, plan_options, seed, seeds, workers, budget, t0, progress
+            eligibility,
+            seed_options,
+            plan_options,
+            seed,
+            seeds,
+            workers,
+            budget,
+            t0,
+            progress,
+            stop,
         )
-    runs = sorted(stop_rule([run for run, _ in outcomes]), key=lambda run: run.seed)
+    runs = [run for run, _ in outcomes]
+    runs = sorted(stop_rule(runs) if stop else runs, key=lambda run: run.seed)
     if not any(run.ok for run in runs):
         raise min(outcomes, key=lambda outcome: outcome[0].seed)[1]
     chosen = best_index(runs, eligibility.minimizer.tolerances.certify)
@@ -563,7 +577,7 @@ class WorkerLost(MethodError):
     """A worker process ended while it ran seeds (killed, out of memory): those seeds' error."""
 
 
-def _in_processes(eligibility, options, kwargs, seed, seeds, workers, budget, t0, progress):
+def _in_processes(eligibility, options, kwargs, seed, seeds, workers, budget, t0, progress, stop):
     """The seeds over ``workers`` processes, at most ``workers`` running at a time (so the
     budget stops new ones), gathered in seed order. An interrupt or error ends the workers at
     once.
@@ -588,8 +602,8 @@ def _in_processes(eligibility, options, kwargs, seed, seeds, workers, budget, t0
     running: dict = {}  # future -> k
     broken = None
     try:
-        floors = {}
-        for k in range(seeds):  # every selection queued: the budget stops the rest
+        floors = {} if stop else dict.fromkeys(range(seeds))
+        for k in range(seeds) if stop else ():  # queued at once: the budget stops the rest
             running[pool.submit(_worker_select, seed + k)] = k
         while running:
             finished, _ = wait(running, return_when=FIRST_COMPLETED)
@@ -646,7 +660,7 @@ def _in_processes(eligibility, options, kwargs, seed, seeds, workers, budget, t0
                     continue
                 done[item[0]] = item[1]
                 _share(shared, item[2])
-                for i, beat in enumerate(_bars(done, seeds)):
+                for i, beat in enumerate(_bars(done, seeds) if stop else ()):
                     bars[i] = math.nan if beat is None else beat
             _report(progress, [done[i] for i in sorted(done)])
             if broken is not None and not running:
