@@ -46,8 +46,8 @@ def test_a_plan_that_meets_a_known_set_reuses_its_steps(monkeypatch):
     placer = CountingPlacer(eligibility, QUICK)
     first = plan(eligibility, start=[0, 1], placer=placer, memo=memo)
     again = plan(eligibility, start=[0, 1], placer=placer, memo=memo)
-    assert first.reused == () and again.reused == ("iterative", "placement")
-    assert again.to_dict()["reused"] == ["iterative", "placement"]
+    assert first.reused == () and again.reused == ("heuristic", "iterative", "placement")
+    assert again.to_dict()["reused"] == ["heuristic", "iterative", "placement"]
     assert len(iterative_runs) == 1 and len(placer.calls) == 1
     assert again.iterative is first.iterative and again.placement is first.placement
 

@@ -37,6 +37,7 @@ def patch_plan(monkeypatch, fake) -> None:
     too: those are forked here whatever threads earlier tests left behind (a forkserver's
     workers would import the real plan)."""
     monkeypatch.setattr(single, "plan_one", fake)
+    monkeypatch.setattr(single, "select_one", lambda *args, **kwargs: None)  # seed order
     monkeypatch.setattr(seeds, "_context", lambda: multiprocessing.get_context("fork"))
     # the fake placements have no elements to search: the chosen one stays as it is
     monkeypatch.setattr(seeds, "_searched", lambda placer, placed, progress: placed)
@@ -317,3 +318,61 @@ def test_the_ceiling_searches_past_its_root_for_the_chosen_seed_alone():
     root = replace(QUICK, bound_cells=1)
     alone = plan(hand(), seed=runs[found.seeds.chosen].seed, selection=FEW, placement=root)
     assert chosen.rho <= alone.placement.rho + 1e-9
+
+
+# seed -> (certified lower end of its selected set's rho_hat, rho its placement reaches, seconds)
+FLOORED = {
+    0: (-0.3, -0.2, 0.0),
+    1: (-0.6, -0.5, 0.6),
+    2: (-0.1, -0.05, 0.0),
+    3: (-0.55, -0.4, 0.0),
+    4: (-0.45, -0.45, 0.0),
+}
+
+
+def floored_plan(eligibility, placer, seed, *, beat=None, **kwargs):
+    """A seed whose selection has the floor of FLOORED: it stops, as plan_one does, when that
+    floor lies above the rho it is given to beat; the best seed (1) is the slowest."""
+    floor, rho, seconds = FLOORED[seed]
+    bar = None if beat is None else beat()
+    if bar is not None and floor > bar:
+        raise single.CannotWin((seed,) * 4, floor, bar)
+    time.sleep(seconds)
+    result = fake_result(rho, True, False, [seed] * 4)
+    return replace(result, iterative=SimpleNamespace(elements=(seed,) * 4, bounds=(floor, 0.0)))
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_seeds_that_cannot_win_stop_after_their_selection_whatever_the_workers(
+    monkeypatch, workers
+):
+    """Placed lowest floor first (1, 3, 4, 0, 2): once seed 1 holds -0.5, the sets whose floor
+    lies above it (4, 0, 2) cannot win and are not placed; seed 3's (-0.55) can and is. With
+    two workers seed 1 is still running when 4, 0 and 2 start: they run on and are stopped as
+    one by one would."""
+    patch_plan(monkeypatch, floored_plan)
+    monkeypatch.setattr(single, "select_one", lambda el, seed, **kw: FLOORED[seed][0])
+    from closure_nlp.planning.seeds import plan_seeds
+
+    best = plan_seeds(hand(), seed=0, seeds=5, workers=workers)
+    spread = best.seeds.to_dict()
+    assert spread["chosen_seed"] == 1 and best.placement.rho == -0.5
+    assert [r["seed"] for r in spread["runs"]] == [0, 1, 2, 3, 4]
+    assert [r["seed"] for r in spread["runs"] if "stopped" in r] == [0, 2, 4]
+    assert (spread["stopped"], spread["failed"], spread["run"]) == (3, 0, 5)
+    stopped = spread["runs"][4]
+    assert stopped["rho_hat_lo"] == -0.45 and stopped["selected"] == [4] * 4
+    assert "cannot beat the rho -0.5 of a seed placed before it" in stopped["stopped"]
+    assert "3 stopped after selection (could not win)" in best.seeds.line()
+    assert spread["median_rho"] == pytest.approx(-0.45)  # of the placed seeds 1 and 3
+
+
+def test_without_the_stop_rule_every_seed_is_placed(monkeypatch):
+    patch_plan(monkeypatch, floored_plan)
+    monkeypatch.setattr(single, "select_one", lambda el, seed, **kw: FLOORED[seed][0])
+    from closure_nlp.planning.seeds import plan_seeds
+
+    best = plan_seeds(hand(), seed=0, seeds=5, workers=2, stop=False)
+    spread = best.seeds.to_dict()
+    assert spread["chosen_seed"] == 1 and (spread["stopped"], spread["run"]) == (0, 5)
+    assert [r["rho"] for r in spread["runs"]] == [FLOORED[k][1] for k in range(5)]

@@ -101,7 +101,8 @@ def cmd_plan(args) -> None:
             progress=progress,
             alternatives=args.alternatives,
             **several,
-            **({"budget": args.budget} if several else {}),
+            # the loads steer the placements afterwards: every seed's is a start for them
+            **({"budget": args.budget, "stop_seeds": args.objective != "loads"} if several else {}),
         )
         if args.objective == "loads":
             from closure_nlp.planning.load_steering import steer_by_loads

@@ -26,6 +26,7 @@ def plan(
     seeds: int | None = None,
     workers: int | None = None,
     budget: float | None = None,
+    stop_seeds: bool = True,
 ) -> PlanResult:
     """Heuristic from ``seed`` (or ``start``), iterative from its result, then placement.
 
@@ -33,7 +34,9 @@ def plan(
     processes (default: one per core), no seed started after ``budget`` seconds: the best one,
     its ``seeds`` field every seed's result and the spread
     (:func:`closure_nlp.planning.seeds.plan_seeds`;
-    the same answer for any ``workers``).
+    the same answer for any ``workers``). ``stop_seeds``: a seed whose selected set cannot beat
+    the rho of the seeds placed before it stops after its selection (False: every seed is
+    placed, e.g. when the placements are steered by something other than rho afterwards).
 
     When the placement on an eligible set is not force closure, up to ``alternatives`` further
     element sets are placed, until one is: the next eligible sets the iterative run met (lowest
@@ -63,6 +66,7 @@ def plan(
             budget=budget,
             placement=placement,
             placer=placer,
+            stop=stop_seeds,
             **common,
         )
     if workers is not None or budget is not None:

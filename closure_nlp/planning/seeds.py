@@ -15,6 +15,7 @@ chosen from the values alone (:func:`choose`), never by the order in which seeds
 
 from __future__ import annotations
 
+import functools
 import math
 import multiprocessing
 import os
@@ -35,7 +36,13 @@ from closure_nlp.placement.ceiling import bounded
 from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.placement.place import Placer
 from closure_nlp.planning import single
-from closure_nlp.planning.single import MEMO_SIZE, adopt_memo, memo_entries
+from closure_nlp.planning.single import (
+    MEMO_SIZE,
+    CannotWin,
+    adopt_memo,
+    memo_entries,
+    selection_floor,
+)
 
 # The command line's defaults: 8 seeds of a few seconds each fit well within the budget on 2
 # cores (docs/benchmarks.md has the measured times); the budget stops starting seeds after a
@@ -54,12 +61,22 @@ class SeedRun:
     error: str | None = None
     seconds: float = 0.0
     unit: float | None = None  # wrench_unit of the placement (choose's tie tolerance)
+    stopped: CannotWin | None = None  # stopped after its selection: it could not win
+    floor: float | None = None  # certified lowest rho on its selected set (stop_rule)
 
     @property
     def ok(self) -> bool:
         return self.result is not None
 
     def to_dict(self) -> dict:
+        if self.stopped is not None:
+            return {
+                "seed": self.seed,
+                "stopped": str(self.stopped),
+                "selected": list(self.stopped.elements),
+                "rho_hat_lo": self.stopped.floor,
+                "seconds": self.seconds,
+            }
         if self.result is None:
             return {"seed": self.seed, "error": self.error, "seconds": self.seconds}
         r = self.result
@@ -148,7 +165,8 @@ class SeedSpread:
             "worst_rho": float(rhos.max()),
             "force_closure": sum(run.result.force_closure for run in ok),
             "marginal": sum(run.result.placement.marginal for run in ok),
-            "failed": len(self.runs) - len(ok),
+            "stopped": sum(run.stopped is not None for run in self.runs),
+            "failed": sum(not run.ok and run.stopped is None for run in self.runs),
             "element_sets": self.element_sets(),
             "runs": [run.to_dict() for run in self.runs],
         }
@@ -162,9 +180,13 @@ class SeedSpread:
             why = "a worker process ended" if lost else f"budget of {d['budget']:g} s spent"
             cut = f" of {d['requested']} ({why})"
         failed = ""
+        if d["stopped"]:
+            failed = f", {d['stopped']} stopped after selection (could not win)"
         if d["failed"]:
-            which = ", ".join(str(run.seed) for run in self.runs if not run.ok)
-            failed = f", {d['failed']} failed (seed {which})"
+            which = ", ".join(
+                str(run.seed) for run in self.runs if not run.ok and run.stopped is None
+            )
+            failed += f", {d['failed']} failed (seed {which})"
         return (
             f"seeds: {d['run']}{cut} on {d['workers']} process(es): best rho = "
             f"{d['best_rho']:.6g} (seed {d['chosen_seed']}), median {d['median_rho']:.6g}, "
@@ -262,6 +284,7 @@ def plan_seeds(
     progress: Progress | None = None,
     placer: Placer | None = None,
     memo: dict | None = None,
+    stop: bool = True,
     **plan_options,
 ):
     """The plans of seeds ``seed, seed + 1, ..., seed + seeds - 1``; the best, with the spread.
@@ -279,6 +302,9 @@ def plan_seeds(
         them one by one in this process (sharing ``memo`` and ``placer``).
     budget : float, optional
         Seconds after which no further seed is started (the seeds running finish).
+    stop : bool
+        Seeds are placed in the order of :func:`rank` and one that cannot win stops after its
+        selection (:func:`stop_rule`); False: in seed order, every one placed.
 
     Returns
     -------
@@ -312,19 +338,37 @@ def plan_seeds(
         if seed_options is not options:  # the same exchange NLPs, the root ceiling
             runner = Placer(eligibility, seed_options, placer._caches)
         memo = {} if memo is None else memo
-        outcomes = []
+        floors = []
         for k in range(seeds):
+            if floors and budget is not None and time.perf_counter() - t0 >= budget:
+                break
+            floors.append(_select(eligibility, memo, plan_options, seed + k) if stop else None)
+        outcomes = []
+        for k in rank(floors):
             if outcomes and budget is not None and time.perf_counter() - t0 >= budget:
                 break
-            outcomes.append(_run_one(eligibility, runner, memo, progress, plan_options, seed + k))
+            beat = functools.partial(_to_beat, [run for run, _ in outcomes]) if stop else None
+            outcomes.append(
+                _run_one(eligibility, runner, memo, progress, plan_options, seed + k, beat)
+            )
             _report(progress, outcomes)
     else:
         outcomes = _in_processes(
-            eligibility, seed_options, plan_options, seed, seeds, workers, budget, t0, progress
+            eligibility,
+            seed_options,
+            plan_options,
+            seed,
+            seeds,
+            workers,
+            budget,
+            t0,
+            progress,
+            stop,
         )
-    runs = list(run for run, _ in outcomes)
+    runs = [run for run, _ in outcomes]
+    runs = sorted(stop_rule(runs) if stop else runs, key=lambda run: run.seed)
     if not any(run.ok for run in runs):
-        raise outcomes[0][1]
+        raise min(outcomes, key=lambda outcome: outcome[0].seed)[1]
     chosen = best_index(runs, eligibility.minimizer.tolerances.certify)
     if seed_options is not options:
         run = runs[chosen]
@@ -350,17 +394,75 @@ def _searched(placer: Placer, placed, progress):
     return found
 
 
-def _run_one(eligibility, placer, memo, progress, kwargs, seed: int):
-    """``(SeedRun, error or None)`` of one seed's plan: an error ends that seed only."""
+def _run_one(eligibility, placer, memo, progress, kwargs, seed: int, beat=None):
+    """``(SeedRun, error or None)`` of one seed's plan: an error ends that seed only; with
+    ``beat``, the seed stops after its selection when it cannot reach a rho below it."""
     t = time.perf_counter()
     try:
         result = single.plan_one(
-            eligibility, placer, seed, memo=memo, progress=progress, **kwargs
+            eligibility,
+            placer,
+            seed,
+            memo=memo,
+            progress=progress,
+            **kwargs,
+            **({} if beat is None else {"beat": beat}),
         )
+    except CannotWin as stop:
+        return SeedRun(seed, None, None, time.perf_counter() - t, stopped=stop), stop
     except Exception as exc:  # noqa: BLE001 - recorded; raised when every seed fails
         return SeedRun(seed, None, f"{type(exc).__name__}: {exc}", time.perf_counter() - t), exc
     unit = wrench_unit(eligibility, result.placement.elements)
-    return SeedRun(seed, result, None, time.perf_counter() - t, unit), None
+    floor = selection_floor(result.iterative)
+    return SeedRun(seed, result, None, time.perf_counter() - t, unit, floor=floor), None
+
+
+def rank(floors) -> list[int]:
+    """The order the seeds are placed in (offsets from the first seed): lowest certified
+    rho_hat of the selected set first (the likeliest to win, whose rho then stops the seeds
+    that cannot win), ties and uncertified sets after, in seed order."""
+    return sorted(
+        range(len(floors)),
+        key=lambda k: (floors[k] is None, 0.0 if floors[k] is None else floors[k], k),
+    )
+
+
+def _select(eligibility, memo, kwargs, seed: int) -> float | None:
+    """:func:`~closure_nlp.planning.single.select_one` of ``seed``; None when it fails (the
+    seed's plan meets the same error, and records it)."""
+    try:
+        return single.select_one(eligibility, seed, memo=memo, **kwargs)
+    except Exception:  # noqa: BLE001 - the plan of that seed reports it
+        return None
+
+
+def _to_beat(runs) -> float | None:
+    """The lowest rho of ``runs`` (the seeds before the next one, in seed order), or None."""
+    rhos = [run.result.placement.rho for run in runs if run.ok]
+    return min(rhos) if rhos else None
+
+
+def stop_rule(runs) -> list:
+    """``runs`` (in the order placed, :func:`rank`) as one by one: a seed whose selected set's
+    certified rho_hat lies above the lowest rho of the seeds placed before it is stopped after
+    its selection (no placement on that set can be the plan's; a tie goes to the earlier seed
+    anyway: a seed of a lower floor, or of the same and a lower number).
+
+    A seed in a worker process was given, instead of that rho, the lowest rho of the seeds
+    before it whose outcome was final when it started (never lower), so it stopped only where
+    it would one by one; one that ran on and would have stopped is stopped here: the answer
+    is that of the seeds one by one whatever the processes."""
+    out = []
+    for run in runs:
+        beat = _to_beat(out)
+        if run.stopped is not None:  # stopped in a worker: the rho it stopped at, one by one
+            stop = CannotWin(run.stopped.elements, run.stopped.floor, beat)
+            run = replace(run, stopped=stop)
+        elif run.ok and beat is not None and run.floor is not None and run.floor > beat:
+            stop = CannotWin(run.result.iterative.elements, run.floor, beat)
+            run = SeedRun(run.seed, None, None, run.seconds, stopped=stop)
+        out.append(run)
+    return out
 
 
 def _report(progress, outcomes) -> None:
@@ -379,12 +481,24 @@ _WORKER: dict = {}
 ORPHAN_POLL = 0.5
 
 
-def _start_worker(eligibility, options, kwargs, parent: int) -> None:
+def _start_worker(eligibility, options, kwargs, parent: int, bars=None) -> None:
     leave_to_parent()  # Ctrl-C ends the parent's wait, which then ends the workers
     die_with_parent(parent)
     _WORKER.update(
-        eligibility=eligibility, placer=Placer(eligibility, options), memo={}, kwargs=kwargs
+        eligibility=eligibility,
+        placer=Placer(eligibility, options),
+        memo={},
+        kwargs=kwargs,
+        bars=bars,
     )
+
+
+def _shared_beat(k: int) -> float | None:
+    """The rho seed ``k`` (offset from the first) is to beat, as the parent last wrote it
+    (:func:`_bars`), None before any."""
+    bars = _WORKER.get("bars")
+    value = None if bars is None else bars[k]
+    return None if value is None or math.isnan(value) else value
 
 
 def die_with_parent(parent: int) -> None:
@@ -422,13 +536,24 @@ def die_with_parent(parent: int) -> None:
     threading.Thread(target=watch, name="orphan-watch", daemon=True).start()
 
 
+def _worker_select(seed: int):
+    """The selection of ``seed`` in this worker (:func:`_select`): its floor, and the steps
+    it added to the memo, for the others."""
+    w = _WORKER
+    before = set(w["memo"])
+    floor = _select(w["eligibility"], w["memo"], w["kwargs"], seed)
+    return floor, memo_entries(w["memo"], w["eligibility"], skip=before)
+
+
 def _worker_seed(k: int, seed: int, shared: dict):
     """Seed ``seed`` in this worker, its memo first given the steps the other workers shipped
     (``shared``); returns the steps this seed added, for the others."""
     w = _WORKER
     adopt_memo(w["memo"], w["eligibility"], shared)
     before = set(w["memo"])
-    outcome = _run_one(w["eligibility"], w["placer"], w["memo"], None, w["kwargs"], seed)
+    beat = functools.partial(_shared_beat, k)
+    run = (w["eligibility"], w["placer"], w["memo"], None, w["kwargs"], seed, beat)
+    outcome = _run_one(*run)
     return k, outcome, memo_entries(w["memo"], w["eligibility"], skip=before)
 
 
@@ -452,7 +577,7 @@ class WorkerLost(MethodError):
     """A worker process ended while it ran seeds (killed, out of memory): those seeds' error."""
 
 
-def _in_processes(eligibility, options, kwargs, seed, seeds, workers, budget, t0, progress):
+def _in_processes(eligibility, options, kwargs, seed, seeds, workers, budget, t0, progress, stop):
     """The seeds over ``workers`` processes, at most ``workers`` running at a time (so the
     budget stops new ones), gathered in seed order. An interrupt or error ends the workers at
     once.
@@ -466,15 +591,44 @@ def _in_processes(eligibility, options, kwargs, seed, seeds, workers, budget, t0
 
     done: dict[int, tuple] = {}
     shared: dict = {}  # the steps the seeds computed, shipped to every seed started after
+    context = _context()
+    bars = context.Array("d", [math.nan] * seeds, lock=False)  # each seed's rho to beat
     pool = ProcessPoolExecutor(
         workers,
-        mp_context=_context(),
+        mp_context=context,
         initializer=_start_worker,
-        initargs=(eligibility, options, kwargs, os.getpid()),
+        initargs=(eligibility, options, kwargs, os.getpid(), bars),
     )
     running: dict = {}  # future -> k
     broken = None
     try:
+        floors = {} if stop else dict.fromkeys(range(seeds))
+        for k in range(seeds) if stop else ():  # queued at once: the budget stops the rest
+            running[pool.submit(_worker_select, seed + k)] = k
+        while running:
+            finished, _ = wait(running, return_when=FIRST_COMPLETED)
+            for future in finished:
+                k = running.pop(future)
+                try:
+                    floors[k], entries = future.result()
+                except BrokenProcessPool as exc:
+                    broken = broken or exc
+                    continue
+                _share(shared, entries)
+            if running and budget is not None and time.perf_counter() - t0 >= budget and floors:
+                for future in running:
+                    future.cancel()
+                running = {f: k for f, k in running.items() if not f.cancelled()}
+        if broken is not None:
+            raise WorkerLost(
+                "a worker process ended abruptly while it ran the seeds' selections (killed, "
+                "or out of memory)"
+            ) from broken
+        selected = []  # the seeds selected before the budget was spent, from the first
+        while len(selected) in floors:
+            selected.append(floors[len(selected)])
+        order = rank(selected)
+        seeds = len(order)
         k = 0
         while k < seeds or running:
             while broken is None and k < seeds and len(running) < workers:
@@ -484,7 +638,7 @@ def _in_processes(eligibility, options, kwargs, seed, seeds, workers, budget, t0
                     seeds = k
                     break
                 # the shared steps as a copy: pickled later, in the pool's thread
-                running[pool.submit(_worker_seed, k, seed + k, dict(shared))] = k
+                running[pool.submit(_worker_seed, k, seed + order[k], dict(shared))] = k
                 k += 1
             if not running:
                 break
@@ -496,20 +650,52 @@ def _in_processes(eligibility, options, kwargs, seed, seeds, workers, budget, t0
                 except BrokenProcessPool as exc:
                     broken = broken or exc
                     lost = WorkerLost(
-                        f"a worker process ended abruptly while it ran seed {seed + i} "
+                        f"a worker process ended abruptly while it ran seed {seed + order[i]} "
                         "(killed, or out of memory); the seeds that finished are kept"
                     )
-                    run = SeedRun(seed + i, None, f"WorkerLost: {lost}", time.perf_counter() - t0)
+                    run = SeedRun(
+                        seed + order[i], None, f"WorkerLost: {lost}", time.perf_counter() - t0
+                    )
                     done[i] = (run, lost)
                     continue
                 done[item[0]] = item[1]
                 _share(shared, item[2])
+                for i, beat in enumerate(_bars(done, seeds) if stop else ()):
+                    bars[i] = math.nan if beat is None else beat
             _report(progress, [done[i] for i in sorted(done)])
             if broken is not None and not running:
                 break
     finally:
         _end_workers(pool)
     return [done[i] for i in sorted(done)]
+
+
+def _bars(done: dict, seeds: int) -> list:
+    """For each seed (offset from the first), a rho it may be given to beat while the seeds
+    before it are not all done: never below the lowest rho of the seeds before it one by one
+    (:func:`stop_rule`), so it stops only where it would one by one; None when none is known.
+
+    Two such values: the lowest rho of the seeds whose outcomes are final (every seed before
+    them done, the stop rule applied), and, for a seed ``j`` before it that ended with a
+    placement, ``max(rho_j, floor_j)``: one by one ``j`` either keeps its ``rho_j``, or stops
+    because ``floor_j`` lies above the rho before it (which bounds the later seeds' too)."""
+    final = _to_beat(stop_rule(_final_prefix(done)))
+    out, known = [], final
+    for k in range(seeds):
+        out.append(known)
+        run = done[k][0] if k in done else None
+        if run is not None and run.ok and run.floor is not None:
+            value = max(run.result.placement.rho, run.floor)
+            known = value if known is None else min(known, value)
+    return out
+
+
+def _final_prefix(done: dict) -> list:
+    """The runs of seeds 0, 1, ... (offsets from the first seed) up to the first not done."""
+    runs = []
+    while len(runs) in done:
+        runs.append(done[len(runs)][0])
+    return runs
 
 
 def _end_workers(pool) -> None:

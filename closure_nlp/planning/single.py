@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import itertools
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -118,6 +119,46 @@ def check_plan_arguments(alternatives, memo) -> int:
     return int(alternatives)
 
 
+class CannotWin(Exception):
+    """A seed stopped after its selection: the certified rho_hat of the set it selected
+    (``floor``, no placement on that set has a lower rho) lies above ``beat``, the rho an
+    earlier seed's placement reached, so its placement could not be the plan's."""
+
+    def __init__(self, elements, floor: float, beat: float):
+        super().__init__(
+            f"its set's rho_hat >= {floor:.6g} cannot beat the rho {beat:.6g} of a seed "
+            "placed before it"
+        )
+        self.elements, self.floor, self.beat = tuple(elements), float(floor), float(beat)
+
+    def __reduce__(self):  # from a worker process, by its fields
+        return CannotWin, (self.elements, self.floor, self.beat)
+
+
+def selection_floor(selection: SelectionResult) -> float | None:
+    """The certified lower end of the selected set's rho_hat (None when not certified): no
+    placement on that set reaches a lower rho."""
+    bounds = getattr(selection, "bounds", None)
+    return None if bounds is None else float(bounds[0])
+
+
+def select_one(
+    eligibility: Eligibility,
+    seed: int | None,
+    *,
+    start=None,
+    selection: SelectionOptions = SelectionOptions(),
+    memo: dict | None = None,
+    **_,
+) -> float | None:
+    """The selection :func:`plan_one` makes from ``seed`` (heuristic, then iterative, kept in
+    ``memo`` for the plan), and the certified lower end of its set's rho_hat
+    (:func:`selection_floor`): what ranks the seeds of a plan before any is placed."""
+    recall = _Recall(memo, eligibility, selection, None, None)
+    found = recall.heuristic(seed, start)
+    return selection_floor(recall.iterative(found.elements, "iterative"))
+
+
 def plan_one(
     eligibility: Eligibility,
     placer: Placer,
@@ -128,15 +169,22 @@ def plan_one(
     progress: Progress | None = None,
     alternatives: int = 4,
     memo: dict | None = None,
+    beat: Callable[[], float | None] | None = None,
 ) -> PlanResult:
     """One seed's plan by ``placer`` (built on ``eligibility``): heuristic from ``seed`` (or
     ``start``), iterative from its result, then placement (see
-    :func:`closure_nlp.planning.plan.plan`)."""
+    :func:`closure_nlp.planning.plan.plan`). With ``beat`` (called after the selection: the
+    best rho of the seeds before this one, or None), :class:`CannotWin` ends the plan after the
+    selection when no placement on the selected set can reach a rho below it."""
     alternatives = check_plan_arguments(alternatives, memo)
     t0 = time.perf_counter()
     recall = _Recall(memo, eligibility, selection, placer, progress)
-    first = heuristic(eligibility, start=start, seed=seed, options=selection, progress=progress)
+    first = recall.heuristic(seed, start)
     second = recall.iterative(first.elements, "iterative")
+    floor = selection_floor(second)
+    bar = None if beat is None else beat()
+    if bar is not None and floor is not None and floor > bar:
+        raise CannotWin(second.elements, floor, bar)
     best_start, unspaced = second.elements, None
     try:
         best = recall.placement(second.elements, "placement")
@@ -182,8 +230,8 @@ MEMO_SIZE = 256
 
 
 class _Recall:
-    """The plan's iterative runs and placements, through its ``memo`` when it has one; the
-    names of the steps it took from the memo are in ``reused``.
+    """The plan's heuristic and iterative runs and placements, through its ``memo`` when it has
+    one; the names of the steps it took from the memo are in ``reused``.
 
     Placements are the exchange method's alone; the certified ceiling (when the placer's
     options ask for one) is computed once, for the placement the plan returns
@@ -194,6 +242,25 @@ class _Recall:
         self.memo, self.eligibility, self.selection = memo, eligibility, selection
         self.placer, self.progress = placer, progress
         self.reused: list[str] = []
+
+    def heuristic(self, seed, start) -> SelectionResult:
+        return self._recall(
+            (
+                "heuristic",
+                self.eligibility,
+                seed,
+                None if start is None else tuple(start),
+                self.selection,
+            ),
+            lambda: heuristic(
+                self.eligibility,
+                start=start,
+                seed=seed,
+                options=self.selection,
+                progress=self.progress,
+            ),
+            "heuristic",
+        )
 
     def iterative(self, start, name: str) -> SelectionResult:
         return self._recall(
@@ -342,7 +409,10 @@ def _pool(pool, run: SelectionResult, eligibility: Eligibility) -> list:
 
 __all__ = [
     "Attempt",
+    "CannotWin",
     "PlanResult",
     "adopt_memo",
     "memo_entries",
+    "select_one",
+    "selection_floor",
 ]

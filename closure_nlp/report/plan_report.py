@@ -175,6 +175,12 @@ def _seeds_markdown(spread) -> list[str]:
     ]
     for i, run in enumerate(spread.runs):
         chosen = " (chosen)" if i == spread.chosen else ""
+        if run.stopped is not None:
+            rows.append(
+                f"| {run.seed} | - | stopped: {run.stopped} | {_ids(run.stopped.elements)} "
+                f"| {run.seconds:.2f} |"
+            )
+            continue
         if not run.ok:
             rows.append(f"| {run.seed} | - | failed: {run.error} | - | {run.seconds:.2f} |")
             continue
