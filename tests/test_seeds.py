@@ -363,7 +363,7 @@ def test_seeds_that_cannot_win_stop_after_their_selection_whatever_the_workers(
     stopped = spread["runs"][4]
     assert stopped["rho_hat_lo"] == -0.45 and stopped["selected"] == [4] * 4
     assert "cannot beat the rho -0.5 of a seed placed before it" in stopped["stopped"]
-    assert "3 stopped after selection (could not win)" in best.seeds.line()
+    assert "3 stopped after selection (their elements cannot beat" in best.seeds.line()
     assert spread["median_rho"] == pytest.approx(-0.45)  # of the placed seeds 1 and 3
 
 

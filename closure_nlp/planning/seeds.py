@@ -61,7 +61,7 @@ class SeedRun:
     error: str | None = None
     seconds: float = 0.0
     unit: float | None = None  # wrench_unit of the placement (choose's tie tolerance)
-    stopped: CannotWin | None = None  # stopped after its selection: it could not win
+    stopped: CannotWin | None = None  # stopped after selection: its elements cannot win
     floor: float | None = None  # certified lowest rho on its selected set (stop_rule)
 
     @property
@@ -181,7 +181,10 @@ class SeedSpread:
             cut = f" of {d['requested']} ({why})"
         failed = ""
         if d["stopped"]:
-            failed = f", {d['stopped']} stopped after selection (could not win)"
+            failed = (
+                f", {d['stopped']} stopped after selection"
+                " (their elements cannot beat the best placement)"
+            )
         if d["failed"]:
             which = ", ".join(
                 str(run.seed) for run in self.runs if not run.ok and run.stopped is None
