@@ -66,3 +66,15 @@ def random_element(rng, kind: str, radius: float = 1.0) -> Element:
 def random_model(rng, kinds) -> Model:
     """One random element of each kind in ``kinds``, no adjacency."""
     return Model(tuple(random_element(rng, k) for k in kinds), (), "random")
+
+
+# Load cases on the lamp (models/lamp.model.json, mm): its weight below the centre, a side push
+# above it and a twist about its axis.
+LAMP_LOADS = {
+    "units": {"force": "N"},
+    "loads": [
+        {"name": "gravity", "force": [0, 0, -1], "point": [0, 0, -20]},
+        {"name": "push_x", "force": [0.5, 0, 0], "point": [0, 0, 10]},
+        {"name": "twist", "force": [0, 0, 0], "torque": [0, 0, 5]},
+    ],
+}

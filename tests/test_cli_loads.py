@@ -7,17 +7,12 @@ import pytest
 
 from closure_nlp.cli.main import main
 
+from .shapes import LAMP_LOADS
+
 ROOT = Path(__file__).resolve().parents[1]
 BOX = ROOT / "examples" / "box_7fpc.contacts.json"
 LAMP = ROOT / "models" / "lamp.model.json"
-LOADS = {
-    "units": {"force": "N"},
-    "loads": [
-        {"name": "gravity", "force": [0, 0, -1], "point": [0, 0, -20]},
-        {"name": "push_x", "force": [0.5, 0, 0], "point": [0, 0, 10]},
-        {"name": "twist", "force": [0, 0, 0], "torque": [0, 0, 5]},
-    ],
-}
+LOADS = LAMP_LOADS
 
 
 @pytest.fixture

@@ -10,15 +10,11 @@ import closure_nlp as c
 from closure_nlp.placement.place import Placer
 from closure_nlp.planning import load_steering
 
+from .shapes import LAMP_LOADS
+
 ROOT = Path(__file__).resolve().parents[1]
 LAMP = ROOT / "models" / "lamp.model.json"
-LOADS = {
-    "units": {"force": "N"},
-    "loads": [
-        {"name": "gravity", "force": [0, 0, -1], "point": [0, 0, -20]},
-        {"name": "push_x", "force": [0.5, 0, 0], "point": [0, 0, 10]},
-    ],
-}
+LOADS = {**LAMP_LOADS, "loads": LAMP_LOADS["loads"][:2]}  # without the twist
 QUICK = c.PlacementOptions(bound=False, starts=1, neighbour_moves=0)
 
 

@@ -14,16 +14,11 @@ from closure_nlp.placement.place import Placer
 from closure_nlp.selection.algorithms import run_selection
 from closure_nlp.selection.load_value import LoadValue
 
+from .shapes import LAMP_LOADS
+
 ROOT = Path(__file__).resolve().parents[1]
 LAMP = ROOT / "models" / "lamp.model.json"
-LOADS = {
-    "units": {"force": "N"},
-    "loads": [
-        {"name": "gravity", "force": [0, 0, -1], "point": [0, 0, -20]},
-        {"name": "push_x", "force": [0.5, 0, 0], "point": [0, 0, 10]},
-        {"name": "twist", "force": [0, 0, 0], "torque": [0, 0, 5]},
-    ],
-}
+LOADS = LAMP_LOADS
 SOCP = 1e-6  # the SOCP's accuracy, relative
 
 
