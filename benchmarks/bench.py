@@ -365,6 +365,12 @@ def paper_eligibility(name: str, models_dir=MODELS_DIR) -> Eligibility:
     )
 
 
+def default_eligibility(model, m: int, kind, mu: float = 0.2) -> Eligibility:
+    """``m`` contacts of ``kind`` on ``model`` with the command line's defaults: the automatic
+    torque scale and mu_s (from the part's radius)."""
+    return Eligibility(model, contact_specs(m, type=kind, mu=mu, model=model), torque_scale="auto")
+
+
 def bench_rho_hat(cases: int = 20, repeats: int = 3, seed: int = 0, models_dir=MODELS_DIR):
     """ms per rho_hat of 4 random lamp facets with 4 PCwFs, ours against the baseline."""
     eligibility = paper_eligibility("lamp", models_dir)
@@ -1052,16 +1058,12 @@ def bench_gap(
     ceiling covers the neighbours of each element as well (the default placement's domain).
     ``compare``: the same search with :data:`EXHAUSTIVE_BOUND` too, in the same process, right
     after (``exhaustive`` in each model's entry)."""
-    from closure_nlp.model.scale import resolve
-
     budgets = {**GAP_BUDGETS, **(budgets or {})}
     report = {"benchmark": "gap", "seed": seed, "neighbours": neighbours, "models": {}}
     for name in names or PAPER_EXAMPLES:
         setup = PAPER_EXAMPLES[name]
         model = load_model(Path(models_dir) / f"{name}.model.json")
-        scale = resolve(model)
-        specs = contact_specs(setup["m"], type=setup["type"], mu=0.2, mu_s=scale.mu_s)
-        eligibility = Eligibility(model, specs, scale.torque_scale)
+        eligibility = default_eligibility(model, setup["m"], setup["type"])
         moves = 20 if neighbours else 0
         placer = Placer(eligibility, PlacementOptions(bound=False, neighbour_moves=moves))
         planned = plan(eligibility, seed=seed, placer=placer, alternatives=0)
@@ -1098,17 +1100,13 @@ def bench_gap_family(
     torque scale), its placement's gap and seconds under each of ``variants`` (name ->
     PlacementOptions keyword arguments; default: the defaults alone), in the same process, so
     that their times compare at the same load."""
-    from closure_nlp.model.scale import resolve
-
     variants = variants or {"default": {}}
     report = {"benchmark": "gap-family", "seed": seed, "mu": mu, "rows": []}
     for name in names or PAPER_EXAMPLES:
         model = load_model(Path(models_dir) / f"{name}.model.json")
-        scale = resolve(model)
         family = GAP_FAMILY + (GAP_FAMILY_FRICTIONLESS if name == "pistol" else ())
         for kind, m in family:
-            specs = contact_specs(m, type=kind, mu=mu, mu_s=scale.mu_s)
-            eligibility = Eligibility(model, specs, scale.torque_scale)
+            eligibility = default_eligibility(model, m, kind, mu)
             row = {"model": name, "type": kind, "contacts": m}
             for label, settings in variants.items():
                 placer = Placer(eligibility, PlacementOptions(**settings))
@@ -1143,16 +1141,13 @@ def bench_part_ceiling(
     :func:`~closure_nlp.placement.ceiling.part_ceiling`) after at most ``cells`` cells or
     ``budget`` seconds, against the default plan of ``seeds`` seeds (CLI defaults: mu 0.2,
     automatic torque scale and mu_s): the plan's gap to the best possible on the whole part."""
-    from closure_nlp.model.scale import resolve
     from closure_nlp.placement.ceiling import BoundOptions, part_ceiling
 
     report = {"benchmark": "part-ceiling", "seeds": seeds, "cells": cells, "models": {}}
     for name in names or PAPER_EXAMPLES:
         setup = PAPER_EXAMPLES[name]
         model = load_model(Path(models_dir) / f"{name}.model.json")
-        scale = resolve(model)
-        specs = contact_specs(setup["m"], type=setup["type"], mu=0.2, mu_s=scale.mu_s)
-        eligibility = Eligibility(model, specs, scale.torque_scale)
+        eligibility = default_eligibility(model, setup["m"], setup["type"])
         t0 = time.perf_counter()
         planned = plan(eligibility, seed=0, seeds=seeds).placement
         plan_seconds = time.perf_counter() - t0
