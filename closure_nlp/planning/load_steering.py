@@ -58,7 +58,8 @@ def steer_by_loads(
     )
     if chosen.eligible and chosen.elements not in starts:  # holds every case: placed by rho
         try:
-            placed = Placer(eligibility, options)(list(chosen.elements))
+            by_rho = Placer(eligibility, options, placer._caches)  # the same NLPs, built once
+            placed = by_rho(list(chosen.elements))
             starts.setdefault(placed.elements, placed)  # it may end on neighbours
         except SpacingError:
             pass  # no placement on it keeps the spacing
