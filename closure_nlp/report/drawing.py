@@ -166,21 +166,11 @@ def draw_model(
             ax.text(x, y, z, str(i), fontsize=6, color="#222222", zorder=20)
     p = _shown(ax, model.reference_point)
     ax.scatter(*p, marker="x", s=40, c="black", depthshade=False, zorder=5)
-    pos, nrm = contact_arrays(contacts)
-    sizes = np.broadcast_to(np.asarray(contact_sizes, dtype=float), (len(pos),))
-    if fixed:
-        draw_contacts(
-            ax,
-            (pos[:fixed], nrm[:fixed]),
-            sizes=sizes[:fixed],
-            colour=FIXED_COLOUR,
-            scale=model_extent(model),
-            label="fixed contacts",
-        )
-    draw_contacts(
+    draw_with_fixed(
         ax,
-        (pos[fixed:], nrm[fixed:]),
-        sizes=sizes[fixed:],
+        contacts,
+        fixed,
+        sizes=contact_sizes,
         colour=contact_colour,
         scale=model_extent(model),
         label=contact_label,
@@ -331,6 +321,20 @@ def _draw_points(ax, model: Model, chosen: set[int]) -> None:
             linewidths=1.6,
             depthshade=False,
         )
+
+
+def draw_with_fixed(ax, contacts, fixed: int, *, sizes=80.0, colour=CONTACT_COLOUR, **options):
+    """:func:`draw_contacts` of ``contacts`` whose first ``fixed`` were already in place: those
+    black, as "fixed contacts" (``options``: ``scale``, ``label``... of the others)."""
+    pos, nrm = contact_arrays(contacts)
+    sizes = np.broadcast_to(np.asarray(sizes, dtype=float), (len(pos),))
+    if fixed:
+        scale = options.get("scale", 1.0)
+        kept = (pos[:fixed], nrm[:fixed])
+        draw_contacts(
+            ax, kept, sizes=sizes[:fixed], colour=FIXED_COLOUR, scale=scale, label="fixed contacts"
+        )
+    draw_contacts(ax, (pos[fixed:], nrm[fixed:]), sizes=sizes[fixed:], colour=colour, **options)
 
 
 def draw_contacts(

@@ -260,10 +260,9 @@ def _figures(model, result: PlanResult, out: Path, up: str | None = None, loads=
     the model's; ``loads``: (cases, their factors) drawn as arrows) and ``history.png`` (its
     Fig. 3)."""
     from closure_nlp.report.drawing import (
-        FIXED_COLOUR,
-        draw_contacts,
         draw_loads,
         draw_model,
+        draw_with_fixed,
         model_extent,
         pyplot,
         save_figure,
@@ -291,21 +290,8 @@ def _figures(model, result: PlanResult, out: Path, up: str | None = None, loads=
         up=up,
     )
     fixed = len(final) - len(result.placement.contacts)  # contacts already in place: first
-    if fixed:
-        draw_contacts(
-            ax,
-            final.contacts[:fixed],
-            sizes=140.0,
-            colour=FIXED_COLOUR,
-            scale=model_extent(model),
-            label="fixed contacts",
-        )
-    draw_contacts(
-        ax,
-        final.contacts[fixed:],
-        sizes=140.0,
-        scale=model_extent(model),
-        label="placed contacts",
+    draw_with_fixed(
+        ax, final, fixed, sizes=140.0, scale=model_extent(model), label="placed contacts"
     )
     if loads[0] is not None:
         draw_loads(ax, loads[0], model, loads[1])
