@@ -9,7 +9,10 @@ kernels use these instead."""
 from __future__ import annotations
 
 import numpy as np
+from llvmlite import ir
+from llvmlite.binding import add_symbol
 from numba import njit, types
+from numba.extending import get_cython_function_address, intrinsic
 
 from .support import OPTIONS
 
@@ -118,40 +121,46 @@ def argsort(values):
     return order
 
 
-try:  # numba's own binding of LAPACK's gesv, the routine np.linalg.solve calls in a kernel
-    from numba.np.linalg import _LAPACK, ensure_lapack
-    from numba.np.linalg import F_INT_nptype as _LAPACK_INT
+# LAPACK's dgesv, the routine np.linalg.solve calls in a kernel, from scipy's Cython exports (the
+# same library numba's np.linalg uses), called by symbol name so that callers stay cacheable.
+_DGESV = "closure_nlp_dgesv"
+add_symbol(_DGESV, get_cython_function_address("scipy.linalg.cython_lapack", "dgesv"))
 
-    ensure_lapack()
-    _gesv = _LAPACK().numba_xgesv(types.float64)
-except Exception:  # a numba without it: np.linalg.solve below
-    _gesv = None
 
-if _gesv is not None:
+@intrinsic
+def _dgesv(typingctx, n, nrhs, a, lda, ipiv, b, ldb, info):
+    """Fortran's ``dgesv(n, nrhs, a, lda, ipiv, b, ldb, info)``, every argument an address."""
 
-    @njit(**OPTIONS)
-    def solve(a, b):
-        """``np.linalg.solve(a, b)`` for a square ``a`` (n, n) and a vector ``b`` (n,) of
-        finite numbers: the same LAPACK call (``dgesv``) on the same column-major copies, so
-        the same bits, without numba's checks and their formatted error messages (seconds of
-        compile in every caller)."""
-        n = len(b)
-        lu = np.empty((n, n))  # its rows a's columns: a in column-major order
-        for i in range(n):
-            for j in range(n):
-                lu[j, i] = a[i, j]
-        x = np.empty(n)
-        copy_into(x, b)
-        pivots = np.empty(n, _LAPACK_INT)
-        info = _gesv(ord("d"), n, 1, lu.ctypes, n, pivots.ctypes, x.ctypes, n)
-        # read after the call, so that numba keeps them alive through it
-        if info != 0 or pivots[0] < 1 or not np.isfinite(lu[n - 1, n - 1]):
-            fill(x, n, np.nan)  # singular: no solution
-        return x
+    def codegen(context, builder, signature, args):
+        pointer = ir.IntType(8).as_pointer()
+        function = builder.module.globals.get(_DGESV) or ir.Function(
+            builder.module, ir.FunctionType(ir.VoidType(), [pointer] * 8), _DGESV
+        )
+        builder.call(function, [builder.inttoptr(x, pointer) for x in args])
+        return context.get_dummy_value()
 
-else:
+    return types.void(n, nrhs, a, lda, ipiv, b, ldb, info), codegen
 
-    @njit(**OPTIONS)
-    def solve(a, b):
-        """``np.linalg.solve(a, b)``."""
-        return np.linalg.solve(a, b.copy())
+
+@njit(**OPTIONS)
+def solve(a, b):
+    """``np.linalg.solve(a, b)`` for a square ``a`` (n, n) and a vector ``b`` (n,) of finite
+    numbers: the same LAPACK call (``dgesv``) on the same column-major copies, so the same bits,
+    without numba's checks and their formatted error messages (seconds of compile in every
+    caller)."""
+    n = len(b)
+    lu = np.empty((n, n))  # its rows a's columns: a in column-major order
+    for i in range(n):
+        for j in range(n):
+            lu[j, i] = a[i, j]
+    x = np.empty(n)
+    copy_into(x, b)
+    pivots = np.empty(n, np.int32)
+    ints = np.empty(3, np.int32)  # n (also lda and ldb), nrhs, info
+    ints[0], ints[1], ints[2] = n, 1, 0
+    at = ints.ctypes.data
+    _dgesv(at, at + 4, lu.ctypes.data, at, pivots.ctypes.data, x.ctypes.data, at, at + 8)
+    # read after the call, so that numba keeps them alive through it
+    if ints[2] != 0 or pivots[0] < 1 or not np.isfinite(lu[n - 1, n - 1]):
+        fill(x, n, np.nan)  # singular: no solution
+    return x
