@@ -558,7 +558,7 @@ def bench_plan(seeds: int = 3, models_dir=MODELS_DIR, names=None) -> dict:
         eligibility = paper_eligibility(name, models_dir)
         placers = {k: Placer(eligibility, p) for k, (_, p) in modes.items()}
         for k, (selection, _) in modes.items():  # warm-up: every NLP shape built
-            plan(eligibility, seed=seeds + 100, selection=selection, placer=placers[k])
+            plan(eligibility, seeds=1, seed=seeds + 100, selection=selection, placer=placers[k])
         runs = {k: [] for k in modes}
         for seed in range(seeds):
             order = list(modes)[seed % 3 :] + list(modes)[: seed % 3]  # rotate the order
@@ -567,6 +567,7 @@ def bench_plan(seeds: int = 3, models_dir=MODELS_DIR, names=None) -> dict:
                 result = plan(
                     eligibility,
                     seed=seed,
+                    seeds=1,
                     selection=modes[k][0],
                     placer=placers[k],
                     alternatives=0,
@@ -624,7 +625,7 @@ plan(eligibility, seed=1000, placer=placer)
 print("ready", flush=True)
 for line in sys.stdin:
     t = time.perf_counter()
-    r = plan(eligibility, seed=int(line), placer=placer)
+    r = plan(eligibility, seeds=1, seed=int(line), placer=placer)
     wall = time.perf_counter() - t
     p = r.placement
     print(json.dumps({
@@ -1066,7 +1067,7 @@ def bench_gap(
         eligibility = default_eligibility(model, setup["m"], setup["type"])
         moves = 20 if neighbours else 0
         placer = Placer(eligibility, PlacementOptions(bound=False, neighbour_moves=moves))
-        planned = plan(eligibility, seed=seed, placer=placer, alternatives=0)
+        planned = plan(eligibility, seeds=1, seed=seed, placer=placer, alternatives=0)
         exchange = planned.placement
         budget = budgets.get(name, 30.0)
 
@@ -1112,7 +1113,7 @@ def bench_gap_family(
                 placer = Placer(eligibility, PlacementOptions(**settings))
                 load = _load()
                 t0 = time.perf_counter()
-                placed = plan(eligibility, seed=seed, placer=placer).placement
+                placed = plan(eligibility, seeds=1, seed=seed, placer=placer).placement
                 row[label] = {
                     "rho": placed.rho,
                     "capacity_bound": placed.capacity_bound,
@@ -1224,7 +1225,7 @@ def bench_units(
                 specs = contact_specs(m, type=kind, mu_s=scale.mu_s)
                 eligibility = Eligibility(shrunk, specs, scale.torque_scale)
                 if elements is None:
-                    elements = list(plan(eligibility, seed=seed).iterative.elements)
+                    elements = list(plan(eligibility, seeds=1, seed=seed).iterative.elements)
                 if any(e in dropped for e in elements):
                     row[units] = {"error": "an element is too small for the margin"}
                     continue

@@ -41,7 +41,7 @@ def run(seeds: int, placement_starts: int) -> list[dict]:
         )
         for seed in range(seeds):
             result = plan(
-                eligibility, seed=seed, placement=PlacementOptions(starts=placement_starts)
+                eligibility, seed=seed, seeds=1, placement=PlacementOptions(starts=placement_starts)
             )
             steps = (result.heuristic, result.iterative, result.placement)
             row = {"example": label, "seed": seed}

@@ -136,7 +136,7 @@ def test_api_refuses_before_any_search_and_rho_hat_still_answers():
         lambda: heuristic(eligibility, seed=0),
         lambda: iterative(eligibility, [0, 1, 2, 3, 4, 5]),
         lambda: Placer(eligibility),
-        lambda: plan(eligibility, seed=0),
+        lambda: plan(eligibility, seeds=1, seed=0),
     ):
         with pytest.raises(ValueError, match="6 frictionless contacts .* at least 7"):
             call()

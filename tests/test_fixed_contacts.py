@@ -48,7 +48,7 @@ def planned(block, tmp_path_factory):
     eligibility = Eligibility(
         block, contact_specs(4, type="pcwf", mu=0.3), exclude="facing:+z", fixed=fixed
     )
-    result = plan(eligibility, seed=0, placement=PlacementOptions(min_spacing=5.0))
+    result = plan(eligibility, seeds=1, seed=0, placement=PlacementOptions(min_spacing=5.0))
     out = tmp / "contacts.json"
     out.write_text(json.dumps(result.placement.contact_file(block.name, block.units)))
     return eligibility, result, out
@@ -236,7 +236,7 @@ def test_plan_says_why_the_spacing_cannot_be_kept(block):
     eligibility = Eligibility(block, contact_specs(7, type="fpc"))
     options = PlacementOptions(min_spacing=200.0, bound=False)  # beyond the part's size
     with pytest.raises(MethodError, match="min_spacing: cannot be kept"):
-        plan(eligibility, seed=0, placement=options, alternatives=2)
+        plan(eligibility, seeds=1, seed=0, placement=options, alternatives=2)
 
 
 def test_plan_command_with_intent(tmp_path, capsys):

@@ -105,7 +105,7 @@ def test_unusable_elements_are_never_selected_nor_neighbours():
     eligibility = Eligibility(model, specs, 1.0)
     options = PlacementOptions(starts=1, bound_cells=1, bound_neighbours=True)
     for seed in range(3):
-        found = plan(eligibility, seed=seed, placement=options, alternatives=0)
+        found = plan(eligibility, seeds=1, seed=seed, placement=options, alternatives=0)
         used = {*found.heuristic.elements, *found.iterative.elements, *found.placement.elements}
         used |= {e for ids in found.placement.bound_elements for e in ids}
         assert found.force_closure and min(used) >= 6, used

@@ -405,7 +405,7 @@ def test_example_models_end_in_force_closure(name, kind, m):
     eligibility = Eligibility(
         model, contact_specs(m, type=kind, mu=0.2, mu_s=0.2), torque_scale=1.0
     )
-    result = plan(eligibility, seed=0, placement=PlacementOptions(bound=False, starts=2))
+    result = plan(eligibility, seeds=1, seed=0, placement=PlacementOptions(bound=False, starts=2))
     placed = result.placement
     _check_on_elements(eligibility, placed)
     assert result.iterative.rho_hat <= result.heuristic.rho_hat

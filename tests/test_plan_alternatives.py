@@ -44,7 +44,9 @@ def hand():
 @pytest.mark.slow
 def test_next_sets_are_placed_until_one_is_force_closure(hand):
     placer, events = FailingFirst(hand, failures=2), []
-    result = plan(hand, seed=1, placer=placer, alternatives=4, progress=lambda *e: events.append(e))
+    result = plan(
+        hand, seeds=1, seed=1, placer=placer, alternatives=4, progress=lambda *e: events.append(e)
+    )
     assert result.force_closure and result.failure() is None
     assert [e[1:] for e in events if e[0] == "alternative"] == [
         (k, a.rho) for k, a in enumerate(result.attempts[1:], 1)
@@ -64,11 +66,11 @@ def test_next_sets_are_placed_until_one_is_force_closure(hand):
 
 @pytest.mark.slow
 def test_budget_and_reason_when_none_works(hand):
-    result = plan(hand, seed=1, placer=FailingFirst(hand, failures=10), alternatives=2)
+    result = plan(hand, seeds=1, seed=1, placer=FailingFirst(hand, failures=10), alternatives=2)
     assert not result.force_closure and len(result.attempts) == 3
     assert "3 element set(s) tried (3 eligible)" in result.failure()
     assert result.placement.rho == min(a.rho for a in result.attempts)
-    alone = plan(hand, seed=1, placer=FailingFirst(hand, failures=10), alternatives=0)
+    alone = plan(hand, seeds=1, seed=1, placer=FailingFirst(hand, failures=10), alternatives=0)
     assert len(alone.attempts) == 1
     with pytest.raises(ValueError, match="alternatives"):
         plan(hand, seed=1, alternatives=-1)
@@ -77,7 +79,7 @@ def test_budget_and_reason_when_none_works(hand):
 def test_no_eligible_set_is_the_reason():
     """The heuristic's restarts already failed: no further runs, the reason says why."""
     hand = Eligibility(corner_model(), contact_specs(7, type="fpc"), torque_scale=1.0)
-    result = plan(hand, seed=0, selection=SelectionOptions(restarts=3), placement=QUICK)
+    result = plan(hand, seeds=1, seed=0, selection=SelectionOptions(restarts=3), placement=QUICK)
     assert not result.force_closure and len(result.attempts) == 1
     assert result.failure().startswith("no eligible element set found")
 
@@ -120,7 +122,7 @@ def test_the_ceiling_is_computed_once_for_the_placement_returned(hand, monkeypat
     monkeypatch.setattr(placement_bound, "bounded", counting)
     placer = FailingFirst(hand, failures=1)
     placer.options = replace(QUICK, bound=True, bound_cells=1)
-    result = plan(hand, seed=1, placer=placer, alternatives=4)
+    result = plan(hand, seeds=1, seed=1, placer=placer, alternatives=4)
     assert len(result.attempts) == 2 and result.force_closure
     assert calls == [(result.attempts[1].elements, result.placement.rho)]
     assert result.placement.capacity_bound is not None
@@ -136,11 +138,12 @@ def test_sets_no_placement_can_hold_are_not_placed(hand, monkeypatch):
 
     monkeypatch.setattr(planning, "lone_contact", lambda eligibility, elements: 0)
     monkeypatch.setattr(planning, "FRESH_RUNS", 0)  # the iterative run's own sets only
-    skipped = plan(hand, seed=1, placer=FailingFirst(hand, failures=10), alternatives=1)
+    skipped = plan(hand, seeds=1, seed=1, placer=FailingFirst(hand, failures=10), alternatives=1)
     assert len(skipped.attempts) == 1  # the iterative result alone
     placed = plan(
         hand,
         seed=1,
+        seeds=1,
         placer=FailingFirst(hand, failures=10),
         alternatives=1,
         selection=SelectionOptions(placeable=False),

@@ -26,7 +26,7 @@ def test_plan_reports_every_long_step():
     options = PlacementOptions(
         starts=2, extra_starts=0, neighbour_moves=0, bound_cells=3, time_budget=5.0
     )
-    result = plan(hand, seed=1, placement=options, progress=lambda *e: events.append(e))
+    result = plan(hand, seeds=1, seed=1, placement=options, progress=lambda *e: events.append(e))
     stages = [e[0] for e in events]
     assert set(stages) <= set(STAGES)
     for stage in ("heuristic", "iterative", "placement round", "placement start"):

@@ -76,7 +76,7 @@ def test_metre_scale_domino_plan_spreads_locators_like_millimetres():
         scale = resolve(model)
         hand = Eligibility(model, contact_specs(7, type="fpc"), scale.torque_scale)
         hands[units] = hand
-        runs[units] = run = plan(hand, seed=0)
+        runs[units] = run = plan(hand, seeds=1, seed=0)
         assert run.placement.force_closure
         starts = np.array([model.elements[e].centroid for e in run.placement.elements])
         positions = np.array([c.position for c in run.placement.contacts])

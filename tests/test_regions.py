@@ -86,7 +86,7 @@ def test_no_step_of_a_plan_uses_an_excluded_element(box):
     hand = Eligibility(box, specs, torque_scale=0.1, exclude="facing:+z")
     options = PlacementOptions(starts=1, extra_starts=0, bound=True, bound_cells=20)
     for seed in (1, 2, 3):
-        run = plan(hand, seed=seed, placement=options, alternatives=2)
+        run = plan(hand, seeds=1, seed=seed, placement=options, alternatives=2)
         used = {*run.heuristic.elements, *run.iterative.elements, *run.placement.elements}
         used |= {e for a in run.attempts for e in a.elements}
         used |= {m.target for m in run.placement.moves}

@@ -170,7 +170,7 @@ def test_the_budget_stops_new_seeds_and_the_report_says_so(monkeypatch, workers)
         ({"seeds": 2, "budget": -1.0}, "budget: expected a positive number"),
         ({"seeds": 2, "budget": float("nan")}, "budget: expected a positive number"),
         ({"seeds": 2, "seed": -1}, "seed: seeds -1..0 must lie in"),
-        ({"workers": 2}, "workers, budget: only with seeds"),
+        ({"seeds": 1, "workers": 2}, "workers, budget: only with several seeds"),
     ],
 )
 def test_bad_seed_options_name_the_field(kwargs, needle):
@@ -316,7 +316,7 @@ def test_the_ceiling_searches_past_its_root_for_the_chosen_seed_alone():
     assert all(p.bound_nodes == 1 for p in others)
     assert chosen.capacity_bound >= -chosen.bounds[1] - 1e-9
     root = replace(QUICK, bound_cells=1)
-    alone = plan(hand(), seed=runs[found.seeds.chosen].seed, selection=FEW, placement=root)
+    alone = plan(hand(), seeds=1, seed=runs[found.seeds.chosen].seed, selection=FEW, placement=root)
     assert chosen.rho <= alone.placement.rho + 1e-9
 
 

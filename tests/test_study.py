@@ -291,6 +291,7 @@ def plan_of(task):
     return plan(
         eligibility,
         seed=task.seed,
+        seeds=1,
         selection=task.selection_options(),
         placement=task.placement_options(),
     )

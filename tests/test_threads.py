@@ -43,7 +43,7 @@ def jobs(with_plan: bool):
     box = Eligibility(box_model(10.0), contact_specs(4, type="pcwf", mu=0.4), torque_scale=0.1)
 
     def a_plan():
-        return plan(box, seed=3, selection=SelectionOptions(), placement=QUICK)
+        return plan(box, seeds=1, seed=3, selection=SelectionOptions(), placement=QUICK)
 
     calls = [
         [lambda c=c: rho(c) for c in contact_sets[4 * k : 4 * k + 4]]  # the same shapes at once

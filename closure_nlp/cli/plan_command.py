@@ -93,16 +93,17 @@ def cmd_plan(args) -> None:
             raise output.InputError(
                 "--seeds", f"seeds {args.seed}..{args.seed + args.seeds - 1} pass {MAX_SEED}"
             )
-        several = {} if args.seeds == 1 else {"seeds": args.seeds, "workers": args.workers}
+        # the loads steer the placements afterwards: every seed's is a start for them
+        several = {"workers": args.workers, "budget": args.budget}
+        several["stop_seeds"] = args.objective != "loads"
         result = plan(
             eligibility,
             seed=args.seed,
+            seeds=args.seeds,
             placement=placement_options,
             progress=progress,
             alternatives=args.alternatives,
-            **several,
-            # the loads steer the placements afterwards: every seed's is a start for them
-            **({"budget": args.budget, "stop_seeds": args.objective != "loads"} if several else {}),
+            **(several if args.seeds > 1 else {}),
         )
         if args.objective == "loads":
             from closure_nlp.planning.load_steering import steer_by_loads

@@ -185,7 +185,7 @@ def margin_text(args, model) -> str:
 
 def placement_options(args, seeded: bool) -> PlacementOptions:
     """``--starts`` (and ``--seed`` when it seeds the placement, as in ``place``; in ``plan`` it
-    seeds the heuristic only, like the API's ``plan(seed=...)``: one seed, one answer)."""
+    seeds the heuristic only, as in the API's ``plan(seed=...)``)."""
     bound = {
         "bound": not args.no_bound,
         "target_gap": args.gap,

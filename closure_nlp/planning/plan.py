@@ -7,7 +7,7 @@ from closure_nlp.base.progress import Progress
 from closure_nlp.criterion.rho_hat import Eligibility
 from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.placement.place import Placer
-from closure_nlp.planning.seeds import plan_seeds
+from closure_nlp.planning.seeds import DEFAULT_BUDGET, DEFAULT_SEEDS, plan_seeds
 from closure_nlp.planning.single import PlanResult, check_plan_arguments, plan_one
 from closure_nlp.selection.algorithms import SelectionOptions
 
@@ -30,13 +30,15 @@ def plan(
 ) -> PlanResult:
     """Heuristic from ``seed`` (or ``start``), iterative from its result, then placement.
 
-    With ``seeds`` = N, the plans of seeds ``seed, ..., seed + N - 1``, over ``workers``
-    processes (default: one per core), no seed started after ``budget`` seconds: the best one,
-    its ``seeds`` field every seed's result and the spread
-    (:func:`closure_nlp.planning.seeds.plan_seeds`;
-    the same answer for any ``workers``). ``stop_seeds``: a seed whose selected set cannot beat
-    the rho of the seeds placed before it stops after its selection (False: every seed is
-    placed, e.g. when the placements are steered by something other than rho afterwards).
+    The command line's defaults: the plans of ``seeds`` seeds ``seed, ..., seed + seeds - 1``
+    (default 8; one when ``start`` is given or ``seed`` is None, which leave nothing to vary),
+    over ``workers`` processes (default: one per core), no seed started after ``budget`` seconds
+    (default 60): the best one, its ``seeds`` field every seed's result and the spread
+    (:func:`closure_nlp.planning.seeds.plan_seeds`; the same answer for any ``workers``).
+    ``seeds=1`` plans that one seed in this process. ``stop_seeds``: a seed whose selected set
+    cannot beat the rho of the seeds placed before it stops after its selection (False: every
+    seed is placed, e.g. when the placements are steered by something other than rho
+    afterwards).
 
     When the placement on an eligible set is not force closure, up to ``alternatives`` further
     element sets are placed, until one is: the next eligible sets the iterative run met (lowest
@@ -57,18 +59,20 @@ def plan(
     common = dict(
         start=start, selection=selection, progress=progress, alternatives=alternatives, memo=memo
     )
-    if seeds is not None:
+    if seeds is None:
+        seeds = 1 if start is not None or seed is None else DEFAULT_SEEDS
+    if isinstance(seeds, bool) or seeds != 1:  # plan_seeds checks the number
         return plan_seeds(
             eligibility,
             seed=seed,
             seeds=seeds,
             workers=workers,
-            budget=budget,
+            budget=DEFAULT_BUDGET if budget is None else budget,
             placement=placement,
             placer=placer,
             stop=stop_seeds,
             **common,
         )
     if workers is not None or budget is not None:
-        raise ValueError("workers, budget: only with seeds (a plan of several seeds)")
+        raise ValueError("workers, budget: only with several seeds (seeds=1 plans one)")
     return plan_one(eligibility, placer or Placer(eligibility, placement), seed, **common)

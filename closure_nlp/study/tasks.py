@@ -274,6 +274,7 @@ def run_task(task: Task, model_text: str | None = None) -> dict:
         result = plan(
             eligibility,
             seed=task.seed,
+            seeds=1,
             selection=task.selection_options(),
             placer=placer,
             memo=memo,
