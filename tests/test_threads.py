@@ -1,16 +1,21 @@
-"""rho, Eligibility and plan called from four threads at once give, bit for bit, the answers of
-the same calls made one after another (every solver they share keeps one NLP per thread)."""
+"""rho, Eligibility, load factors and plan called from four threads at once give, bit for bit,
+the answers of the same calls made one after another (every solver they share keeps one NLP per
+thread, every LP is the calling thread's)."""
 
 from __future__ import annotations
 
+import functools
 import threading
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from closure_nlp.contact.random_sets import random_contact_set
+from closure_nlp.criterion.load_factor import load_factors
 from closure_nlp.criterion.rho_hat import Eligibility
 from closure_nlp.criterion.support_minimum import rho
+from closure_nlp.model.elements import load_model
 from closure_nlp.model.scale import contact_specs
 from closure_nlp.placement.options import PlacementOptions
 from closure_nlp.planning.plan import plan
@@ -18,6 +23,7 @@ from closure_nlp.selection.algorithms import SelectionOptions
 from tests.shapes import box_model, random_model
 
 QUICK = PlacementOptions(starts=1, extra_starts=0, neighbour_moves=0, max_rounds=5)
+BLOCK = Path(__file__).resolve().parents[1] / "examples" / "block"
 
 
 def without_time(value):
@@ -45,9 +51,21 @@ def jobs(with_plan: bool):
     def a_plan():
         return plan(box, seeds=1, seed=3, selection=SelectionOptions(), placement=QUICK)
 
+    # the block's fixture: 3 locators in place, cutting loads
+    block = load_model(BLOCK / "block.model.json")
+    clamps = Eligibility(
+        block, contact_specs(4, type="pcwf", mu=0.3), fixed=BLOCK / "base.contacts.json"
+    )
+    loads = BLOCK / "loads.json"
+    on_block = functools.partial(
+        load_factors, reference_point=block.reference_point, torque_scale=clamps.torque_scale
+    )
+    sides = [(33, 67, 66, 0), (33, 67, 0, 0), (67, 33, 66, 66), (0, 66, 33, 67)]
     calls = [
         [lambda c=c: rho(c) for c in contact_sets[4 * k : 4 * k + 4]]  # the same shapes at once
         + [lambda e=e: shared(e) for e in sets[k::4]]
+        + [lambda c=c: load_factors(c, loads) for c in contact_sets[4 * k : 4 * k + 4]]
+        + [lambda e=sides[k]: clamps(e), lambda e=sides[k]: on_block(clamps.slots(e), loads)]
         for k in range(4)
     ]
     if with_plan:
