@@ -140,9 +140,7 @@ def _box(model: Model, text: str, field: str) -> set[int]:
         raise ValueError(f"{field}: expected six numbers X0,Y0,Z0,X1,Y1,Z1, got {text!r}")
     lo, hi = np.minimum(values[:3], values[3:]), np.maximum(values[:3], values[3:])
     return {
-        i
-        for i, e in enumerate(model.elements)
-        if np.all((e.vertices >= lo) & (e.vertices <= hi))
+        i for i, e in enumerate(model.elements) if np.all((e.vertices >= lo) & (e.vertices <= hi))
     }
 
 
