@@ -39,7 +39,8 @@ def patch_plan(monkeypatch, fake) -> None:
     monkeypatch.setattr(single, "plan_one", fake)
     monkeypatch.setattr(single, "select_one", lambda *args, **kwargs: None)  # seed order
     monkeypatch.setattr(seeds, "_context", lambda: multiprocessing.get_context("fork"))
-    # the fake placements have no elements to search: the chosen one stays as it is
+    # the fake placements have no elements to bound: they stay as they are
+    monkeypatch.setattr(seeds, "_root", lambda placer, placed: placed)
     monkeypatch.setattr(seeds, "_searched", lambda placer, placed, progress: placed)
 
 

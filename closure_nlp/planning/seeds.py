@@ -329,16 +329,17 @@ def plan_seeds(
     if placer is not None and placer.eligibility is not eligibility:
         raise ValueError("placer: must be built on the same Eligibility as the plan")
     options = placement if placer is None else placer.options
-    # Every seed's ceiling is its root cell; the cells beyond it go to the chosen seed's
-    # placement alone, the best the seeds found (the other seeds' would be dropped).
-    seed_options = options
-    if _searches(options):
-        seed_options = replace(options, bound_cells=1, time_budget=None)
+    # The seeds are placed by the exchange method alone; the ceiling's root cell (whose
+    # frictionless climb polishes placements: a second a seed) goes to the CONTENDERS placed
+    # best, and the cells beyond it to the chosen seed's placement alone.
+    seed_options = replace(options, bound=False) if options.bound else options
+    root_options = replace(options, bound_cells=1, time_budget=None) if options.bound else None
     t0 = time.perf_counter()
+    rooted = {}
     if workers == 1:
         placer = placer or Placer(eligibility, options)
         runner = placer
-        if seed_options is not options:  # the same exchange NLPs, the root ceiling
+        if seed_options is not options:  # the same exchange NLPs, no ceiling
             runner = Placer(eligibility, seed_options, placer._caches)
         memo = {} if memo is None else memo
         floors = []
@@ -355,10 +356,14 @@ def plan_seeds(
                 _run_one(eligibility, runner, memo, progress, plan_options, seed + k, beat)
             )
             _report(progress, outcomes)
+        if root_options is not None:
+            root = Placer(eligibility, root_options, placer._caches)
+            for run in _contenders(_final(outcomes, stop)):
+                rooted[run.seed] = _root(root, run.result.placement)
     else:
-        outcomes = _in_processes(
+        outcomes, rooted = _in_processes(
             eligibility,
-            seed_options,
+            (seed_options, root_options),
             plan_options,
             seed,
             seeds,
@@ -368,17 +373,59 @@ def plan_seeds(
             progress,
             stop,
         )
-    runs = [run for run, _ in outcomes]
-    runs = sorted(stop_rule(runs) if stop else runs, key=lambda run: run.seed)
+    runs = _final(outcomes, stop)
     if not any(run.ok for run in runs):
         raise min(outcomes, key=lambda outcome: outcome[0].seed)[1]
+    runs = [
+        replace(run, result=replace(run.result, placement=rooted[run.seed]))
+        if run.seed in rooted
+        else run
+        for run in runs
+    ]
     chosen = best_index(runs, eligibility.minimizer.tolerances.certify)
-    if seed_options is not options:
-        run = runs[chosen]
-        placed = _searched(placer or Placer(eligibility, options), run.result.placement, progress)
-        runs[chosen] = replace(run, result=replace(run.result, placement=placed))
+    run = runs[chosen]
+    placed = run.result.placement
+    if root_options is not None and run.seed not in rooted:  # tied with a contender
+        placer = placer or Placer(eligibility, options)
+        placed = _root(Placer(eligibility, root_options, placer._caches), placed)
+    if _searches(options):
+        placed = _searched(placer or Placer(eligibility, options), placed, progress)
+    runs[chosen] = replace(run, result=replace(run.result, placement=placed))
     spread = SeedSpread(tuple(runs), chosen, seeds, workers, budget)
     return replace(runs[chosen].result, seconds=time.perf_counter() - t0, seeds=spread)
+
+
+# The share of the seeds whose placements get the ceiling's root cell (its climb may lift one
+# past the best), the best by the exchange method alone, and at least CONTENDERS of them. The
+# climb's placements owe little to the exchange method's: over the 34 windows of 8 seeds among
+# seeds 0-23 of the pistol and the stepped shaft (7 FPC), the best after the root cell was the
+# exchange method's best 25 times, its second 7 times, its fourth once and its fifth once
+# (docs/benchmarks.md).
+CONTENDERS = 2
+CONTENDING_SHARE = 0.5
+
+
+def _final(outcomes, stop: bool) -> list:
+    """The seeds' runs (``outcomes`` in the order placed) in seed order, after
+    :func:`stop_rule`."""
+    runs = [run for run, _ in outcomes]
+    return sorted(stop_rule(runs) if stop else runs, key=lambda run: run.seed)
+
+
+def _contenders(runs) -> list:
+    """The runs :func:`choose` ranks first (force closure, then the lowest rho, then the lowest
+    seed) by their placements before any ceiling: :data:`CONTENDING_SHARE` of the seeds run,
+    at least :data:`CONTENDERS`."""
+    ok = [run for run in runs if run.ok]
+    key = lambda run: (not run.result.force_closure, run.result.placement.rho, run.seed)  # noqa: E731
+    count = max(CONTENDERS, math.ceil(CONTENDING_SHARE * len(runs)))
+    return sorted(ok, key=key)[:count]
+
+
+def _root(placer: Placer, placed):
+    """``placed`` with the ceiling of ``placer``'s options (its root cell) and the better
+    placement its climb found, if any: what one seed's plan gives with those options."""
+    return bounded(placer, placed.elements, placed, time.perf_counter() - placed.seconds)
 
 
 def _searches(options: PlacementOptions) -> bool:
@@ -388,13 +435,10 @@ def _searches(options: PlacementOptions) -> bool:
 
 def _searched(placer: Placer, placed, progress):
     """``placed`` (a seed's placement with its root ceiling) with the ceiling's search under
-    ``placer``'s options over its own elements and their neighbours, and the better placement
-    that search found, if any."""
+    ``placer``'s options over its own elements (and their neighbours, with
+    ``bound_neighbours``), and the better placement that search found, if any."""
     t0 = time.perf_counter() - placed.seconds
-    found = bounded(placer, placed.elements, placed, t0, progress)
-    if placed.exchange_rho is not None:  # the exchange method's own, before any search
-        found = replace(found, exchange_rho=placed.exchange_rho)
-    return found
+    return bounded(placer, placed.elements, placed, t0, progress)
 
 
 def _run_one(eligibility, placer, memo, progress, kwargs, seed: int, beat=None):
@@ -485,11 +529,15 @@ ORPHAN_POLL = 0.5
 
 
 def _start_worker(eligibility, options, kwargs, parent: int, bars=None) -> None:
+    """``options``: the seeds' placement options and the root ceiling's (or None)."""
     leave_to_parent()  # Ctrl-C ends the parent's wait, which then ends the workers
     die_with_parent(parent)
+    seed_options, root_options = options
+    placer = Placer(eligibility, seed_options)
     _WORKER.update(
         eligibility=eligibility,
-        placer=Placer(eligibility, options),
+        placer=placer,
+        root=None if root_options is None else Placer(eligibility, root_options, placer._caches),
         memo={},
         kwargs=kwargs,
         bars=bars,
@@ -560,6 +608,11 @@ def _worker_seed(k: int, seed: int, shared: dict):
     return k, outcome, memo_entries(w["memo"], w["eligibility"], skip=before)
 
 
+def _worker_root(seed: int, placed):
+    """``(seed, placed with its root ceiling)`` in this worker (:func:`_root`)."""
+    return seed, _root(_WORKER["root"], placed)
+
+
 def _share(shared: dict, entries: dict) -> None:
     """``shared`` with a seed's new memo entries; the oldest dropped beyond the memo's size."""
     shared.update(entries)
@@ -582,8 +635,9 @@ class WorkerLost(MethodError):
 
 def _in_processes(eligibility, options, kwargs, seed, seeds, workers, budget, t0, progress, stop):
     """The seeds over ``workers`` processes, at most ``workers`` running at a time (so the
-    budget stops new ones), gathered in seed order. An interrupt or error ends the workers at
-    once.
+    budget stops new ones), gathered in the order placed, and the :func:`_contenders`' root
+    ceilings (``options``: the seeds' placement options and the root's, or None), by seed. An
+    interrupt or error ends the workers at once.
 
     A worker that dies (killed, out of memory) breaks the pool: the seeds running then are
     recorded as failed with the reason, no further seed starts, and the seeds that finished
@@ -668,9 +722,20 @@ def _in_processes(eligibility, options, kwargs, seed, seeds, workers, budget, t0
             _report(progress, [done[i] for i in sorted(done)])
             if broken is not None and not running:
                 break
+        outcomes = [done[i] for i in sorted(done)]
+        rooted = {}
+        if options[1] is not None and broken is None:
+            picked = _contenders(_final(outcomes, stop))
+            futures = [pool.submit(_worker_root, run.seed, run.result.placement) for run in picked]
+            for future in futures:
+                try:
+                    found = future.result()
+                except BrokenProcessPool:  # those seeds keep the exchange method's placement
+                    continue
+                rooted[found[0]] = found[1]
     finally:
         _end_workers(pool)
-    return [done[i] for i in sorted(done)]
+    return outcomes, rooted
 
 
 def _bars(done: dict, seeds: int) -> list:
