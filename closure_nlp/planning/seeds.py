@@ -358,8 +358,8 @@ def plan_seeds(
             _report(progress, outcomes)
         if root_options is not None:
             root = Placer(eligibility, root_options, placer._caches)
-            for run in _contenders(_final(outcomes, stop)):
-                rooted[run.seed] = _root(root, run.result.placement)
+            for placed, which in _contenders(_final(outcomes, stop)):
+                rooted.update(dict.fromkeys(which, _root(root, placed)))
     else:
         outcomes, rooted = _in_processes(
             eligibility,
@@ -415,11 +415,18 @@ def _final(outcomes, stop: bool) -> list:
 def _contenders(runs) -> list:
     """The runs :func:`choose` ranks first (force closure, then the lowest rho, then the lowest
     seed) by their placements before any ceiling: :data:`CONTENDING_SHARE` of the seeds run,
-    at least :data:`CONTENDERS`."""
+    at least :data:`CONTENDERS`; as ``(placement, seeds)``, each placement once (seeds that met
+    the same element set often end on the same contacts, whose root cell is then bounded once).
+    """
     ok = [run for run in runs if run.ok]
     key = lambda run: (not run.result.force_closure, run.result.placement.rho, run.seed)  # noqa: E731
     count = max(CONTENDERS, math.ceil(CONTENDING_SHARE * len(runs)))
-    return sorted(ok, key=key)[:count]
+    picked: dict = {}
+    for run in sorted(ok, key=key)[:count]:
+        placed = run.result.placement
+        same = (placed.elements, placed.rho, *(c.position.tobytes() for c in placed.contacts))
+        picked.setdefault(same, (placed, []))[1].append(run.seed)
+    return list(picked.values())
 
 
 def _root(placer: Placer, placed):
@@ -608,9 +615,9 @@ def _worker_seed(k: int, seed: int, shared: dict):
     return k, outcome, memo_entries(w["memo"], w["eligibility"], skip=before)
 
 
-def _worker_root(seed: int, placed):
-    """``(seed, placed with its root ceiling)`` in this worker (:func:`_root`)."""
-    return seed, _root(_WORKER["root"], placed)
+def _root_here(placed):
+    """``placed`` with its root ceiling, in this worker (:func:`_root`)."""
+    return _root(_WORKER["root"], placed)
 
 
 def _share(shared: dict, entries: dict) -> None:
@@ -726,13 +733,12 @@ def _in_processes(eligibility, options, kwargs, seed, seeds, workers, budget, t0
         rooted = {}
         if options[1] is not None and broken is None:
             picked = _contenders(_final(outcomes, stop))
-            futures = [pool.submit(_worker_root, run.seed, run.result.placement) for run in picked]
-            for future in futures:
+            futures = [(pool.submit(_root_here, placed), which) for placed, which in picked]
+            for future, which in futures:
                 try:
-                    found = future.result()
+                    rooted.update(dict.fromkeys(which, future.result()))
                 except BrokenProcessPool:  # those seeds keep the exchange method's placement
                     continue
-                rooted[found[0]] = found[1]
     finally:
         _end_workers(pool)
     return outcomes, rooted
