@@ -335,7 +335,7 @@ def plan_seeds(
     seed_options = replace(options, bound=False) if options.bound else options
     root_options = replace(options, bound_cells=1, time_budget=None) if options.bound else None
     t0 = time.perf_counter()
-    rooted = {}
+    rooted, searched = {}, {}
     if workers == 1:
         placer = placer or Placer(eligibility, options)
         runner = placer
@@ -361,9 +361,9 @@ def plan_seeds(
             for placed, which in _contenders(_final(outcomes, stop)):
                 rooted.update(dict.fromkeys(which, _root(root, placed)))
     else:
-        outcomes, rooted = _in_processes(
+        outcomes, rooted, searched = _in_processes(
             eligibility,
-            (seed_options, root_options),
+            (seed_options, root_options, options if _searches(options) else None),
             plan_options,
             seed,
             seeds,
@@ -388,7 +388,9 @@ def plan_seeds(
     if root_options is not None and run.seed not in rooted:  # tied with a contender
         placer = placer or Placer(eligibility, options)
         placed = _root(Placer(eligibility, root_options, placer._caches), placed)
-    if _searches(options):
+    if run.seed in searched:  # searched in a worker beside the other contenders' root cells
+        placed = searched[run.seed]
+    elif _searches(options):
         placed = _searched(placer or Placer(eligibility, options), placed, progress)
     runs[chosen] = replace(run, result=replace(run.result, placement=placed))
     spread = SeedSpread(tuple(runs), chosen, seeds, workers, budget)
@@ -536,15 +538,21 @@ ORPHAN_POLL = 0.5
 
 
 def _start_worker(eligibility, options, kwargs, parent: int, bars=None) -> None:
-    """``options``: the seeds' placement options and the root ceiling's (or None)."""
+    """``options``: the seeds' placement options, the root ceiling's and the chosen seed's
+    search's (each None when there is none)."""
     leave_to_parent()  # Ctrl-C ends the parent's wait, which then ends the workers
     die_with_parent(parent)
-    seed_options, root_options = options
+    seed_options, root_options, search_options = options
     placer = Placer(eligibility, seed_options)
+
+    def sharing(options):  # the same exchange NLPs
+        return None if options is None else Placer(eligibility, options, placer._caches)
+
     _WORKER.update(
         eligibility=eligibility,
         placer=placer,
-        root=None if root_options is None else Placer(eligibility, root_options, placer._caches),
+        root=sharing(root_options),
+        search=sharing(search_options),
         memo={},
         kwargs=kwargs,
         bars=bars,
@@ -615,9 +623,17 @@ def _worker_seed(k: int, seed: int, shared: dict):
     return k, outcome, memo_entries(w["memo"], w["eligibility"], skip=before)
 
 
-def _root_here(placed):
-    """``placed`` with its root ceiling, in this worker (:func:`_root`)."""
-    return _root(_WORKER["root"], placed)
+def _root_here(placed, search: bool = False):
+    """``placed`` with its root ceiling, in this worker (:func:`_root`), and with ``search``
+    that placement after the ceiling's search too (:func:`_searched`; None when it failed:
+    the parent's own search then reports it, if it is the chosen seed's)."""
+    found = _root(_WORKER["root"], placed)
+    if not search or _WORKER["search"] is None:
+        return found, None
+    try:
+        return found, _searched(_WORKER["search"], found, None)
+    except Exception:  # noqa: BLE001 - searched again, and raised, where it is needed
+        return found, None
 
 
 def _share(shared: dict, entries: dict) -> None:
@@ -642,9 +658,10 @@ class WorkerLost(MethodError):
 
 def _in_processes(eligibility, options, kwargs, seed, seeds, workers, budget, t0, progress, stop):
     """The seeds over ``workers`` processes, at most ``workers`` running at a time (so the
-    budget stops new ones), gathered in the order placed, and the :func:`_contenders`' root
-    ceilings (``options``: the seeds' placement options and the root's, or None), by seed. An
-    interrupt or error ends the workers at once.
+    budget stops new ones), gathered in the order placed; the :func:`_contenders`' root
+    ceilings by seed, and the first contender's search (``options``: the seeds' placement
+    options, the root's and the search's, each or None), by seed. An interrupt or error ends
+    the workers at once.
 
     A worker that dies (killed, out of memory) breaks the pool: the seeds running then are
     recorded as failed with the reason, no further seed starts, and the seeds that finished
@@ -730,18 +747,26 @@ def _in_processes(eligibility, options, kwargs, seed, seeds, workers, budget, t0
             if broken is not None and not running:
                 break
         outcomes = [done[i] for i in sorted(done)]
-        rooted = {}
+        rooted, searched = {}, {}
         if options[1] is not None and broken is None:
+            # the first contender is most often the chosen one: its search runs now, beside
+            # the others' root cells, and is kept only if it is chosen
             picked = _contenders(_final(outcomes, stop))
-            futures = [(pool.submit(_root_here, placed), which) for placed, which in picked]
+            futures = [
+                (pool.submit(_root_here, placed, i == 0), which)
+                for i, (placed, which) in enumerate(picked)
+            ]
             for future, which in futures:
                 try:
-                    rooted.update(dict.fromkeys(which, future.result()))
+                    found, after = future.result()
                 except BrokenProcessPool:  # those seeds keep the exchange method's placement
                     continue
+                rooted.update(dict.fromkeys(which, found))
+                if after is not None:
+                    searched.update(dict.fromkeys(which, after))
     finally:
         _end_workers(pool)
-    return outcomes, rooted
+    return outcomes, rooted, searched
 
 
 def _bars(done: dict, seeds: int) -> list:
