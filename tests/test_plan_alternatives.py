@@ -89,12 +89,14 @@ def test_the_pool_ranks_unranked_sets_by_their_light_value(hand):
     pool of further sets gives it one (the light search the screen would have run), keeps the
     eligible ones and ranks them with the rest, lowest first."""
     from closure_nlp.criterion.support_minimum import signed_distance
-    from closure_nlp.planning.single import _pool
+    from closure_nlp.planning.single import _Pool
     from closure_nlp.selection.algorithms import SCREEN_SEARCH, heuristic, iterative
 
     run = iterative(hand, heuristic(hand, seed=1).elements)
     assert run.unranked_sets
-    pool = _pool([], run, hand)
+    pool = _Pool(hand)
+    pool.add(run)
+    pool = list(iter(pool.pop, None))
     assert [v for _, v, _ in pool] == sorted(v for _, v, _ in pool)
     unproven = [(v, tuple(e)) for e, v, proven in pool if not proven]
     assert unproven == sorted(unproven)  # equal values in the order of the elements

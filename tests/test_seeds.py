@@ -39,7 +39,8 @@ def patch_plan(monkeypatch, fake) -> None:
     monkeypatch.setattr(single, "plan_one", fake)
     monkeypatch.setattr(single, "select_one", lambda *args, **kwargs: None)  # seed order
     monkeypatch.setattr(seeds, "_context", lambda: multiprocessing.get_context("fork"))
-    # the fake placements have no elements to search: the chosen one stays as it is
+    # the fake placements have no elements to bound: they stay as they are
+    monkeypatch.setattr(seeds, "_root", lambda placer, placed: placed)
     monkeypatch.setattr(seeds, "_searched", lambda placer, placed, progress: placed)
 
 
@@ -93,6 +94,7 @@ def fake_result(
         elements=tuple(elements),
         bounds=(rho, rho),
         capacity_bound=ceiling,
+        contacts=(),
     )
     selection = SimpleNamespace(elements=tuple(elements))
     return PlanResult(selection, selection, placement, 0.0, (), ())
@@ -144,6 +146,40 @@ def test_every_seed_failing_raises_the_first_error(monkeypatch):
     patch_plan(monkeypatch, lambda *a, **k: (_ for _ in ()).throw(ValueError("x")))
     with pytest.raises(ValueError, match="x"):
         plan(hand(), seeds=2, workers=1)
+
+
+# seed -> its placement by the exchange method; seeds 1 and 4 end on the same contacts
+SHARED = fake_result(-0.5, True, False, [3, 2, 1, 0])
+PLACED = {
+    0: fake_result(-0.2, True, False, [0, 1, 2, 3]),
+    1: SHARED,
+    2: fake_result(-0.4, True, False, [0, 1, 2, 4]),
+    3: fake_result(-0.1, True, False, [0, 1, 3, 4]),
+    4: SHARED,
+}
+
+
+def rooted(placer, placed):
+    """A root cell whose climb lifts the placement on elements 0, 1, 2, 4 past the others."""
+    lift = 0.3 if placed.elements == (0, 1, 2, 4) else 0.0
+    return SimpleNamespace(**{**vars(placed), "rho": placed.rho - lift, "capacity_bound": 1.0})
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_the_better_half_of_the_seeds_get_the_root_cell_and_its_climb_may_choose(
+    monkeypatch, workers
+):
+    """The seeds ranked first by the exchange method's rho (3 of 5) get the root cell, each
+    placement once; a lift there changes the choice, and the others have no ceiling."""
+    patch_plan(monkeypatch, lambda eligibility, placer, seed, **kwargs: PLACED[seed])
+    monkeypatch.setattr(seeds, "_root", rooted)
+    from closure_nlp.planning.seeds import plan_seeds
+
+    best = plan_seeds(hand(), seed=0, seeds=5, workers=workers)
+    spread = best.seeds.to_dict()
+    assert spread["chosen_seed"] == 2 and best.placement.rho == pytest.approx(-0.7)
+    assert [r["capacity_bound"] for r in spread["runs"]] == [None, 1.0, 1.0, None, 1.0]
+    assert spread["runs"][1]["rho"] == spread["runs"][4]["rho"] == -0.5
 
 
 def slow_plan(eligibility, placer, seed, **kwargs):

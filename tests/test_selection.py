@@ -291,9 +291,10 @@ def test_a_lone_frictionless_contact_on_a_flat_makes_a_set_hopeless(torque_scale
 def test_full_searches_that_stop_early_change_no_decision_nor_the_plans_pool(monkeypatch):
     """The iterative run's full searches of neighbours stop once a set is shown unable to win
     (its value at or above the bar or the step's candidate): the run takes the same steps, and
-    the plan's pool of further sets (:func:`~closure_nlp.planning.plan._pool`, which finishes those
-    searches from the same start) is the same, value for value, as with searches to the end."""
-    from closure_nlp.planning.single import _pool
+    the plan's pool of further sets (:class:`~closure_nlp.planning.single._Pool`, which finishes
+    those searches from the same start) is the same, value for value, as with searches to the
+    end."""
+    from closure_nlp.planning.single import _Pool
 
     model = load_model(SHAFT)
     eligibility = Eligibility(model, contact_specs(7, type="fpc"), torque_scale=1.0)
@@ -304,7 +305,9 @@ def test_full_searches_that_stop_early_change_no_decision_nor_the_plans_pool(mon
     for elements, warm in early.unfinished_sets:  # indeed no better than the result
         full_value = eligibility(elements, warm, certify=False).rho_hat
         assert full_value >= early.rho_hat
-    early_pool = _pool([], early, eligibility)
+    pool = _Pool(eligibility)
+    pool.add(early)
+    early_pool = list(iter(pool.pop, None))
     call, evaluated = Eligibility.__call__, {}
 
     def to_the_end(self, elements, *args, stop_above=None, **kwargs):
@@ -321,6 +324,33 @@ def test_full_searches_that_stop_early_change_no_decision_nor_the_plans_pool(mon
     expected = sorted(item for item in evaluated.values() if item[0] < 0)
     proven = [(tuple(e), v) for e, v, is_proven in early_pool if is_proven]
     assert proven == [(e, v) for v, e in expected]
+
+
+def test_the_plans_pool_searches_a_stopped_set_only_once_it_could_come_next(monkeypatch):
+    """A stopped screen's value never lies above its light value, so the pool gives the next
+    set after searching only the sets that could come before it, and, drained, every set in
+    the order of their values with every stopped screen finished."""
+    from closure_nlp.criterion.robustness import robust_value
+    from closure_nlp.planning import single
+
+    eligibility = Eligibility(load_model(SHAFT), contact_specs(7, type="fpc"), torque_scale=1.0)
+    run = iterative(eligibility, [73, 82, 30, 0, 10, 69, 59])
+    assert len(run.unranked_floors) == len(run.unranked_sets) > 0
+    searched, light = [], single.light_rho_hat
+    monkeypatch.setattr(
+        single, "light_rho_hat", lambda *args, **kw: searched.append(1) or light(*args, **kw)
+    )
+    pool = single._Pool(eligibility)
+    pool.add(run)
+    first = pool.pop()
+    assert len(searched) < len(run.unranked_sets) // 2
+    drained = [first, *iter(pool.pop, None)]
+    assert len(searched) == len(run.unranked_sets)
+    steer = [robust_value(v, eligibility.shift(e)) for e, v, _ in drained]
+    assert steer == sorted(steer)
+    for (elements, warm), floor in zip(run.unranked_sets, run.unranked_floors):
+        value, _ = light(eligibility, elements, warm)
+        assert value >= floor
 
 
 def test_a_certified_rho_hat_has_no_early_stop(ring):

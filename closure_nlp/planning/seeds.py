@@ -329,16 +329,17 @@ def plan_seeds(
     if placer is not None and placer.eligibility is not eligibility:
         raise ValueError("placer: must be built on the same Eligibility as the plan")
     options = placement if placer is None else placer.options
-    # Every seed's ceiling is its root cell; the cells beyond it go to the chosen seed's
-    # placement alone, the best the seeds found (the other seeds' would be dropped).
-    seed_options = options
-    if _searches(options):
-        seed_options = replace(options, bound_cells=1, time_budget=None)
+    # The seeds are placed by the exchange method alone; the ceiling's root cell (whose
+    # frictionless climb polishes placements: a second a seed) goes to the CONTENDERS placed
+    # best, and the cells beyond it to the chosen seed's placement alone.
+    seed_options = replace(options, bound=False) if options.bound else options
+    root_options = replace(options, bound_cells=1, time_budget=None) if options.bound else None
     t0 = time.perf_counter()
+    rooted, searched = {}, {}
     if workers == 1:
         placer = placer or Placer(eligibility, options)
         runner = placer
-        if seed_options is not options:  # the same exchange NLPs, the root ceiling
+        if seed_options is not options:  # the same exchange NLPs, no ceiling
             runner = Placer(eligibility, seed_options, placer._caches)
         memo = {} if memo is None else memo
         floors = []
@@ -355,10 +356,14 @@ def plan_seeds(
                 _run_one(eligibility, runner, memo, progress, plan_options, seed + k, beat)
             )
             _report(progress, outcomes)
+        if root_options is not None:
+            root = Placer(eligibility, root_options, placer._caches)
+            for placed, which in _contenders(_final(outcomes, stop)):
+                rooted.update(dict.fromkeys(which, _root(root, placed)))
     else:
-        outcomes = _in_processes(
+        outcomes, rooted, searched = _in_processes(
             eligibility,
-            seed_options,
+            (seed_options, root_options, options if _searches(options) else None),
             plan_options,
             seed,
             seeds,
@@ -368,17 +373,68 @@ def plan_seeds(
             progress,
             stop,
         )
-    runs = [run for run, _ in outcomes]
-    runs = sorted(stop_rule(runs) if stop else runs, key=lambda run: run.seed)
+    runs = _final(outcomes, stop)
     if not any(run.ok for run in runs):
         raise min(outcomes, key=lambda outcome: outcome[0].seed)[1]
+    runs = [
+        replace(run, result=replace(run.result, placement=rooted[run.seed]))
+        if run.seed in rooted
+        else run
+        for run in runs
+    ]
     chosen = best_index(runs, eligibility.minimizer.tolerances.certify)
-    if seed_options is not options:
-        run = runs[chosen]
-        placed = _searched(placer or Placer(eligibility, options), run.result.placement, progress)
-        runs[chosen] = replace(run, result=replace(run.result, placement=placed))
+    run = runs[chosen]
+    placed = run.result.placement
+    if root_options is not None and run.seed not in rooted:  # tied with a contender
+        placer = placer or Placer(eligibility, options)
+        placed = _root(Placer(eligibility, root_options, placer._caches), placed)
+    if run.seed in searched:  # searched in a worker beside the other contenders' root cells
+        placed = searched[run.seed]
+    elif _searches(options):
+        placed = _searched(placer or Placer(eligibility, options), placed, progress)
+    runs[chosen] = replace(run, result=replace(run.result, placement=placed))
     spread = SeedSpread(tuple(runs), chosen, seeds, workers, budget)
     return replace(runs[chosen].result, seconds=time.perf_counter() - t0, seeds=spread)
+
+
+# The share of the seeds whose placements get the ceiling's root cell (its climb may lift one
+# past the best), the best by the exchange method alone, and at least CONTENDERS of them. The
+# climb's placements owe little to the exchange method's: over the 34 windows of 8 seeds among
+# seeds 0-23 of the pistol and the stepped shaft (7 FPC), the best after the root cell was the
+# exchange method's best 25 times, its second 7 times, its fourth once and its fifth once
+# (docs/benchmarks.md).
+CONTENDERS = 2
+CONTENDING_SHARE = 0.5
+
+
+def _final(outcomes, stop: bool) -> list:
+    """The seeds' runs (``outcomes`` in the order placed) in seed order, after
+    :func:`stop_rule`."""
+    runs = [run for run, _ in outcomes]
+    return sorted(stop_rule(runs) if stop else runs, key=lambda run: run.seed)
+
+
+def _contenders(runs) -> list:
+    """The runs :func:`choose` ranks first (force closure, then the lowest rho, then the lowest
+    seed) by their placements before any ceiling: :data:`CONTENDING_SHARE` of the seeds run,
+    at least :data:`CONTENDERS`; as ``(placement, seeds)``, each placement once (seeds that met
+    the same element set often end on the same contacts, whose root cell is then bounded once).
+    """
+    ok = [run for run in runs if run.ok]
+    key = lambda run: (not run.result.force_closure, run.result.placement.rho, run.seed)  # noqa: E731
+    count = max(CONTENDERS, math.ceil(CONTENDING_SHARE * len(runs)))
+    picked: dict = {}
+    for run in sorted(ok, key=key)[:count]:
+        placed = run.result.placement
+        same = (placed.elements, placed.rho, *(c.position.tobytes() for c in placed.contacts))
+        picked.setdefault(same, (placed, []))[1].append(run.seed)
+    return list(picked.values())
+
+
+def _root(placer: Placer, placed):
+    """``placed`` with the ceiling of ``placer``'s options (its root cell) and the better
+    placement its climb found, if any: what one seed's plan gives with those options."""
+    return bounded(placer, placed.elements, placed, time.perf_counter() - placed.seconds)
 
 
 def _searches(options: PlacementOptions) -> bool:
@@ -388,13 +444,10 @@ def _searches(options: PlacementOptions) -> bool:
 
 def _searched(placer: Placer, placed, progress):
     """``placed`` (a seed's placement with its root ceiling) with the ceiling's search under
-    ``placer``'s options over its own elements and their neighbours, and the better placement
-    that search found, if any."""
+    ``placer``'s options over its own elements (and their neighbours, with
+    ``bound_neighbours``), and the better placement that search found, if any."""
     t0 = time.perf_counter() - placed.seconds
-    found = bounded(placer, placed.elements, placed, t0, progress)
-    if placed.exchange_rho is not None:  # the exchange method's own, before any search
-        found = replace(found, exchange_rho=placed.exchange_rho)
-    return found
+    return bounded(placer, placed.elements, placed, t0, progress)
 
 
 def _run_one(eligibility, placer, memo, progress, kwargs, seed: int, beat=None):
@@ -485,11 +538,21 @@ ORPHAN_POLL = 0.5
 
 
 def _start_worker(eligibility, options, kwargs, parent: int, bars=None) -> None:
+    """``options``: the seeds' placement options, the root ceiling's and the chosen seed's
+    search's (each None when there is none)."""
     leave_to_parent()  # Ctrl-C ends the parent's wait, which then ends the workers
     die_with_parent(parent)
+    seed_options, root_options, search_options = options
+    placer = Placer(eligibility, seed_options)
+
+    def sharing(options):  # the same exchange NLPs
+        return None if options is None else Placer(eligibility, options, placer._caches)
+
     _WORKER.update(
         eligibility=eligibility,
-        placer=Placer(eligibility, options),
+        placer=placer,
+        root=sharing(root_options),
+        search=sharing(search_options),
         memo={},
         kwargs=kwargs,
         bars=bars,
@@ -560,6 +623,19 @@ def _worker_seed(k: int, seed: int, shared: dict):
     return k, outcome, memo_entries(w["memo"], w["eligibility"], skip=before)
 
 
+def _root_here(placed, search: bool = False):
+    """``placed`` with its root ceiling, in this worker (:func:`_root`), and with ``search``
+    that placement after the ceiling's search too (:func:`_searched`; None when it failed:
+    the parent's own search then reports it, if it is the chosen seed's)."""
+    found = _root(_WORKER["root"], placed)
+    if not search or _WORKER["search"] is None:
+        return found, None
+    try:
+        return found, _searched(_WORKER["search"], found, None)
+    except Exception:  # noqa: BLE001 - searched again, and raised, where it is needed
+        return found, None
+
+
 def _share(shared: dict, entries: dict) -> None:
     """``shared`` with a seed's new memo entries; the oldest dropped beyond the memo's size."""
     shared.update(entries)
@@ -582,8 +658,10 @@ class WorkerLost(MethodError):
 
 def _in_processes(eligibility, options, kwargs, seed, seeds, workers, budget, t0, progress, stop):
     """The seeds over ``workers`` processes, at most ``workers`` running at a time (so the
-    budget stops new ones), gathered in seed order. An interrupt or error ends the workers at
-    once.
+    budget stops new ones), gathered in the order placed; the :func:`_contenders`' root
+    ceilings by seed, and the first contender's search (``options``: the seeds' placement
+    options, the root's and the search's, each or None), by seed. An interrupt or error ends
+    the workers at once.
 
     A worker that dies (killed, out of memory) breaks the pool: the seeds running then are
     recorded as failed with the reason, no further seed starts, and the seeds that finished
@@ -668,9 +746,27 @@ def _in_processes(eligibility, options, kwargs, seed, seeds, workers, budget, t0
             _report(progress, [done[i] for i in sorted(done)])
             if broken is not None and not running:
                 break
+        outcomes = [done[i] for i in sorted(done)]
+        rooted, searched = {}, {}
+        if options[1] is not None and broken is None:
+            # the first contender is most often the chosen one: its search runs now, beside
+            # the others' root cells, and is kept only if it is chosen
+            picked = _contenders(_final(outcomes, stop))
+            futures = [
+                (pool.submit(_root_here, placed, i == 0), which)
+                for i, (placed, which) in enumerate(picked)
+            ]
+            for future, which in futures:
+                try:
+                    found, after = future.result()
+                except BrokenProcessPool:  # those seeds keep the exchange method's placement
+                    continue
+                rooted.update(dict.fromkeys(which, found))
+                if after is not None:
+                    searched.update(dict.fromkeys(which, after))
     finally:
         _end_workers(pool)
-    return [done[i] for i in sorted(done)]
+    return outcomes, rooted, searched
 
 
 def _bars(done: dict, seeds: int) -> list:

@@ -7,6 +7,7 @@ every solver is built once), through a memo of the steps other plans on it have 
 
 from __future__ import annotations
 
+import heapq
 import itertools
 import time
 from collections.abc import Callable
@@ -345,7 +346,8 @@ def _alternatives(eligibility, seed, selection, second, recall: _Recall):
     are evaluated first and skipped unless eligible), then the result of a new heuristic +
     iterative run (seed derived from ``seed``), and so on alternately."""
     tried = {_multiset(eligibility, second.elements)}
-    pool = _pool([], second, eligibility)
+    pool = _Pool(eligibility)
+    pool.add(second)
 
     def hopeless(elements) -> bool:
         """No placement on these elements is force closure (:func:`lone_contact`)."""
@@ -354,7 +356,10 @@ def _alternatives(eligibility, seed, selection, second, recall: _Recall):
     runs = 0
     while pool or runs < FRESH_RUNS:
         while pool:
-            elements, value, proven = pool.pop(0)
+            item = pool.pop()
+            if item is None:  # the rest were not eligible
+                break
+            elements, value, proven = item
             key = _multiset(eligibility, elements)
             if key in tried:
                 continue
@@ -376,35 +381,74 @@ def _alternatives(eligibility, seed, selection, second, recall: _Recall):
         )
         found = heuristic(eligibility, seed=derived, options=selection, progress=recall.progress)
         fresh = recall.iterative(found.elements, f"iterative {runs}")
-        pool = _pool(pool, fresh, eligibility)
+        pool.add(fresh)
         key = _multiset(eligibility, fresh.elements)
         if fresh.eligible and key not in tried and not hopeless(fresh.elements):
             tried.add(key)
             yield fresh.elements, f"new selection {runs} (heuristic + iterative)", fresh.rho_hat
 
 
-def _pool(pool, run: SelectionResult, eligibility: Eligibility) -> list:
-    """``pool`` with ``run``'s evaluated and screened sets, (elements, value, proven), lowest
-    value plus the set's support shift within the tolerance first; its unfinished sets (full
-    searches stopped once they could not win) get their full value now, from the same start,
-    so they rank as if never stopped; its unranked sets
-    (screens stopped once they could not win) get their light value now, from the screen's
-    start: the value it would have given, so they rank as before."""
-    finished = []
-    for elements, warm in run.unfinished_sets:
-        found = eligibility(elements, warm, certify=False)
-        if found.eligible:
-            finished.append((found.rho_hat, tuple(elements)))
-    evaluated = sorted([(v, tuple(e)) for e, v in run.eligible_sets] + finished)
-    pool = pool + [(e, v, True) for v, e in evaluated]
-    unproven = [(v, tuple(e)) for e, v in run.candidate_sets]
-    for elements, warm in run.unranked_sets:
-        value, _ = light_rho_hat(eligibility, elements, warm)
-        if value < 0:
-            unproven.append((value, tuple(elements)))
-    # equal values (symmetric parts have many) in the order of the elements
-    pool += [(e, v, False) for v, e in sorted(unproven)]
-    return sorted(pool, key=lambda item: robust_value(item[1], eligibility.shift(item[0])))
+class _Pool:
+    """The iterative runs' further element sets, (elements, value, proven), lowest value plus
+    the set's support shift within the tolerance first (equal ones: the earlier run's first,
+    then proven before light values, then by value and elements).
+
+    A run's unfinished sets (full searches stopped once they could not win) get their full
+    value, and its unranked sets (screens stopped once they could not win) their light value,
+    from the same start, so they rank as if never stopped, but only once they could come next:
+    the value a stopped search had reached is never above the value it ends with, so a set
+    whose stopped value lies above the next set's is not searched yet (most never are). A set
+    whose value shows it is not eligible (light: not below 0) leaves the pool then."""
+
+    RESOLVED, OPEN = 1, 0  # a set not searched yet comes first among equal keys
+
+    def __init__(self, eligibility: Eligibility):
+        self.eligibility = eligibility
+        self.heap: list = []
+        self.runs = 0
+        self.order = itertools.count()  # never equal: the payloads are never compared
+
+    def __bool__(self) -> bool:
+        return bool(self.heap)
+
+    def _push(self, value: float, state: int, run: int, kind: int, elements, payload) -> None:
+        steer = robust_value(value, self.eligibility.shift(elements))
+        rank = value if state == self.RESOLVED else 0.0
+        item = (steer, state, run, kind, rank, tuple(elements), next(self.order), payload)
+        heapq.heappush(self.heap, item)
+
+    def add(self, run: SelectionResult) -> None:
+        """``run``'s sets: proven (kind 0) and light values (kind 1)."""
+        k, self.runs = self.runs, self.runs + 1
+        for elements, value in run.eligible_sets:
+            self._push(value, self.RESOLVED, k, 0, elements, (tuple(elements), value, True))
+        floors = run.unfinished_floors or [-np.inf] * len(run.unfinished_sets)
+        for (elements, warm), floor in zip(run.unfinished_sets, floors):
+            self._push(floor, self.OPEN, k, 0, elements, ("full", warm))
+        for elements, value in run.candidate_sets:
+            self._push(value, self.RESOLVED, k, 1, elements, (tuple(elements), value, False))
+        floors = run.unranked_floors or [-np.inf] * len(run.unranked_sets)
+        for (elements, warm), floor in zip(run.unranked_sets, floors):
+            self._push(floor, self.OPEN, k, 1, elements, ("light", warm))
+
+    def pop(self):
+        """The next set, or None when no set is left."""
+        while self.heap:
+            _, state, run, kind, _, elements, _, payload = heapq.heappop(self.heap)
+            if state == self.RESOLVED:
+                return payload
+            how, warm = payload
+            if how == "full":
+                found = self.eligibility(elements, warm, certify=False)
+                if found.eligible:
+                    entry = (elements, found.rho_hat, True)
+                    self._push(found.rho_hat, self.RESOLVED, run, kind, elements, entry)
+            else:
+                value, _ = light_rho_hat(self.eligibility, elements, warm)
+                if value < 0:
+                    entry = (elements, value, False)
+                    self._push(value, self.RESOLVED, run, kind, elements, entry)
+        return None
 
 
 __all__ = [

@@ -195,7 +195,8 @@ def _seeds_markdown(spread) -> list[str]:
         rows += [
             "",
             "Element sets placed on, with the certified ceiling on -rho of any placement on them "
-            "(and their neighbours):",
+            "(and their neighbours; - where no seed there was among the better half, which alone "
+            "get a ceiling):",
             "",
             "| elements | seeds | best rho | ceiling |",
             "|---|---|---|---|",

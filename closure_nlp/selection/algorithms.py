@@ -123,6 +123,11 @@ class SelectionResult:
         they could not win, each with the direction that search started from. A plan that needs
         more element sets runs their full search then, from that direction: the value the
         iterative run would have found, so they rank among :attr:`eligible_sets` as before.
+    unranked_floors, unfinished_floors : tuple of float
+        For each of :attr:`unranked_sets` (:attr:`unfinished_sets`) the value its stopped search
+        had reached: the light (full) search from its start, run to the end, never gives less
+        (a plan ranks them without running it while better sets are left). Empty when the run
+        steered by another value than rho_hat.
     bounds : (float, float)
         Certified ``lo <= rho_hat <= hi`` of the final set (the search steered by the search's
         values; the reported one is certified).
@@ -143,6 +148,8 @@ class SelectionResult:
     screened: int = 0
     unranked_sets: tuple[tuple[tuple[int, ...], np.ndarray], ...] = ()
     unfinished_sets: tuple[tuple[tuple[int, ...], np.ndarray | None], ...] = ()
+    unranked_floors: tuple[float, ...] = ()
+    unfinished_floors: tuple[float, ...] = ()
     bounds: tuple[float, float] | None = None
     marginal: bool = False
     converged: bool = True
@@ -317,8 +324,9 @@ def iterative(
     screened: dict[tuple, tuple[float, np.ndarray, tuple[int, ...], np.ndarray | None]] = {}
 
     # sets whose full search stopped once it showed they could not win: (value never above
-    # their full rho_hat and at or above every later bar, elements, the search's start)
-    unfinished: dict[tuple, tuple[float, tuple[int, ...], np.ndarray]] = {}
+    # their full rho_hat and at or above every later bar, elements, the search's start, the
+    # value the search reached)
+    unfinished: dict[tuple, tuple[float, tuple[int, ...], np.ndarray, float]] = {}
 
     def steered(found) -> float:
         return steering(eligibility, found, value)
@@ -333,7 +341,7 @@ def iterative(
             stop = None if stop_above is None or stop_above - shift >= 0 else stop_above - shift
             found = source(elements, warm, certify=False, stop_above=stop)
             if stop is not None and found.rho_hat >= stop:
-                unfinished[key] = (found.rho_hat + shift, tuple(elements), warm)
+                unfinished[key] = (found.rho_hat + shift, tuple(elements), warm, found.rho_hat)
                 return None
             seen[key] = found
         return seen[key]
@@ -411,11 +419,12 @@ def iterative(
     )
     # a stopped screen's value is below the light one (never above the full rho_hat): >= 0
     # proves the set is not eligible; below, it could be, and cannot be ranked by that value
-    unranked = tuple(
-        (elements, stopped)
+    unranked = [
+        (elements, stopped, light)
         for key, (light, _, elements, stopped) in screened.items()
         if key not in seen and key not in unfinished and light < 0 and stopped is not None
-    )
+    ]
+    floors = value is None  # the plan's pool searches by rho_hat
     return _certified_result(
         source,
         best,
@@ -425,8 +434,10 @@ def iterative(
         eligible_sets=tuple((elements, rho_hat) for _, rho_hat, elements in others),
         candidate_sets=tuple((elements, light) for light, elements in unproven),
         screened=len(screened),
-        unranked_sets=unranked,
-        unfinished_sets=tuple((elements, warm) for _, elements, warm in unfinished.values()),
+        unranked_sets=tuple((elements, stopped) for elements, stopped, _ in unranked),
+        unfinished_sets=tuple((elements, warm) for _, elements, warm, _ in unfinished.values()),
+        unranked_floors=tuple(light for _, _, light in unranked) if floors else (),
+        unfinished_floors=tuple(v[3] for v in unfinished.values()) if floors else (),
     )
 
 
