@@ -101,11 +101,13 @@ from closure_nlp.criterion.certificate import tolerance_unit
 from closure_nlp.criterion.frictionless import MAX_CONTACTS, climb, facet_rows
 from closure_nlp.criterion.rho_hat import Eligibility
 from closure_nlp.criterion.sphere_search import descend, sphere_samples
+from closure_nlp.criterion.support_minimum import search_rho
 from closure_nlp.model.elements import nearest_weights
 from closure_nlp.placement import max_min_lp as lp_solvers  # tests swap its solvers
 from closure_nlp.placement.max_min_lp import INF, OPTIMAL, dual_bound, max_min_model, thread_solver
 from closure_nlp.placement.placer import ExchangePlacer, PlacementOptions
 from closure_nlp.placement.spacing import SpacingError
+from closure_nlp.selection.algorithms import SCREEN_SEARCH
 
 # Directions kept in the shared working set of the cutting planes (the most recent ones).
 MAX_DIRECTIONS = 600
@@ -167,18 +169,30 @@ class BoundOptions:
         Rows (directions) a cell's LP starts with, the parent's active ones besides; the
         working set's others join where the LP's weights fall below its value on them (row
         generation, same bound). 0: every row from the start.
+    probe_every : int
+        Every that many splits, a light rho search at the split cell's LP placement: its
+        weakest direction joins the working set (a cut the descent on the LP's weights can
+        miss: without it, cells shrunk to points kept bounds 4% above any placement in them,
+        cup, 3 SFCe), and with ``probe_incumbents`` the placement, certified, becomes the
+        incumbent when it holds more (0: never). A probe costs about a cell; an exchange run
+        (``polish_every``) hundreds.
+    probe_incumbents : bool
+        Whether probed placements may replace the incumbent (the part's ceiling keeps the
+        plan's).
     """
 
     gap: float = 0.02
     time_budget: float = 30.0
     root_cuts: int = 30
-    cell_cuts: int = 4
+    cell_cuts: int = 1
     cut_tolerance: float = 1e-3
     max_nodes: int = 100_000
     polish_every: int = 20
     polish_share: float = 0.3
     cut_samples: int = 24
     lp_rows: int = 24
+    probe_every: int = 2
+    probe_incumbents: bool = True
 
     def __post_init__(self) -> None:
         for name in ("gap", "time_budget", "cut_tolerance", "polish_share"):
@@ -188,6 +202,7 @@ class BoundOptions:
             if not np.isfinite(value) and name != "time_budget":
                 raise ValueError(f"{name}: expected a finite number, got {value!r}")
         names = ("root_cuts", "cell_cuts", "max_nodes", "polish_every", "cut_samples", "lp_rows")
+        names += ("probe_every",)
         for name in names:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 0:
@@ -696,6 +711,7 @@ def capacity_bound(
     heap = [_Cell(root_cell, root, 0)]
     closed = -np.inf  # the largest bound of a closed cell
     nodes, polishes, history = 1, 0, [(0.0, root.value, best_value, 1)]
+    probes, splits = 0, 0
     polish_seconds, polished_at = 0.0, -np.inf
     polisher = ExchangePlacer(
         eligibility,
@@ -711,6 +727,7 @@ def capacity_bound(
     )
 
     frictionless = _frictionless(eligibility)
+    light = eligibility.minimizer.with_search(SCREEN_SEARCH)
 
     def ceiling() -> float:
         top = heap[0].bound.value if heap else -np.inf
@@ -731,6 +748,26 @@ def capacity_bound(
             return
         if _capacity(found) > best_value:
             best, best_value = found, _capacity(found)
+
+    def probe(cell: _Cell):
+        nonlocal best, best_value, probes
+        probes += 1
+        ids, positions = _lp_placement(lp, cell)
+        ids, positions = ids[k0:], positions[k0:]
+        weights = [nearest_weights(model.elements[e].vertices, x) for e, x in zip(ids, positions)]
+        warm = cell.bound.directions[np.argmax(cell.bound.y)] if len(cell.bound.y) else None
+        contacts = polisher.contact_set(ids, weights)
+        found = search_rho(contacts, minimizer=light, warm_start=warm)
+        u = found.direction
+        if u is not None and np.all(np.isfinite(u)) and np.linalg.norm(u) > 0.0:
+            # any unit direction is a valid cut
+            u = np.asarray(u, float) / np.linalg.norm(u)
+            lp.directions = np.vstack([lp.directions, u[None]])[-MAX_DIRECTIONS:]
+        # -found.rho bounds its capacity from above: certified only when it may beat the best
+        if options.probe_incumbents and -found.rho > best_value:
+            placed = polisher.certified_at(ids, weights, found.direction)
+            if placed is not None and _capacity(placed) > best_value:
+                best, best_value = placed, _capacity(placed)
 
     def try_placement(cell: _Cell):
         nonlocal polish_seconds, polished_at
@@ -774,6 +811,9 @@ def capacity_bound(
         if split is None:  # every contact on one point: the bound is its placement's own
             closed = max(closed, cell.bound.value)
             continue
+        splits += 1
+        if options.probe_every and splits % options.probe_every == 0:
+            probe(cell)
         hint = cell.bound.directions[cell.bound.y > 0.0]
         for pieces in split:
             if spacing and not _room(pieces, spacing, k0):
@@ -833,14 +873,16 @@ def bounded(placer, elements, result, t0: float, progress=None):
     if not options.bound_neighbours:  # the elements the contacts sit on
         elements = result.elements
         domain = tuple((e,) for e in elements)
-    found = capacity_bound(
-        placer,
-        elements,
-        result,
-        BoundOptions(gap=options.target_gap, time_budget=budget, max_nodes=options.bound_cells),
-        domain,
-        progress,
+    # A budget of cells alone: no exchange runs (each costs as much as hundreds of cells; the
+    # probes' placements are the incumbents), so its time follows the cells.
+    polish = BoundOptions.polish_every if np.isfinite(budget) else 0
+    bound = BoundOptions(
+        gap=options.target_gap,
+        time_budget=budget,
+        max_nodes=options.bound_cells,
+        polish_every=polish,
     )
+    found = capacity_bound(placer, elements, result, bound, domain, progress)
     chosen = result
     if found.placement is not None and _kept_by(found.placement) > _kept_by(result):
         better = found.placement
@@ -879,7 +921,7 @@ def part_ceiling(placer, incumbent=None, options: BoundOptions = BoundOptions())
     m = eligibility.m
     elements = incumbent.elements if incumbent is not None else usable[:m]
     elements = tuple(elements) + tuple(usable[i % len(usable)] for i in range(len(elements), m))
-    options = replace(options, polish_every=0)
+    options = replace(options, polish_every=0, probe_incumbents=False)
     return capacity_bound(placer, elements, incumbent, options, (usable,) * m)
 
 
