@@ -49,7 +49,7 @@ def _sample(rng, eligibility, cell) -> ContactSet:
     return ContactSet(tuple(contacts), eligibility.torque_scale, eligibility.model.reference_point)
 
 
-def _violations(eligibility, elements, cells=4, samples=5, seed=0, depth=(0, 10), rows=0):
+def _violations(eligibility, elements, cells=6, samples=5, seed=0, depth=(0, 10), rows=0):
     """(samples whose certified capacity -hi exceeds their cell's bound, force-closure samples);
     ``rows`` > 0: each cell's LP by row generation from that many rows."""
     rng = np.random.default_rng(seed)
@@ -96,7 +96,8 @@ def test_the_check_fails_when_a_term_is_dropped(monkeypatch):
     monkeypatch.setattr(placement_bound._GrowingLP, "solve", dropped)
     model = box_model(2.0)
     specs = contact_specs(4, type="pcwf", mu=0.5)
-    bad, _ = _violations(Eligibility(model, specs, 0.5), (0, 1, 2, 3), 3, 3, depth=(10, 11))
+    eligibility = Eligibility(model, specs, 0.5)
+    bad, _ = _violations(eligibility, (0, 1, 2, 3), 4, 4, seed=1, depth=(10, 11))
     assert bad > 0
 
 
