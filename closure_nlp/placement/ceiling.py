@@ -48,7 +48,8 @@ scaled
 by
 ``lam_ir``) are added to ``U`` while they lie below the LP value. *Branching*: a contact with
 several pieces is split into its heaviest piece and the rest; a contact on one piece has it
-halved (longest edge of a triangle, longest diagonal of a polygon, midpoint of a segment); the
+halved (longest edge of a triangle, across the longest extent of a polygon, midpoint of a
+segment); the
 interpolation error of (2) shrinks with the piece's size. The contact split is the one whose
 piece has the largest moment ``size * f_max``: the torque its force can make across the piece,
 which (2) lets the vertices' weights make as if several contacts pushed there. The bound depends
@@ -76,8 +77,16 @@ whose
 error is of second order in the pieces' sizes, with no kink at the contacts on a facet; the
 cell's bound is the least of the two LPs' weak duals (both certified).
 
-Incumbents come from the exchange method (:class:`~closure_nlp.placement.placer.Placer`) started at
-the LP's placement in the best cell, every value certified by
+*Probes*: a split cell's LP placement (each contact at the weights' point on its heaviest
+piece) gets a light rho search. Its weakest direction joins the working set: the cut descent
+starts on the LP's weights and can miss it, and without it cells shrunk to points kept bounds
+above every placement in them (the cup's 3 SFCe: the ceiling stayed 4% above for hundreds of
+cells). The placement, certified, becomes the incumbent when it holds more: as the cells
+shrink round the best placement, their LP placements approach it.
+
+Incumbents also come from the exchange method (:class:`~closure_nlp.placement.placer.Placer`)
+started at the LP's placement in the best cell (``polish_every``; an exchange run costs as much
+as hundreds of cells), every value certified by
 :func:`closure_nlp.criterion.support_minimum.rho`. With frictionless contacts only, a climb on the
 closed-form capacity of their zonotope (:mod:`closure_nlp.criterion.frictionless`) first searches
 the
@@ -120,6 +129,14 @@ ROW_TOLERANCE = 1e-6
 CUT_LOWEST = 12
 ROOT_CUT_SAMPLES = 24
 CUT_ITERATIONS = 60
+# A probed placement that may beat the incumbent is certified at once when its search value
+# beats it by more than this share, else only the best such one, when the search ends (a
+# certificate costs as much as several cells).
+PROBE_STEP = 0.01
+# Exchange runs from cells under a budget of cells alone (polish_every apart): they find
+# better placements than the probes (the lamp's 3 and 4 SFCe, 0.3-1.2%), and more of them
+# cost more than the cells.
+CELL_BUDGET_POLISHES = 2
 # Frictionless contacts: the climb on their zonotope's closed-form capacity (members,
 # iterations) at the root and at a cell, and the root's placements polished by the exchange
 # method. The root's (200, 100) gets most of what three times the members and twice the steps
@@ -161,6 +178,8 @@ class BoundOptions:
         ... and, under a finite ``time_budget``, only while the exchange runs have taken at
         most this share of the time spent (1: always). Without a time budget the cells alone
         decide when they run: the same answer on any machine.
+    polish_runs : int or None
+        Those exchange runs at most (None: no limit).
     cut_samples : int
         Quasi-random starts (besides ``+-e_k`` and the working set's lowest directions) of a
         cell's cut descent; the root's always has 24. Fewer make cells cheaper and looser
@@ -189,6 +208,7 @@ class BoundOptions:
     max_nodes: int = 100_000
     polish_every: int = 20
     polish_share: float = 0.3
+    polish_runs: int | None = None
     cut_samples: int = 24
     lp_rows: int = 24
     probe_every: int = 2
@@ -202,7 +222,7 @@ class BoundOptions:
             if not np.isfinite(value) and name != "time_budget":
                 raise ValueError(f"{name}: expected a finite number, got {value!r}")
         names = ("root_cuts", "cell_cuts", "max_nodes", "polish_every", "cut_samples", "lp_rows")
-        names += ("probe_every",)
+        names += ("probe_every",) + (() if self.polish_runs is None else ("polish_runs",))
         for name in names:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 0:
@@ -729,7 +749,8 @@ def capacity_bound(
     closed = -np.inf  # the largest bound of a closed cell
     nodes, polishes, history = 1, 0, [(0.0, root.value, best_value, 1)]
     probes, splits = 0, 0
-    polish_seconds, polished_at = 0.0, -np.inf
+    pending = (-np.inf, None, None, None)  # the best probed placement not yet certified
+    polish_seconds, polished_at, cell_polishes = 0.0, -np.inf, 0
     polisher = ExchangePlacer(
         eligibility,
         PlacementOptions(
@@ -767,7 +788,7 @@ def capacity_bound(
             best, best_value = found, _capacity(found)
 
     def probe(cell: _Cell):
-        nonlocal best, best_value, probes
+        nonlocal probes, pending
         probes += 1
         ids, positions = _lp_placement(lp, cell)
         ids, positions = ids[k0:], positions[k0:]
@@ -780,15 +801,33 @@ def capacity_bound(
             # any unit direction is a valid cut
             u = np.asarray(u, float) / np.linalg.norm(u)
             lp.directions = np.vstack([lp.directions, u[None]])[-MAX_DIRECTIONS:]
-        # -found.rho bounds its capacity from above: certified only when it may beat the best
-        if options.probe_incumbents and -found.rho > best_value:
-            placed = polisher.certified_at(ids, weights, found.direction)
-            if placed is not None and _capacity(placed) > best_value:
-                best, best_value = placed, _capacity(placed)
+        # -found.rho bounds its capacity from above: certified only when it may beat the best,
+        # at once when by more than PROBE_STEP of it, else the best such one at the end
+        value = -found.rho
+        if not options.probe_incumbents or not value > max(best_value, pending[0]):
+            return
+        pending = (value, ids, weights, found.direction)
+        if not np.isfinite(best_value) or value > best_value + PROBE_STEP * abs(best_value):
+            certify_pending()
+
+    def certify_pending():
+        nonlocal best, best_value, pending
+        value, ids, weights, direction = pending
+        pending = (-np.inf, None, None, None)
+        if not value > best_value:
+            return
+        placed = polisher.certified_at(ids, weights, direction)
+        if placed is not None and _capacity(placed) > best_value:
+            best, best_value = placed, _capacity(placed)
+
+    def polishing() -> bool:  # exchange runs from cells still to come
+        runs = options.polish_runs
+        return bool(options.polish_every) and (runs is None or cell_polishes < runs)
 
     def try_placement(cell: _Cell):
-        nonlocal polish_seconds, polished_at
+        nonlocal polish_seconds, polished_at, cell_polishes
         started, polished_at = time.perf_counter(), nodes
+        cell_polishes += 1
         starts = []
         if frictionless:  # the climb's best from the LP's placement and random ones
             starts = _climbed(lp, cell, CLIMB_CELL, seed=nodes)[:1]
@@ -813,7 +852,7 @@ def capacity_bound(
         # an exchange run every polish_every cells; under a time budget only while they take
         # at most polish_share of the time (one costs seconds, as much as hundreds of cells).
         # A budget of cells alone keeps its answer independent of the machine's speed.
-        due = options.polish_every and nodes - polished_at >= options.polish_every
+        due = polishing() and nodes - polished_at >= options.polish_every
         if np.isfinite(options.time_budget):
             due = due and polish_seconds <= options.polish_share * (time.perf_counter() - t0)
         if due and not late:
@@ -844,8 +883,8 @@ def capacity_bound(
                 options.lp_rows,
                 options.cut_samples,
                 best_value,
-                # no climb starts from a cell's LP weights without exchange runs
-                None if options.polish_every else True,
+                # warm unless a climb may start from the cell's LP weights
+                None if polishing() else True,
             )
             if bound.value > cell.bound.value:  # the parent's bound holds for its parts too
                 bound = replace(bound, value=cell.bound.value)
@@ -858,6 +897,7 @@ def capacity_bound(
         history.append((time.perf_counter() - t0, ceiling(), best_value, nodes))
         if progress:
             progress("capacity bound", nodes, ceiling())
+    certify_pending()
     value = ceiling()
     gap = relative_gap(value, best_value)
     reached = value <= zero or (gap is not None and gap <= options.gap)
@@ -892,14 +932,13 @@ def bounded(placer, elements, result, t0: float, progress=None):
     if not options.bound_neighbours:  # the elements the contacts sit on
         elements = result.elements
         domain = tuple((e,) for e in elements)
-    # A budget of cells alone: no exchange runs (each costs as much as hundreds of cells; the
-    # probes' placements are the incumbents), so its time follows the cells.
-    polish = BoundOptions.polish_every if np.isfinite(budget) else 0
+    # A budget of cells alone: two exchange runs (at the first cell and the 21st), each costing
+    # as much as hundreds of cells; the probes' placements are the other incumbents.
     bound = BoundOptions(
         gap=options.target_gap,
         time_budget=budget,
         max_nodes=options.bound_cells,
-        polish_every=polish,
+        polish_runs=None if np.isfinite(budget) else CELL_BUDGET_POLISHES,
     )
     found = capacity_bound(placer, elements, result, bound, domain, progress)
     chosen = result
