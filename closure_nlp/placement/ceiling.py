@@ -100,6 +100,7 @@ from __future__ import annotations
 
 import heapq
 import time
+from collections import OrderedDict
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -120,6 +121,8 @@ from closure_nlp.selection.algorithms import SCREEN_SEARCH
 
 # Directions kept in the shared working set of the cutting planes (the most recent ones).
 MAX_DIRECTIONS = 600
+# Pieces whose vertices' grasp matrices a CellLP keeps (the most recently used).
+KEPT_GRASPS = 4096
 # Row generation adds at most this many rows per solve, while the LP's weights fall below
 # (1 - ROW_TOLERANCE) times its value on them.
 ADDED_ROWS = 24
@@ -411,16 +414,28 @@ class CellLP:
         self.directions = np.asarray(sphere_samples(40, seed=3), float).copy()
         self.cuts = 0
         self.frictionless = _frictionless(eligibility)
+        self._grasp: OrderedDict[Piece, np.ndarray] = OrderedDict()
+
+    def grasp(self, piece: Piece) -> np.ndarray:
+        """The grasp matrices of a piece's vertices: a cell shares all but one contact's
+        pieces with its parent, so the most recent pieces' are kept."""
+        G = self._grasp.get(piece)
+        if G is None:
+            ts = self.eligibility.torque_scale
+            G = grasp_matrices(piece.vertices - self.reference, piece.inward_normal, ts)
+            self._grasp[piece] = G
+            if len(self._grasp) > KEPT_GRASPS:
+                self._grasp.popitem(last=False)
+        else:
+            self._grasp.move_to_end(piece)
+        return G
 
     def rows(self, cell) -> tuple[WrenchSlots, list[np.ndarray], list[int]]:
         """The cell's vertex rows: slots (one per contact, one row per piece vertex), each
         contact's vertex positions (R_i, 3) and its rows' count."""
-        ts = self.eligibility.torque_scale
         slots, positions, counts = [], [], []
         for spec, pieces in zip(self.eligibility.all_specs, cell):
-            G = np.concatenate(
-                [grasp_matrices(p.vertices - self.reference, p.inward_normal, ts) for p in pieces]
-            )
+            G = np.concatenate([self.grasp(p) for p in pieces])
             slots.append((G, spec.type, spec.mu, spec.mu_s, spec.f_max))
             positions.append(np.concatenate([p.vertices for p in pieces]))
             counts.append(len(G))
