@@ -811,19 +811,25 @@ def capacity_bound(
         warm = cell.bound.directions[np.argmax(cell.bound.y)] if len(cell.bound.y) else None
         contacts = polisher.contact_set(ids, weights)
         found = search_rho(contacts, minimizer=light, warm_start=warm)
-        u = found.direction
-        if u is not None and np.all(np.isfinite(u)) and np.linalg.norm(u) > 0.0:
-            # any unit direction is a valid cut
-            u = np.asarray(u, float) / np.linalg.norm(u)
-            lp.directions = np.vstack([lp.directions, u[None]])[-MAX_DIRECTIONS:]
+        add_cut(found.direction)
         # -found.rho bounds its capacity from above: certified only when it may beat the best,
         # at once when by more than PROBE_STEP of it, else the best such one at the end
+        if not options.probe_incumbents or not -found.rho > max(best_value, pending[0]):
+            return
+        # the light search often misses the weakest direction: the full one judges it first
+        found = search_rho(contacts, minimizer=eligibility.minimizer, warm_start=found.direction)
+        add_cut(found.direction)
         value = -found.rho
-        if not options.probe_incumbents or not value > max(best_value, pending[0]):
+        if not value > max(best_value, pending[0]):
             return
         pending = (value, ids, weights, found.direction)
         if not np.isfinite(best_value) or value > best_value + PROBE_STEP * abs(best_value):
             certify_pending()
+
+    def add_cut(u):  # any unit direction is a valid cut
+        if u is not None and np.all(np.isfinite(u)) and np.linalg.norm(u) > 0.0:
+            u = np.asarray(u, float) / np.linalg.norm(u)
+            lp.directions = np.vstack([lp.directions, u[None]])[-MAX_DIRECTIONS:]
 
     def certify_pending():
         nonlocal best, best_value, pending
