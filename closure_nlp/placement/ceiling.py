@@ -81,8 +81,9 @@ cell's bound is the least of the two LPs' weak duals (both certified).
 piece) gets a light rho search. Its weakest direction joins the working set: the cut descent
 starts on the LP's weights and can miss it, and without it cells shrunk to points kept bounds
 above every placement in them (the cup's 3 SFCe: the ceiling stayed 4% above for hundreds of
-cells). The placement, certified, becomes the incumbent when it holds more: as the cells
-shrink round the best placement, their LP placements approach it.
+cells). When the light search's value beats the incumbent, the full search judges it (adding
+its direction too), and the placement, certified, becomes the incumbent when it holds more: as
+the cells shrink round the best placement, their LP placements approach it.
 
 Incumbents also come from the exchange method (:class:`~closure_nlp.placement.placer.Placer`)
 started at the LP's placement in the best cell (``polish_every``; an exchange run costs as much
@@ -195,9 +196,9 @@ class BoundOptions:
         Every that many splits, a light rho search at the split cell's LP placement: its
         weakest direction joins the working set (a cut the descent on the LP's weights can
         miss: without it, cells shrunk to points kept bounds 4% above any placement in them,
-        cup, 3 SFCe), and with ``probe_incumbents`` the placement, certified, becomes the
-        incumbent when it holds more (0: never). A probe costs about a cell; an exchange run
-        (``polish_every``) hundreds.
+        cup, 3 SFCe), and with ``probe_incumbents`` the placement, judged by the full search
+        and certified, becomes the incumbent when it holds more (0: never). A probe costs about
+        a cell; an exchange run (``polish_every``) hundreds.
     probe_incumbents : bool
         Whether probed placements may replace the incumbent (the part's ceiling keeps the
         plan's).
