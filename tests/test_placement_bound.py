@@ -49,7 +49,7 @@ def _sample(rng, eligibility, cell) -> ContactSet:
     return ContactSet(tuple(contacts), eligibility.torque_scale, eligibility.model.reference_point)
 
 
-def _violations(eligibility, elements, cells=4, samples=5, seed=0, depth=(0, 10), rows=0):
+def _violations(eligibility, elements, cells=6, samples=5, seed=0, depth=(0, 10), rows=0):
     """(samples whose certified capacity -hi exceeds their cell's bound, force-closure samples);
     ``rows`` > 0: each cell's LP by row generation from that many rows."""
     rng = np.random.default_rng(seed)
@@ -96,7 +96,8 @@ def test_the_check_fails_when_a_term_is_dropped(monkeypatch):
     monkeypatch.setattr(placement_bound._GrowingLP, "solve", dropped)
     model = box_model(2.0)
     specs = contact_specs(4, type="pcwf", mu=0.5)
-    bad, _ = _violations(Eligibility(model, specs, 0.5), (0, 1, 2, 3), 3, 3, depth=(10, 11))
+    eligibility = Eligibility(model, specs, 0.5)
+    bad, _ = _violations(eligibility, (0, 1, 2, 3), 4, 4, seed=1, depth=(10, 11))
     assert bad > 0
 
 
@@ -264,6 +265,10 @@ def test_options_are_checked():
         BoundOptions(time_budget=float("nan"))
     with pytest.raises(ValueError, match="root_cuts"):
         BoundOptions(root_cuts=1.5)
+    with pytest.raises(ValueError, match="polish_runs"):
+        BoundOptions(polish_runs=-1)
+    with pytest.raises(ValueError, match="probe_every"):
+        BoundOptions(probe_every=-2)
 
 
 def test_gap_text_says_what_was_proved():
@@ -473,3 +478,60 @@ def test_frictionless_cells_take_the_facet_bound():
             closed = lp.bound(cell, rounds=2, tolerance=1e-3, floor=facet)
             assert closed.value == facet and len(closed.y) == 0
     assert with_facets >= 3
+
+
+def _area(v: np.ndarray) -> float:
+    """Area of a planar polygon in 3-D (vertices in order)."""
+    return 0.5 * float(np.linalg.norm(np.cross(v - v[0], np.roll(v, -1, axis=0) - v[0]).sum(0)))
+
+
+def test_a_polygon_is_cut_across_its_longest_extent():
+    """A round facet's halves cover it (areas add up, every vertex inside) and keep shrinking:
+    a cut along a diagonal would keep the diameter; four cuts halve it here."""
+    t = np.linspace(0.0, 2.0 * np.pi, 25)[:-1]
+    vertices = np.c_[16.0 * np.cos(t), 16.0 * np.sin(t), np.full(24, 3.0)]
+    piece = placement_bound.Piece(0, vertices, np.array([0.0, 0.0, -1.0]))
+    halves = piece.halves()
+    assert sum(_area(h.vertices) for h in halves) == pytest.approx(_area(vertices), rel=1e-12)
+    for h in halves:
+        assert np.all(np.linalg.norm(h.vertices[:, :2], axis=1) <= 16.0 + 1e-9)
+        assert np.allclose(h.vertices[:, 2], 3.0)
+    for _ in range(4):
+        piece = max(piece.halves(), key=lambda p: p.size)
+    assert piece.size <= 0.5 * 32.0
+
+
+def test_probes_give_cuts_and_incumbents_and_keep_the_ceiling_sound():
+    """Probes (the split cells' LP placements searched) on 3 contacts of the box: no sampled
+    placement beats the ceiling, and a probed incumbent is a certified placement with no
+    exchange round, never below the given one."""
+    model = box_model(1.0)
+    specs = contact_specs(3, type="sfce", mu=0.5, mu_s=0.2)
+    eligibility = Eligibility(model, specs, 0.7)
+    placer = Placer(
+        eligibility, PlacementOptions(neighbour_moves=0, starts=1, extra_starts=0, bound=False)
+    )
+    elements = (0, 1, 2)
+    placed = placer(elements)
+    common = dict(gap=0.0, time_budget=np.inf, max_nodes=120, polish_every=0)
+    probed = capacity_bound(placer, elements, placed, BoundOptions(**common))
+    plain = capacity_bound(placer, elements, placed, BoundOptions(**common, probe_every=0))
+    assert probed.value >= probed.capacity >= plain.capacity == -placed.bounds[1]
+    if probed.placement is not None:  # a probe's placement: certified, no exchange round
+        assert probed.placement.rounds == 0
+        assert -probed.placement.bounds[1] == probed.capacity
+        again = rho(probed.placement.contact_set)
+        assert -again.bounds[1] == pytest.approx(probed.capacity, rel=1e-6)
+    rng = np.random.default_rng(7)
+    cell = tuple(element_pieces(eligibility, e) for e in elements)
+    held = 0
+    for _ in range(30):
+        capacity = -rho(_sample(rng, eligibility, cell)).bounds[1]
+        held += capacity > 0
+        assert capacity <= probed.value
+    assert held >= 5
+    # without probe incumbents (the part's ceiling) the given placement stays the incumbent
+    kept = capacity_bound(
+        placer, elements, placed, BoundOptions(**common, probe_incumbents=False)
+    )
+    assert kept.placement is None and kept.capacity == -placed.bounds[1]

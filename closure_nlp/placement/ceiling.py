@@ -48,7 +48,8 @@ scaled
 by
 ``lam_ir``) are added to ``U`` while they lie below the LP value. *Branching*: a contact with
 several pieces is split into its heaviest piece and the rest; a contact on one piece has it
-halved (longest edge of a triangle, longest diagonal of a polygon, midpoint of a segment); the
+halved (longest edge of a triangle, across the longest extent of a polygon, midpoint of a
+segment); the
 interpolation error of (2) shrinks with the piece's size. The contact split is the one whose
 piece has the largest moment ``size * f_max``: the torque its force can make across the piece,
 which (2) lets the vertices' weights make as if several contacts pushed there. The bound depends
@@ -76,8 +77,17 @@ whose
 error is of second order in the pieces' sizes, with no kink at the contacts on a facet; the
 cell's bound is the least of the two LPs' weak duals (both certified).
 
-Incumbents come from the exchange method (:class:`~closure_nlp.placement.placer.Placer`) started at
-the LP's placement in the best cell, every value certified by
+*Probes*: a split cell's LP placement (each contact at the weights' point on its heaviest
+piece) gets a light rho search. Its weakest direction joins the working set: the cut descent
+starts on the LP's weights and can miss it, and without it cells shrunk to points kept bounds
+above every placement in them (the cup's 3 SFCe: the ceiling stayed 4% above for hundreds of
+cells). When the light search's value beats the incumbent, the full search judges it (adding
+its direction too), and the placement, certified, becomes the incumbent when it holds more: as
+the cells shrink round the best placement, their LP placements approach it.
+
+Incumbents also come from the exchange method (:class:`~closure_nlp.placement.placer.Placer`)
+started at the LP's placement in the best cell (``polish_every``; an exchange run costs as much
+as hundreds of cells), every value certified by
 :func:`closure_nlp.criterion.support_minimum.rho`. With frictionless contacts only, a climb on the
 closed-form capacity of their zonotope (:mod:`closure_nlp.criterion.frictionless`) first searches
 the
@@ -91,6 +101,7 @@ from __future__ import annotations
 
 import heapq
 import time
+from collections import OrderedDict
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -101,14 +112,18 @@ from closure_nlp.criterion.certificate import tolerance_unit
 from closure_nlp.criterion.frictionless import MAX_CONTACTS, climb, facet_rows
 from closure_nlp.criterion.rho_hat import Eligibility
 from closure_nlp.criterion.sphere_search import descend, sphere_samples
+from closure_nlp.criterion.support_minimum import search_rho
 from closure_nlp.model.elements import nearest_weights
 from closure_nlp.placement import max_min_lp as lp_solvers  # tests swap its solvers
 from closure_nlp.placement.max_min_lp import INF, OPTIMAL, dual_bound, max_min_model, thread_solver
 from closure_nlp.placement.placer import ExchangePlacer, PlacementOptions
 from closure_nlp.placement.spacing import SpacingError
+from closure_nlp.selection.algorithms import SCREEN_SEARCH
 
 # Directions kept in the shared working set of the cutting planes (the most recent ones).
 MAX_DIRECTIONS = 600
+# Pieces whose vertices' grasp matrices a CellLP keeps (the most recently used).
+KEPT_GRASPS = 4096
 # Row generation adds at most this many rows per solve, while the LP's weights fall below
 # (1 - ROW_TOLERANCE) times its value on them.
 ADDED_ROWS = 24
@@ -118,6 +133,14 @@ ROW_TOLERANCE = 1e-6
 CUT_LOWEST = 12
 ROOT_CUT_SAMPLES = 24
 CUT_ITERATIONS = 60
+# A probed placement that may beat the incumbent is certified at once when its search value
+# beats it by more than this share, else only the best such one, when the search ends (a
+# certificate costs as much as several cells).
+PROBE_STEP = 0.01
+# Exchange runs from cells under a budget of cells alone (polish_every apart): they find
+# better placements than the probes (the lamp's 3 and 4 SFCe, 0.3-1.2%), and more of them
+# cost more than the cells.
+CELL_BUDGET_POLISHES = 2
 # Frictionless contacts: the climb on their zonotope's closed-form capacity (members,
 # iterations) at the root and at a cell, and the root's placements polished by the exchange
 # method. The root's (200, 100) gets most of what three times the members and twice the steps
@@ -159,6 +182,8 @@ class BoundOptions:
         ... and, under a finite ``time_budget``, only while the exchange runs have taken at
         most this share of the time spent (1: always). Without a time budget the cells alone
         decide when they run: the same answer on any machine.
+    polish_runs : int or None
+        Those exchange runs at most (None: no limit).
     cut_samples : int
         Quasi-random starts (besides ``+-e_k`` and the working set's lowest directions) of a
         cell's cut descent; the root's always has 24. Fewer make cells cheaper and looser
@@ -167,18 +192,31 @@ class BoundOptions:
         Rows (directions) a cell's LP starts with, the parent's active ones besides; the
         working set's others join where the LP's weights fall below its value on them (row
         generation, same bound). 0: every row from the start.
+    probe_every : int
+        Every that many splits, a light rho search at the split cell's LP placement: its
+        weakest direction joins the working set (a cut the descent on the LP's weights can
+        miss: without it, cells shrunk to points kept bounds 4% above any placement in them,
+        cup, 3 SFCe), and with ``probe_incumbents`` the placement, judged by the full search
+        and certified, becomes the incumbent when it holds more (0: never). A probe costs about
+        a cell; an exchange run (``polish_every``) hundreds.
+    probe_incumbents : bool
+        Whether probed placements may replace the incumbent (the part's ceiling keeps the
+        plan's).
     """
 
     gap: float = 0.02
     time_budget: float = 30.0
     root_cuts: int = 30
-    cell_cuts: int = 4
+    cell_cuts: int = 1
     cut_tolerance: float = 1e-3
     max_nodes: int = 100_000
     polish_every: int = 20
     polish_share: float = 0.3
+    polish_runs: int | None = None
     cut_samples: int = 24
     lp_rows: int = 24
+    probe_every: int = 2
+    probe_incumbents: bool = True
 
     def __post_init__(self) -> None:
         for name in ("gap", "time_budget", "cut_tolerance", "polish_share"):
@@ -188,6 +226,7 @@ class BoundOptions:
             if not np.isfinite(value) and name != "time_budget":
                 raise ValueError(f"{name}: expected a finite number, got {value!r}")
         names = ("root_cuts", "cell_cuts", "max_nodes", "polish_every", "cut_samples", "lp_rows")
+        names += ("probe_every",) + (() if self.polish_runs is None else ("polish_runs",))
         for name in names:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 0:
@@ -222,18 +261,31 @@ class Piece:
             a, b, c = v[j], v[(j + 1) % 3], v[(j + 2) % 3]
             mid = 0.5 * (a + b)
             return self._with(np.array([a, mid, c])), self._with(np.array([mid, b, c]))
-        # a polygon: cut along its longest diagonal
-        best, cut = -1.0, (0, 2)
-        for a in range(k):
-            for b in range(a + 2, k if a else k - 1):
-                length = float(np.linalg.norm(v[a] - v[b]))
-                if length > best:
-                    best, cut = length, (a, b)
-        a, b = cut
-        return self._with(v[a : b + 1]), self._with(np.vstack([v[b:], v[: a + 1]]))
+        # a polygon: cut across its longest extent (the line through the midpoint of its two
+        # farthest vertices, square to them): cuts along diagonals leave slivers as long as the
+        # polygon (a rectangle's two triangles, a round facet's halves keep its diameter), so
+        # the bound would hardly narrow (the pistol's 3 PCwF, 300 cells: gap 44% -> 29%)
+        d = np.linalg.norm(v[:, None] - v[None], axis=2)
+        a, b = np.unravel_index(int(np.argmax(d)), d.shape)
+        side = (v - 0.5 * (v[a] + v[b])) @ (v[b] - v[a])
+        return self._with(_clipped(v, -side)), self._with(_clipped(v, side))
 
     def _with(self, vertices: np.ndarray) -> Piece:
         return Piece(self.element, vertices, self.inward_normal)
+
+
+def _clipped(v: np.ndarray, side: np.ndarray) -> np.ndarray:
+    """The part of the convex polygon ``v`` (vertices in order) where the affine function
+    with values ``side`` at its vertices is <= 0, in the same order."""
+    out = []
+    for j in range(len(v)):
+        k = (j + 1) % len(v)
+        if side[j] <= 0.0:
+            out.append(v[j])
+        if (side[j] < 0.0 < side[k]) or (side[k] < 0.0 < side[j]):
+            t = side[j] / (side[j] - side[k])
+            out.append(v[j] + t * (v[k] - v[j]))
+    return np.array(out)
 
 
 @dataclass(frozen=True, eq=False)
@@ -363,16 +415,28 @@ class CellLP:
         self.directions = np.asarray(sphere_samples(40, seed=3), float).copy()
         self.cuts = 0
         self.frictionless = _frictionless(eligibility)
+        self._grasp: OrderedDict[Piece, np.ndarray] = OrderedDict()
+
+    def grasp(self, piece: Piece) -> np.ndarray:
+        """The grasp matrices of a piece's vertices: a cell shares all but one contact's
+        pieces with its parent, so the most recent pieces' are kept."""
+        G = self._grasp.get(piece)
+        if G is None:
+            ts = self.eligibility.torque_scale
+            G = grasp_matrices(piece.vertices - self.reference, piece.inward_normal, ts)
+            self._grasp[piece] = G
+            if len(self._grasp) > KEPT_GRASPS:
+                self._grasp.popitem(last=False)
+        else:
+            self._grasp.move_to_end(piece)
+        return G
 
     def rows(self, cell) -> tuple[WrenchSlots, list[np.ndarray], list[int]]:
         """The cell's vertex rows: slots (one per contact, one row per piece vertex), each
         contact's vertex positions (R_i, 3) and its rows' count."""
-        ts = self.eligibility.torque_scale
         slots, positions, counts = [], [], []
         for spec, pieces in zip(self.eligibility.all_specs, cell):
-            G = np.concatenate(
-                [grasp_matrices(p.vertices - self.reference, p.inward_normal, ts) for p in pieces]
-            )
+            G = np.concatenate([self.grasp(p) for p in pieces])
             slots.append((G, spec.type, spec.mu, spec.mu_s, spec.f_max))
             positions.append(np.concatenate([p.vertices for p in pieces]))
             counts.append(len(G))
@@ -388,6 +452,7 @@ class CellLP:
         rows: int = 0,
         samples: int = ROOT_CUT_SAMPLES,
         floor: float = -np.inf,
+        warm: bool | None = None,
     ) -> CellBound:
         """The cell's certified LP bound after at most ``rounds`` cutting-plane rounds (none
         begun after ``deadline``, a :func:`time.perf_counter` value). With ``rows`` > 0 the LP
@@ -396,7 +461,9 @@ class CellLP:
         where the LP's weights fall below its value on them (:meth:`_solve_rows`). ``samples``:
         quasi-random starts of the cut descent. For frictionless contacts each on one piece the
         bound is the least of this LP's and the zonotope's facet bound (:meth:`facet_bound`),
-        and the LP is skipped when the facet bound is at most ``floor`` (the cell closes)."""
+        and the LP is skipped when the facet bound is at most ``floor`` (the cell closes).
+        ``warm``: whether the LP's re-solves start from its last basis (default: unless every
+        contact is frictionless, see below)."""
         facet = self.facet_bound(cell)
         if facet <= floor:
             lam = np.concatenate([np.full(len(p.vertices), 1.0 / len(p.vertices)) for (p,) in cell])
@@ -408,8 +475,9 @@ class CellLP:
         work = self._first_rows(A, owner, len(hint) if hint is not None else 0, rows)
         # Frictionless contacts: the LP's weights start the climb to placements, and an LP kept
         # warm ends at another point of its optimal face, from which the climbs ended worse (96
-        # fixture-study FPC tasks: 35 worse, 19 better, rho summed 1-3% weaker): solved afresh.
-        lp = _GrowingLP(owner, keep_basis=not self.frictionless)
+        # fixture-study FPC tasks: 35 worse, 19 better, rho summed 1-3% weaker): solved afresh
+        # where a climb starts from them.
+        lp = _GrowingLP(owner, keep_basis=not self.frictionless if warm is None else warm)
         for k in range(rounds + 1):
             result = self._solve_rows(A, owner, pool, work, lp)
             work = lp.rows
@@ -696,7 +764,9 @@ def capacity_bound(
     heap = [_Cell(root_cell, root, 0)]
     closed = -np.inf  # the largest bound of a closed cell
     nodes, polishes, history = 1, 0, [(0.0, root.value, best_value, 1)]
-    polish_seconds, polished_at = 0.0, -np.inf
+    probes, splits = 0, 0
+    pending = (-np.inf, None, None, None)  # the best probed placement not yet certified
+    polish_seconds, polished_at, cell_polishes = 0.0, -np.inf, 0
     polisher = ExchangePlacer(
         eligibility,
         PlacementOptions(
@@ -711,6 +781,7 @@ def capacity_bound(
     )
 
     frictionless = _frictionless(eligibility)
+    light = eligibility.minimizer.with_search(SCREEN_SEARCH)
 
     def ceiling() -> float:
         top = heap[0].bound.value if heap else -np.inf
@@ -732,9 +803,53 @@ def capacity_bound(
         if _capacity(found) > best_value:
             best, best_value = found, _capacity(found)
 
+    def probe(cell: _Cell):
+        nonlocal probes, pending
+        probes += 1
+        ids, positions = _lp_placement(lp, cell)
+        ids, positions = ids[k0:], positions[k0:]
+        weights = [nearest_weights(model.elements[e].vertices, x) for e, x in zip(ids, positions)]
+        warm = cell.bound.directions[np.argmax(cell.bound.y)] if len(cell.bound.y) else None
+        contacts = polisher.contact_set(ids, weights)
+        found = search_rho(contacts, minimizer=light, warm_start=warm)
+        add_cut(found.direction)
+        # -found.rho bounds its capacity from above: certified only when it may beat the best,
+        # at once when by more than PROBE_STEP of it, else the best such one at the end
+        if not options.probe_incumbents or not -found.rho > max(best_value, pending[0]):
+            return
+        # the light search often misses the weakest direction: the full one judges it first
+        found = search_rho(contacts, minimizer=eligibility.minimizer, warm_start=found.direction)
+        add_cut(found.direction)
+        value = -found.rho
+        if not value > max(best_value, pending[0]):
+            return
+        pending = (value, ids, weights, found.direction)
+        if not np.isfinite(best_value) or value > best_value + PROBE_STEP * abs(best_value):
+            certify_pending()
+
+    def add_cut(u):  # any unit direction is a valid cut
+        if u is not None and np.all(np.isfinite(u)) and np.linalg.norm(u) > 0.0:
+            u = np.asarray(u, float) / np.linalg.norm(u)
+            lp.directions = np.vstack([lp.directions, u[None]])[-MAX_DIRECTIONS:]
+
+    def certify_pending():
+        nonlocal best, best_value, pending
+        value, ids, weights, direction = pending
+        pending = (-np.inf, None, None, None)
+        if not value > best_value:
+            return
+        placed = polisher.certified_at(ids, weights, direction)
+        if placed is not None and _capacity(placed) > best_value:
+            best, best_value = placed, _capacity(placed)
+
+    def polishing() -> bool:  # exchange runs from cells still to come
+        runs = options.polish_runs
+        return bool(options.polish_every) and (runs is None or cell_polishes < runs)
+
     def try_placement(cell: _Cell):
-        nonlocal polish_seconds, polished_at
+        nonlocal polish_seconds, polished_at, cell_polishes
         started, polished_at = time.perf_counter(), nodes
+        cell_polishes += 1
         starts = []
         if frictionless:  # the climb's best from the LP's placement and random ones
             starts = _climbed(lp, cell, CLIMB_CELL, seed=nodes)[:1]
@@ -759,7 +874,7 @@ def capacity_bound(
         # an exchange run every polish_every cells; under a time budget only while they take
         # at most polish_share of the time (one costs seconds, as much as hundreds of cells).
         # A budget of cells alone keeps its answer independent of the machine's speed.
-        due = options.polish_every and nodes - polished_at >= options.polish_every
+        due = polishing() and nodes - polished_at >= options.polish_every
         if np.isfinite(options.time_budget):
             due = due and polish_seconds <= options.polish_share * (time.perf_counter() - t0)
         if due and not late:
@@ -774,6 +889,9 @@ def capacity_bound(
         if split is None:  # every contact on one point: the bound is its placement's own
             closed = max(closed, cell.bound.value)
             continue
+        splits += 1
+        if options.probe_every and splits % options.probe_every == 0:
+            probe(cell)
         hint = cell.bound.directions[cell.bound.y > 0.0]
         for pieces in split:
             if spacing and not _room(pieces, spacing, k0):
@@ -787,6 +905,8 @@ def capacity_bound(
                 options.lp_rows,
                 options.cut_samples,
                 best_value,
+                # warm unless a climb may start from the cell's LP weights
+                None if polishing() else True,
             )
             if bound.value > cell.bound.value:  # the parent's bound holds for its parts too
                 bound = replace(bound, value=cell.bound.value)
@@ -799,6 +919,7 @@ def capacity_bound(
         history.append((time.perf_counter() - t0, ceiling(), best_value, nodes))
         if progress:
             progress("capacity bound", nodes, ceiling())
+    certify_pending()
     value = ceiling()
     gap = relative_gap(value, best_value)
     reached = value <= zero or (gap is not None and gap <= options.gap)
@@ -833,14 +954,15 @@ def bounded(placer, elements, result, t0: float, progress=None):
     if not options.bound_neighbours:  # the elements the contacts sit on
         elements = result.elements
         domain = tuple((e,) for e in elements)
-    found = capacity_bound(
-        placer,
-        elements,
-        result,
-        BoundOptions(gap=options.target_gap, time_budget=budget, max_nodes=options.bound_cells),
-        domain,
-        progress,
+    # A budget of cells alone: two exchange runs (at the first cell and the 21st), each costing
+    # as much as hundreds of cells; the probes' placements are the other incumbents.
+    bound = BoundOptions(
+        gap=options.target_gap,
+        time_budget=budget,
+        max_nodes=options.bound_cells,
+        polish_runs=None if np.isfinite(budget) else CELL_BUDGET_POLISHES,
     )
+    found = capacity_bound(placer, elements, result, bound, domain, progress)
     chosen = result
     if found.placement is not None and _kept_by(found.placement) > _kept_by(result):
         better = found.placement
@@ -879,7 +1001,7 @@ def part_ceiling(placer, incumbent=None, options: BoundOptions = BoundOptions())
     m = eligibility.m
     elements = incumbent.elements if incumbent is not None else usable[:m]
     elements = tuple(elements) + tuple(usable[i % len(usable)] for i in range(len(elements), m))
-    options = replace(options, polish_every=0)
+    options = replace(options, polish_every=0, probe_incumbents=False)
     return capacity_bound(placer, elements, incumbent, options, (usable,) * m)
 
 

@@ -96,10 +96,11 @@ class PlacementOptions:
         Relative gap ``(ceiling - capacity) / ceiling`` at which that search stops (0.02).
     bound_cells : int
         Cells the branch and bound of that search may bound: a budget that gives the same
-        answer on any machine. The default, 30, costs a fraction of the exchange method's
-        time on the placed contacts' own elements: on 19 default placements of 3-4 contacts of
-        every type and 7 FPC on the examples, the median gap 19% (4 contacts: 3-13%) against
-        29% for the root cell alone (docs/placement.md). 1: the root cell alone.
+        answer on any machine. The default, 500, costs about as much as the exchange method
+        (a cell a few milliseconds, and most searches reach the gap target sooner) on the placed
+        contacts' own elements: on 19 default placements of 3-4 contacts of every type and 7 FPC
+        on the examples, 4 contacts reach 2% within 100 cells, 3 contacts 2-5% (the pistol's
+        about 23%) (docs/placement.md). 1: the root cell alone.
     bound_neighbours : bool
         The ceiling covers each contact's element and its neighbours (the elements the
         exchange method may move it to), not only the element it sits on. Off by default: over
@@ -166,7 +167,7 @@ class PlacementOptions:
     validate: bool = True
     bound: bool = True
     target_gap: float = 0.02
-    bound_cells: int = 30
+    bound_cells: int = 500
     bound_neighbours: bool = False
     time_budget: float | None = None
     exchange_solver: str = "auto"

@@ -548,6 +548,38 @@ class ExchangePlacer:
         )
         return result
 
+    def certified_at(self, elements, weights, warm_start=None) -> PlacementResult | None:
+        """The placement of one contact on each of ``elements`` at ``weights`` as it is (no
+        exchange round), its rho certified; None when it breaks the minimum spacing."""
+        t0 = time.perf_counter()
+        model = self.eligibility.model
+        if not self._kept(elements, weights):
+            return None
+        contact_set = self.contact_set(elements, weights)
+        final = rho(contact_set, minimizer=self.eligibility.minimizer, warm_start=warm_start)
+        placed = tuple(
+            PlacedContact(e, w, model.elements[e].position(w), model.elements[e].inward_normal)
+            for e, w in zip(elements, weights)
+        )
+        return PlacementResult(
+            placed,
+            contact_set,
+            final.rho,
+            final.force_closure,
+            final.direction,
+            final.rho,
+            final.rho,
+            0,
+            (),
+            time.perf_counter() - t0,
+            final.bounds,
+            final.marginal,
+            final.converged,
+            robust=final.robust,
+            shift=final.shift,
+            exchange_solver=self.exchange_solver(),
+        )
+
     def _value(self, elements, weights, found) -> float:
         """:meth:`steering` of the contacts at ``weights`` on ``elements``."""
         return self.steering(self.contact_set(elements, weights), found)
