@@ -81,12 +81,14 @@ CELLS_PER_ROUND = 128  # children per round while few cells live: fewer rounds
 # halving alone, larger factors sample fewer cells at sharp minima.
 SHELLS_BELOW = 0.6
 SHELLS_SHRINK = 8.0
-# Sets of few slots (:data:`FEW_CONTACTS`) start from the 12 whole faces, cut the cell holding
-# the incumbent into shells whatever its size, shells 3 times smaller each, in rounds of about
-# 32 children. Their minima are sharp kinks (a contact carrying the load, others switching on
-# there), whose shells drop at once where halving leaves the neighbours of the incumbent alive
-# level after level: on 73 force-closure 4-PCwF sets sampled on a mesh, 141 cells against 300
-# at the median.
+# Sets of few slots (:data:`FEW_CONTACTS`) with friction, searched over the whole sphere, start
+# from the 12 whole faces, cut the cell holding the incumbent into shells whatever its size,
+# shells 3 times smaller each, in rounds of about 32 children. Their minima are sharp kinks (a
+# contact carrying the load, others switching on there), whose shells drop at once where
+# halving leaves the neighbours of the incumbent alive level after level: on 73 force-closure
+# 4-PCwF sets sampled on a mesh, 141 cells against 300 at the median (1.35x less CPU), random
+# mixed sets 1.2x. Not frictionless sets (7 FPC: 1.5x more CPU) nor symmetric domains (two
+# opposite soft fingers: 1.4x more; round parts unchanged).
 FEW_SLOTS_SHELLS = (0, 32, np.pi, 3.0)  # initial splits, cells per round, below, shrink
 # A symmetry is used when its slack (its detection's residuals) is at most this share of the gap.
 SLACK_SHARE = 0.1
@@ -108,8 +110,8 @@ class BranchBoundOptions:
     ----------
     initial_splits : int, optional
         Halvings of every free coordinate of each cube face before the first bound (1: 32 cells
-        per face, 384 in all). None: 0 for sets of at most :data:`FEW_CONTACTS` slots, 1
-        otherwise.
+        per face, 384 in all). None: 0 for sets of at most :data:`FEW_CONTACTS` slots with
+        friction searched over the whole sphere (:data:`FEW_SLOTS_SHELLS`), 1 otherwise.
     max_cells : int
         Cells bounded in all, beyond which the search stops with ``converged=False``, unless
         it may go on to ``extended_cells``.
@@ -237,8 +239,9 @@ def sphere_minimum(
         raise ValueError(f"metric: expected six positive finite numbers, got {metric.tolist()}")
     margin = ROUNDOFF * max(slots.row_scales()) * max(1, slots.m)
     symmetry = find_symmetry(slots) if options.symmetry else None
-    splits, per_round, below, shrink = _shells(slots, options)
-    if symmetry is not None and symmetry.slack <= SLACK_SHARE * gap:
+    symmetric = symmetry is not None and symmetry.slack <= SLACK_SHARE * gap
+    splits, per_round, below, shrink = _shells(slots, options, symmetric)
+    if symmetric:
         # min over the domain - slack <= min over the sphere <= min over the domain
         frame, *cells = symmetry.domain(metric, incumbent, splits)
         slack = symmetry.slack
@@ -302,9 +305,10 @@ def sphere_minimum(
     )
 
 
-def _shells(slots: WrenchSlots, options: BranchBoundOptions) -> tuple:
-    """(initial splits, cells per round, shells below, shells' shrink) for this set."""
-    if slots.m <= FEW_CONTACTS:
+def _shells(slots: WrenchSlots, options: BranchBoundOptions, symmetric: bool) -> tuple:
+    """(initial splits, cells per round, shells below, shells' shrink) for this set, searched
+    over a symmetry's domain or not (:data:`FEW_SLOTS_SHELLS`)."""
+    if slots.m <= FEW_CONTACTS and any(slots.n_pieces) and not symmetric:
         splits, per_round, below, shrink = FEW_SLOTS_SHELLS
     else:
         splits, per_round, below, shrink = 1, CELLS_PER_ROUND, SHELLS_BELOW, SHELLS_SHRINK
