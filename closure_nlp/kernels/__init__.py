@@ -368,7 +368,7 @@ def signatures() -> dict:
     work = types.Tuple((f2, i1, f2, f1, f2, f2, f1, i1, f1))  # :func:`.branch_bound.slot_work`
     out["branch_bound", "slot_bound"] = (*slots, f2, f2, f2, f8, f8, f8, f1, work)
     out["branch_bound", "exact_bound"] = (f2, i8, f2, f2, f8, f8, f8, f1)
-    out["branch_bound", "split"] = (*cells, i8, f2, f1, f8, f8)
+    out["branch_bound", "split"] = (*cells, i8, f2, f1, f8, f8, f8)
     out["branch_bound", "frank_wolfe"] = (f2, i8, f1, f8, i8, f1, f1)
     out["branch_bound", "cloud"] = (f1, f1, f2)
     geo = types.Tuple((f1, f1, f2, f3, f3))  # :func:`.branch_bound.geometry`

@@ -792,8 +792,8 @@ LOWER, CELLS, ROUNDS, ALIVE_AT_BUDGET, POLISHED_AT, POLISHES = range(6)
 # ``settings`` (float64): its budget and tolerances.
 (
     GAP, MARGIN, FW_STEPS, REFINE_BELOW, MAX_CELLS, EXTENDED_CELLS, EXTENSION_ALIVE, MAX_ROUNDS,
-    STOP_BELOW_ZERO, CELLS_PER_ROUND, MAX_POLISH, FLOOR,
-) = range(12)  # fmt: skip
+    STOP_BELOW_ZERO, CELLS_PER_ROUND, MAX_POLISH, FLOOR, SHELLS_BELOW, SHELLS_SHRINK,
+) = range(14)  # fmt: skip
 
 
 @njit(**OPTIONS)
@@ -886,9 +886,10 @@ def advance(
         keep = keep[:alive]
         axis, sign, lo, hi = take_cells(axis, sign, lo, hi, keep)
         radius = INNER_SHARE * np.sqrt(gap / max(abs(best[0]), gap))
-        below = SHELL_BELOW if alive <= SHELL_ALIVE else 0.0
+        below = settings[SHELLS_BELOW] if alive <= SHELL_ALIVE else 0.0
+        per_round, shrink = int(settings[CELLS_PER_ROUND]), settings[SHELLS_SHRINK]
         axis, sign, lo, hi, parent = split(
-            axis, sign, lo, hi, int(settings[CELLS_PER_ROUND]), metric, best_u, radius, below
+            axis, sign, lo, hi, per_round, metric, best_u, radius, below, shrink
         )
         inherited = np.empty((len(axis), 6))
         for c in range(len(axis)):
@@ -947,13 +948,10 @@ def halve(axis, sign, lo, hi, cells_per_round):
     return axis, sign, lo, hi
 
 
-# Shells round the incumbent (:func:`shells`) shrink by this factor each: against halving
-# alone, larger factors sample fewer cells at sharp minima.
-SHELL_SHRINK = 8.0
-# Cells under this angular radius that hold the incumbent are cut into shells round it, in
-# rounds that leave at most SHELL_ALIVE cells alive: fewer cells at sharp minima; without the
-# cap, flat minima (many cells alive per level) would sample more.
-SHELL_BELOW = 0.6
+# A cell under ``settings[SHELLS_BELOW]`` in angular radius that holds the incumbent is cut
+# into shells round it (each ``settings[SHELLS_SHRINK]`` times smaller than the one outside it)
+# in rounds that leave at most SHELL_ALIVE cells alive: fewer cells at sharp minima; without
+# the cap, flat minima (many cells alive per level) would sample more.
 SHELL_ALIVE = 4
 # The inner box's angular radius, times ``sqrt(gap / |p*|)``: under the refinement's
 # :data:`HOPELESS` radius, so its games run, and its curvature loss under the gap.
@@ -1034,7 +1032,7 @@ def shells(lo, hi, y, h, shrink):
 
 
 @njit(**OPTIONS)
-def split(axis, sign, lo, hi, cells_per_round, metric, best_u, radius, below):
+def split(axis, sign, lo, hi, cells_per_round, metric, best_u, radius, below, shrink):
     """The live cells' children: a cell of angular radius under ``below`` holding the
     incumbent ``best_u`` cut into :func:`shells` round it, its inner box of angular radius
     about ``radius``, when that box is under half the cell's width; every other cell halved
@@ -1074,7 +1072,7 @@ def split(axis, sign, lo, hi, cells_per_round, metric, best_u, radius, below):
     for c in range(n):
         if h[c] > 0.0:
             holds(axis[c], sign[c], lo[c], hi[c], x, y)
-            cut.append(shells(lo[c], hi[c], y, h[c], SHELL_SHRINK))
+            cut.append(shells(lo[c], hi[c], y, h[c], shrink))
             total += len(cut[-1][0])
     axis_all, sign_all = np.empty(total, np.int64), np.empty(total)
     lo_all, hi_all = np.empty((total, 5)), np.empty((total, 5))
