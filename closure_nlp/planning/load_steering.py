@@ -58,7 +58,9 @@ def steer_by_loads(
     )
     if chosen.eligible and chosen.elements not in starts:  # holds every case: placed by rho
         try:
-            by_rho = Placer(eligibility, options, placer._caches)  # the same NLPs, built once
+            # the same NLPs, built once; no rho ceiling: this placement is a start, not reported
+            start_options = dataclasses.replace(options, bound=False)
+            by_rho = Placer(eligibility, start_options, placer._caches)
             placed = by_rho(list(chosen.elements))
             starts.setdefault(placed.elements, placed)  # it may end on neighbours
         except SpacingError:
