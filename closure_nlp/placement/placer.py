@@ -522,10 +522,7 @@ class ExchangePlacer:
             final_spacing = self._spacing(elements)
             if final_spacing:
                 final_spacing.check(self._positions(elements, best_w))
-        placed = tuple(
-            PlacedContact(e, w, model.elements[e].position(w), model.elements[e].inward_normal)
-            for e, w in zip(elements, best_w)
-        )
+        placed = self._placed(elements, best_w)
         if progress:
             progress("certification", 1, final.rho)
         result = PlacementResult(
@@ -552,15 +549,11 @@ class ExchangePlacer:
         """The placement of one contact on each of ``elements`` at ``weights`` as it is (no
         exchange round), its rho certified; None when it breaks the minimum spacing."""
         t0 = time.perf_counter()
-        model = self.eligibility.model
         if not self._kept(elements, weights):
             return None
         contact_set = self.contact_set(elements, weights)
         final = rho(contact_set, minimizer=self.eligibility.minimizer, warm_start=warm_start)
-        placed = tuple(
-            PlacedContact(e, w, model.elements[e].position(w), model.elements[e].inward_normal)
-            for e, w in zip(elements, weights)
-        )
+        placed = self._placed(elements, weights)
         return PlacementResult(
             placed,
             contact_set,
@@ -578,6 +571,14 @@ class ExchangePlacer:
             robust=final.robust,
             shift=final.shift,
             exchange_solver=self.exchange_solver(),
+        )
+
+    def _placed(self, elements, weights) -> tuple:
+        """The contacts at ``weights`` on ``elements``, as a result lists them."""
+        model = self.eligibility.model
+        return tuple(
+            PlacedContact(e, w, model.elements[e].position(w), model.elements[e].inward_normal)
+            for e, w in zip(elements, weights)
         )
 
     def _value(self, elements, weights, found) -> float:
