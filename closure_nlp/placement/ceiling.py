@@ -791,10 +791,14 @@ def capacity_bound(
         gap = relative_gap(ceiling(), best_value)
         return ceiling() <= zero or (gap is not None and gap <= options.gap)
 
+    def movable(ids, positions):  # the placement's contacts but the fixed ones, as weights
+        ids = ids[k0:]
+        vertices = [model.elements[e].vertices for e in ids]
+        return ids, [nearest_weights(v, x) for v, x in zip(vertices, positions[k0:])]
+
     def polish(ids, positions):
         nonlocal best, best_value, polishes
-        ids, positions = ids[k0:], positions[k0:]  # the fixed contacts stay
-        weights = [nearest_weights(model.elements[e].vertices, x) for e, x in zip(ids, positions)]
+        ids, weights = movable(ids, positions)
         polishes += 1
         try:
             found = polisher(list(ids), weights)
@@ -806,9 +810,7 @@ def capacity_bound(
     def probe(cell: _Cell):
         nonlocal probes, pending
         probes += 1
-        ids, positions = _lp_placement(lp, cell)
-        ids, positions = ids[k0:], positions[k0:]
-        weights = [nearest_weights(model.elements[e].vertices, x) for e, x in zip(ids, positions)]
+        ids, weights = movable(*_lp_placement(lp, cell))
         warm = cell.bound.directions[np.argmax(cell.bound.y)] if len(cell.bound.y) else None
         contacts = polisher.contact_set(ids, weights)
         found = search_rho(contacts, minimizer=light, warm_start=warm)
