@@ -49,6 +49,17 @@ def _sample(rng, eligibility, cell) -> ContactSet:
     return ContactSet(tuple(contacts), eligibility.torque_scale, eligibility.model.reference_point)
 
 
+def _held_below(rng, eligibility, cells, ceiling) -> int:
+    """How many placements, one sampled in each of ``cells``, hold (certified capacity > 0);
+    none may hold more than ``ceiling``."""
+    held = 0
+    for cell in cells:
+        capacity = -rho(_sample(rng, eligibility, cell)).bounds[1]
+        assert capacity <= ceiling
+        held += capacity > 0
+    return held
+
+
 def _violations(eligibility, elements, cells=6, samples=5, seed=0, depth=(0, 10), rows=0):
     """(samples whose certified capacity -hi exceeds their cell's bound, force-closure samples);
     ``rows`` > 0: each cell's LP by row generation from that many rows."""
@@ -179,9 +190,7 @@ def test_capacity_bound_on_the_box():
     assert 0 <= result.gap < 1 and result.value <= result.root_value
     rng = np.random.default_rng(2)
     cell = tuple(element_pieces(eligibility, e) for e in elements)
-    for _ in range(10):
-        capacity = -rho(_sample(rng, eligibility, cell)).bounds[1]
-        assert capacity <= result.value
+    _held_below(rng, eligibility, [cell] * 10, result.value)
 
 
 def test_a_searched_ceiling_over_neighbours_is_above_every_sampled_placement():
@@ -199,12 +208,7 @@ def test_a_searched_ceiling_over_neighbours_is_above_every_sampled_placement():
     assert result.value >= result.capacity >= -placed.bounds[1]
     rng = np.random.default_rng(5)
     cell = tuple([element_pieces(eligibility, e)[0] for e in ids] for ids in result.domain)
-    held = 0
-    for _ in range(40):
-        capacity = -rho(_sample(rng, eligibility, cell)).bounds[1]
-        held += capacity > 0
-        assert capacity <= result.value
-    assert held >= 5
+    assert _held_below(rng, eligibility, [cell] * 40, result.value) >= 5
 
 
 def test_the_part_ceiling_is_above_placements_on_any_elements(tmp_path, capsys):
@@ -223,14 +227,11 @@ def test_the_part_ceiling_is_above_placements_on_any_elements(tmp_path, capsys):
     found = part_ceiling(placer, None, BoundOptions(time_budget=np.inf, max_nodes=12))
     assert found.domain == (tuple(range(6)),) * 4 and found.gap is None
     rng = np.random.default_rng(4)
-    held = 0
-    for _ in range(30):
-        elements = rng.integers(0, 6, 4)
-        cell = tuple(element_pieces(eligibility, int(e)) for e in elements)
-        capacity = -rho(_sample(rng, eligibility, cell)).bounds[1]
-        held += capacity > 0
-        assert capacity <= found.value
-    assert held >= 5
+    # each cell drawn just before its sample, from the same generator
+    cells = (
+        tuple(element_pieces(eligibility, int(e)) for e in rng.integers(0, 6, 4)) for _ in range(30)
+    )
+    assert _held_below(rng, eligibility, cells, found.value) >= 5
     path = tmp_path / "box.model.json"
     save_model(model, path)
     argv = ["plan", str(path), "--contacts", "4", "--seeds", "1", "--starts", "1"]
@@ -524,14 +525,7 @@ def test_probes_give_cuts_and_incumbents_and_keep_the_ceiling_sound():
         assert -again.bounds[1] == pytest.approx(probed.capacity, rel=1e-6)
     rng = np.random.default_rng(7)
     cell = tuple(element_pieces(eligibility, e) for e in elements)
-    held = 0
-    for _ in range(30):
-        capacity = -rho(_sample(rng, eligibility, cell)).bounds[1]
-        held += capacity > 0
-        assert capacity <= probed.value
-    assert held >= 5
+    assert _held_below(rng, eligibility, [cell] * 30, probed.value) >= 5
     # without probe incumbents (the part's ceiling) the given placement stays the incumbent
-    kept = capacity_bound(
-        placer, elements, placed, BoundOptions(**common, probe_incumbents=False)
-    )
+    kept = capacity_bound(placer, elements, placed, BoundOptions(**common, probe_incumbents=False))
     assert kept.placement is None and kept.capacity == -placed.bounds[1]
