@@ -5,6 +5,9 @@ import pytest
 
 from closure_nlp import ContactSet, Eligibility, contact_specs, force_closure_cvxpy, load_model, rho
 from closure_nlp.contact.random_sets import random_contact_set
+from closure_nlp.contact.wrenches import WrenchSlots
+from closure_nlp.criterion.certificate import tolerance_unit
+from closure_nlp.criterion.crosscheck import distance_cvxpy
 from closure_nlp.criterion.many import rho_hat_many, rho_many
 
 
@@ -95,6 +98,11 @@ def test_a_list_of_contact_sets_and_read_only_columns(forty):
         ({"pool": "gpu"}, ValueError, "pool"),
         ({"torque_scale": [1.0, 2.0, 3.0]}, ValueError, "torque_scale"),
         ({"inward_normals": np.ones((2, 4, 3), dtype=bool)}, TypeError, "inward_normals"),
+        ({"tol": 0.0}, ValueError, "tol"),
+        ({"tol": 0.5}, ValueError, "tol"),
+        ({"tol": float("nan")}, ValueError, "tol"),
+        ({"tol": True}, TypeError, "tol"),
+        ({"tol": "1e-3"}, TypeError, "tol"),
     ],
 )
 def test_bad_arguments_name_the_field(kwargs, error, field):
@@ -102,6 +110,55 @@ def test_bad_arguments_name_the_field(kwargs, error, field):
     args = {"inward_normals": U, **kwargs}
     with pytest.raises(error, match=field):
         rho_many(P[:2], **args)
+
+
+@pytest.mark.parametrize("tol", [1e-3, 1e-2])
+def test_a_wider_bracket_holds_the_default_answer(forty, tol):
+    """``tol`` widens each certified bracket to at most ``tol`` of the set's scale; the default
+    1e-6 answer lies inside it, and its verdicts never claim more than the default's."""
+    sets, P, U = forty
+    fine = rho_many(P, U, mu=0.5, workers=1)
+    wide = rho_many(P, U, mu=0.5, workers=2, tol=tol)
+    assert wide.converged.all()
+    for k, s in enumerate(sets):
+        unit = tolerance_unit(WrenchSlots.from_contacts(s))
+        lo, hi = wide.bounds[k]
+        assert hi - lo <= tol * max(abs(lo), abs(hi), unit) * (1 + 1e-9)
+        assert lo <= wide.rho[k] <= hi
+        # both brackets hold rho: they overlap (to their round-off), and the narrow one's
+        # answer lies within its own width of the wide one
+        fine_lo, fine_hi = fine.bounds[k]
+        slack = 1e-12 * unit
+        assert max(lo, fine_lo) <= min(hi, fine_hi) + slack
+        assert lo - (fine_hi - fine_lo) - slack <= fine.rho[k] <= hi + slack
+        if wide.force_closure[k]:
+            assert fine.force_closure[k] and hi < -tol * unit
+        if fine.force_closure[k] and not wide.force_closure[k]:
+            assert wide.marginal[k] and hi >= -tol * unit  # within the asked accuracy of zero
+    # fewer cells for the force-closure sets: the wide brackets are wider
+    closure = fine.force_closure
+    assert np.median(np.diff(wide.bounds)[closure]) > np.median(np.diff(fine.bounds)[closure])
+
+
+def test_a_wider_bracket_holds_the_cvxpy_distance():
+    """Outside the wrench set, rho is the distance to it: cvxpy's SOCP, an independent
+    solver, lands inside every wide bracket (to its own accuracy)."""
+    sets, P, U = _arrays(30, m=3, seed=9)
+    wide = rho_many(P, U, mu=0.5, workers=1, tol=1e-2)
+    outside = [k for k in range(30) if not wide.force_closure[k] and not wide.marginal[k]]
+    assert len(outside) >= 10
+    for k in outside:
+        distance = distance_cvxpy(sets[k])
+        lo, hi = wide.bounds[k]
+        assert lo - 1e-7 <= distance <= hi + 1e-7
+
+
+def test_the_wide_answers_do_not_depend_on_the_workers():
+    _, P, U = _arrays(70, seed=4)
+    serial = rho_many(P, U, mu=0.5, workers=1, tol=1e-3)
+    forked = rho_many(P, U, mu=0.5, workers=2, pool="processes", tol=1e-3)
+    for name in ("rho", "bounds", "force_closure", "marginal", "converged", "direction"):
+        assert np.array_equal(getattr(serial, name), getattr(forked, name)), name
 
 
 def test_masked_positions_are_refused():

@@ -14,10 +14,12 @@ import multiprocessing
 import os
 import sys
 from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from functools import partial
 
 import numpy as np
 
+from closure_nlp.base.tolerances import DEFAULT_TOLERANCES
 from closure_nlp.base.validation import as_count, is_whole
 from closure_nlp.contact.contact_set import (
     DEFAULT_F_MAX,
@@ -27,13 +29,21 @@ from closure_nlp.contact.contact_set import (
 )
 from closure_nlp.contact.slot_arrays import slots_of_arrays
 from closure_nlp.contact.wrenches import WrenchSlots
-from closure_nlp.criterion.support_minimum import _DEFAULT_MINIMIZER, certified_search, rho
+from closure_nlp.criterion.support_minimum import (
+    _DEFAULT_MINIMIZER,
+    SupportMinimizer,
+    certified_search,
+    rho,
+)
 
 # Sets per task: large enough that sending a task costs little against certifying it (about a
 # millisecond a set), small enough that the workers finish together.
 CHUNK = 32
 POOLS = ("threads", "processes")
 MAX_WORKERS = 256
+# The brackets rho_many may be asked for: down to what float64 sums of a few contacts still
+# resolve, up to a tenth of the set's scale (wider says little about a grasp's quality).
+TOL_RANGE = (1e-9, 0.1)
 
 
 class _Columns:
@@ -133,6 +143,7 @@ def rho_many(
     reference_point=None,
     workers: int | None = None,
     pool: str = "threads",
+    tol: float | None = None,
 ) -> RhoColumns:
     """Certified rho(0, W_c^M) of N contact sets of m contacts each.
 
@@ -156,6 +167,12 @@ def rho_many(
     pool : {"threads", "processes"}
         How the workers run: threads of this process, or processes forked from it (where the
         system forks; threads otherwise).
+    tol : float, optional
+        Relative width of every certified bracket, ``hi - lo <= tol * max(|rho|, unit)`` with
+        ``unit`` the set's own wrench scale (default ``1e-6``, as :func:`rho`), in
+        ``[1e-9, 0.1]``. A wider bracket costs less on force-closure sets, whose branch and
+        bound stops sooner; the verdicts take the same accuracy (``force_closure`` only when
+        ``hi < -tol * unit``, ``marginal`` when the bracket reaches within that of zero).
 
     Returns
     -------
@@ -163,32 +180,62 @@ def rho_many(
         Columns ``rho``, ``bounds``, ``force_closure``, ``marginal``, ``converged``,
         ``direction`` and ``seconds``, in the order of the sets.
     """
+    tol = _tol(tol)
     sets = _contact_sets(positions, inward_normals, type, mu, mu_s, f_max, torque_scale,
                          reference_point)  # fmt: skip
     workers = _workers(workers, len(sets))
     if pool not in POOLS:
         raise ValueError(f"pool: expected one of {', '.join(POOLS)}, got {pool!r}")
+    certify = partial(_certify_chunk, tol=tol)
     if workers == 1:
-        return RhoColumns.from_results(_certify_chunk(sets))
+        return RhoColumns.from_results(certify(sets))
     chunks = [sets[k : k + CHUNK] for k in range(0, len(sets), CHUNK)]
     if pool == "processes" and "fork" in multiprocessing.get_all_start_methods():
-        _certify_chunk(sets[:1])  # kernels loaded before the fork: the workers inherit them
+        certify(sets[:1])  # kernels loaded before the fork: the workers inherit them
         context = multiprocessing.get_context("fork")
         with ProcessPoolExecutor(workers, mp_context=context) as executor:
-            parts = list(executor.map(_certify_chunk, chunks))
+            parts = list(executor.map(certify, chunks))
     else:
         with ThreadPoolExecutor(workers) as executor:
-            parts = list(executor.map(_certify_chunk, chunks))
+            parts = list(executor.map(certify, chunks))
     return RhoColumns.from_results([r for part in parts for r in part])
 
 
-def _certify_chunk(sets) -> list:
-    """Certified rho of each set: a ContactSet by :func:`rho`, the slots of one given as arrays
-    (no tolerance) by the same search and certificate that :func:`rho` runs on them."""
+def _certify_chunk(sets, tol: float) -> list:
+    """Certified rho of each set to the relative bracket ``tol``: a ContactSet by
+    :func:`rho`, the slots of one given as arrays (no tolerance) by the same search and
+    certificate that :func:`rho` runs on them."""
+    minimizer = _minimizer(tol)
     return [
-        certified_search(_DEFAULT_MINIMIZER, s) if isinstance(s, WrenchSlots) else rho(s)
+        certified_search(minimizer, s)
+        if isinstance(s, WrenchSlots)
+        else rho(s, minimizer=minimizer)
         for s in sets
     ]
+
+
+_MINIMIZERS = {DEFAULT_TOLERANCES.certify: _DEFAULT_MINIMIZER}
+
+
+def _minimizer(tol: float) -> SupportMinimizer:
+    """The shared minimizer whose certificates stop at the relative bracket ``tol``, made once
+    per value (its NLPs are built on first use)."""
+    if tol not in _MINIMIZERS:
+        tolerances = replace(DEFAULT_TOLERANCES, certify=tol)
+        _MINIMIZERS.setdefault(tol, SupportMinimizer(tolerances=tolerances))
+    return _MINIMIZERS[tol]
+
+
+def _tol(tol) -> float:
+    """``tol`` checked (:data:`TOL_RANGE`), the package's certificate tolerance when None."""
+    if tol is None:
+        return DEFAULT_TOLERANCES.certify
+    if isinstance(tol, bool) or not isinstance(tol, (int, float, np.integer, np.floating)):
+        raise TypeError(f"tol: expected a number, got {tol!r:.60}")
+    low, high = TOL_RANGE
+    if not low <= tol <= high:  # NaN fails too
+        raise ValueError(f"tol: expected a number in [{low:g}, {high:g}], got {tol!r}")
+    return float(tol)
 
 
 def rho_hat_many(eligibility, element_sets, *, workers: int | None = None) -> RhoHatColumns:
