@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import minimize
 
+from closure_nlp.base.tolerances import DEFAULT_TOLERANCES
 from closure_nlp.contact.contact_set import Contact, ContactSet, ContactType
 from closure_nlp.contact.random_sets import BENCH_CASES, random_contact_set
 from closure_nlp.contact.wrenches import WrenchSlots
@@ -1417,10 +1418,11 @@ def mesh_sampled_sets(count: int, m: int = 4, seed: int = 0, model: str = "lamp"
     return P, U, 1.0 / radius, centre
 
 
-def bench_throughput(sets: int = 1000, seed: int = 0, workers=(1, 2)) -> dict:
+def bench_throughput(sets: int = 1000, seed: int = 0, workers=(1, 2), tol=None) -> dict:
     """Certified rho per second of mesh-sampled 4-PCwF sets (mu 0.5; mixed verdicts) by
     rho_many, one worker and each count of ``workers`` in threads and in processes, in this
-    process, alternated; every run's columns checked equal to the first's.
+    process, alternated; every run's columns checked equal to the first's. ``tol``: the
+    relative bracket asked of every set (rho_many's, 1e-6 when None).
 
     Each run gives the sets as arrays (``runs``) and, right after, as ContactSets built one by
     one from the same arrays, the building timed too (``per_set_runs``): the path that certifies
@@ -1429,14 +1431,14 @@ def bench_throughput(sets: int = 1000, seed: int = 0, workers=(1, 2)) -> dict:
 
     P, U, scale, centre = mesh_sampled_sets(sets, seed=seed)
     kwargs = {"mu": 0.5, "torque_scale": scale, "reference_point": centre}
-    rho_many(P[:8], U[:8], workers=1, **kwargs)  # solvers built outside the timings
+    rho_many(P[:8], U[:8], workers=1, tol=tol, **kwargs)  # solvers built outside the timings
 
     def arrays(k, pool):
-        return rho_many(P, U, workers=k, pool=pool, **kwargs)
+        return rho_many(P, U, workers=k, pool=pool, tol=tol, **kwargs)
 
     def per_set(k, pool):
         made = [ContactSet.from_arrays(p, u, **kwargs) for p, u in zip(P, U)]
-        return rho_many(made, workers=k, pool=pool)
+        return rho_many(made, workers=k, pool=pool, tol=tol)
 
     runs, per_set_runs, first, same = {}, {}, None, True
     for pool in ("threads", "processes"):
@@ -1463,6 +1465,7 @@ def bench_throughput(sets: int = 1000, seed: int = 0, workers=(1, 2)) -> dict:
     unit = np.maximum(np.abs(first.rho), scales)
     return {
         "sets": sets,
+        "tol": DEFAULT_TOLERANCES.certify if tol is None else tol,
         "force_closure_share": float(fc.mean()),
         "median_ms": {
             "all": float(1e3 * np.median(first.seconds)),
@@ -1680,6 +1683,7 @@ def main(argv=None) -> int:
     p.add_argument("--sets", type=int, default=1000)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--workers", default="1,2", help="worker counts, comma-separated")
+    p.add_argument("--tol", type=float, help="relative bracket of every set (default 1e-6)")
     p = sub.add_parser("intent", help="the block's fixture with intent against without")
     p.add_argument("--seeds", default="0,1,2", help="comma-separated seeds")
     p = sub.add_parser("dexnet", help="Ferrari-Canny L1 / L-inf epsilons (qhull) against rho")
@@ -1730,7 +1734,7 @@ def main(argv=None) -> int:
         report = bench_batch(args.files, args.repeats)
     elif args.what == "throughput":
         counts = tuple(int(k) for k in args.workers.split(","))
-        report = bench_throughput(args.sets, args.seed, counts)
+        report = bench_throughput(args.sets, args.seed, counts, args.tol)
     elif args.what == "intent":
         from benchmarks.intent import bench_intent
 
