@@ -19,6 +19,7 @@ from functools import partial
 
 import numpy as np
 
+from closure_nlp.base.solver_cache import cached
 from closure_nlp.base.tolerances import DEFAULT_TOLERANCES
 from closure_nlp.base.validation import as_count, is_whole
 from closure_nlp.contact.contact_set import (
@@ -214,16 +215,18 @@ def _certify_chunk(sets, tol: float) -> list:
     ]
 
 
-_MINIMIZERS = {DEFAULT_TOLERANCES.certify: _DEFAULT_MINIMIZER}
+# Minimizers of the other brackets asked for, the most recently used (each holds its NLPs).
+_MINIMIZERS: dict = {}
+MAX_MINIMIZERS = 4
 
 
 def _minimizer(tol: float) -> SupportMinimizer:
-    """The shared minimizer whose certificates stop at the relative bracket ``tol``, made once
-    per value (its NLPs are built on first use)."""
-    if tol not in _MINIMIZERS:
-        tolerances = replace(DEFAULT_TOLERANCES, certify=tol)
-        _MINIMIZERS.setdefault(tol, SupportMinimizer(tolerances=tolerances))
-    return _MINIMIZERS[tol]
+    """The shared minimizer whose certificates stop at the relative bracket ``tol``: the
+    package's own for the default, else one made once per value (its NLPs built on first use)."""
+    if tol == DEFAULT_TOLERANCES.certify:
+        return _DEFAULT_MINIMIZER
+    tolerances = replace(DEFAULT_TOLERANCES, certify=tol)
+    return cached(_MINIMIZERS, tol, lambda: SupportMinimizer(tolerances=tolerances), MAX_MINIMIZERS)
 
 
 def _tol(tol) -> float:
