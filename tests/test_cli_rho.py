@@ -7,7 +7,10 @@ from pathlib import Path
 
 import pytest
 
+from closure_nlp import load_contact_set
 from closure_nlp.cli.main import main
+from closure_nlp.contact.wrenches import WrenchSlots
+from closure_nlp.criterion.certificate import tolerance_unit
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "box_7fpc.contacts.json"
 
@@ -120,3 +123,30 @@ def test_timing_search_is_the_search_alone(capsys, monkeypatch):
     code, out, _ = run(["rho", str(EXAMPLE), "--json"], capsys)
     parts = json.loads(out)["timing"]
     assert code == 0 and parts["search"] == 1e-6
+
+
+def test_tol_widens_the_bracket_and_its_digits(capsys):
+    code, out, _ = run(["rho", str(EXAMPLE), "--json"], capsys)
+    fine = json.loads(out)
+    code, out, _ = run(["rho", str(EXAMPLE), "--json", "--tol", "1e-2"], capsys)
+    assert code == 0
+    wide = json.loads(out)
+    (lo, hi), (fine_lo, fine_hi) = wide["bounds"], fine["bounds"]
+    assert hi - lo > 100 * (fine_hi - fine_lo)  # the search stopped sooner
+    unit = tolerance_unit(WrenchSlots.from_contacts(load_contact_set(EXAMPLE)))
+    assert hi - lo <= 1e-2 * max(abs(lo), abs(hi), unit) * (1 + 1e-9)
+    assert max(lo, fine_lo) <= min(hi, fine_hi)  # both hold rho
+    assert wide["force_closure"] is True
+    # the default asked for explicitly is the default, to the bit
+    code, out, _ = run(["rho", str(EXAMPLE), "--json", "--tol", "1e-6"], capsys)
+    same = json.loads(out)
+    assert same["bounds"] == fine["bounds"] and same["direction"] == fine["direction"]
+    # the text prints only the digits the bracket pins down
+    code, out, _ = run(["rho", str(EXAMPLE), "--tol", "1e-2"], capsys)
+    assert "rho = -0.09 (force closure)" in out
+
+
+@pytest.mark.parametrize("value", ["0", "0.5", "nan", "-1e-3", "1e-3x"])
+def test_bad_tol_exits_2_naming_it(value, capsys):
+    code, out, err = run(["rho", str(EXAMPLE), "--tol", value], capsys)
+    assert code == 2 and out == "" and "--tol" in err and "Traceback" not in err

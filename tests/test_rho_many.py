@@ -9,6 +9,7 @@ from closure_nlp.contact.wrenches import WrenchSlots
 from closure_nlp.criterion.certificate import tolerance_unit
 from closure_nlp.criterion.crosscheck import distance_cvxpy
 from closure_nlp.criterion.many import rho_hat_many, rho_many
+from closure_nlp.criterion.support_minimum import SupportMinimizer
 
 
 def _arrays(n: int, m: int = 4, seed: int = 0):
@@ -159,6 +160,21 @@ def test_the_wide_answers_do_not_depend_on_the_workers():
     forked = rho_many(P, U, mu=0.5, workers=2, pool="processes", tol=1e-3)
     for name in ("rho", "bounds", "force_closure", "marginal", "converged", "direction"):
         assert np.array_equal(getattr(serial, name), getattr(forked, name)), name
+
+
+def test_rho_takes_the_same_tol(forty):
+    sets, P, U = forty
+    wide = rho_many(P[:6], U[:6], mu=0.5, workers=1, tol=1e-3)
+    for k in range(6):
+        again = ContactSet(
+            tuple(type(c)(P[k, i], U[k, i], mu=0.5) for i, c in enumerate(sets[k].contacts))
+        )
+        one = rho(again, tol=1e-3)
+        assert tuple(wide.bounds[k]) == one.bounds and wide.rho[k] == one.rho
+    with pytest.raises(ValueError, match="tol"):
+        rho(sets[0], tol=1e-3, minimizer=SupportMinimizer())
+    with pytest.raises(ValueError, match="tol"):
+        rho(sets[0], tol=2.0)
 
 
 def test_masked_positions_are_refused():

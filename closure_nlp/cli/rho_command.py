@@ -8,8 +8,14 @@ from concurrent.futures import ThreadPoolExecutor
 from closure_nlp.base.formatting import certain
 from closure_nlp.cli import arguments, output
 from closure_nlp.cli.loads_option import add_loads_option, loads_answer, read_loads
-from closure_nlp.criterion.support_minimum import rho
+from closure_nlp.criterion.support_minimum import TOL_RANGE, rho
 from closure_nlp.report.plan_report import load_contacts
+
+# --tol: a certified bracket's relative width (rho's ``tol``)
+_TOL = arguments.bounded(
+    arguments.float_value, "a number", lambda v: TOL_RANGE[0] <= v <= TOL_RANGE[1],
+    "[{:g}, {:g}]".format(*TOL_RANGE), "the bracket's relative width",
+)  # fmt: skip
 
 
 def add_rho(sub, common) -> None:
@@ -29,6 +35,13 @@ def add_rho(sub, common) -> None:
         metavar="K",
         help="files certified at once, in threads (default 1); the answers and their order "
         "do not depend on it",
+    )
+    p.add_argument(
+        "--tol",
+        type=_TOL,
+        metavar="T",
+        help="certify every bracket to T of max(|rho|, the set's scale) (default 1e-6); a wider "
+        "one costs less on sets in force closure, and the verdicts take the same accuracy",
     )
     add_loads_option(p)
     p.set_defaults(run=cmd_rho)
@@ -50,7 +63,8 @@ def cmd_rho(args) -> None:
 def _answer(args, path, contact_set) -> tuple[dict, str]:
     """One file's JSON answer and its line of text."""
     t0 = time.perf_counter()
-    result = rho(contact_set, tolerance=arguments.model_tolerance(args, contact_set.tolerance))
+    tolerance = arguments.model_tolerance(args, contact_set.tolerance)
+    result = rho(contact_set, tolerance=tolerance, tol=args.tol)
     payload = {"file": path, **result.to_dict()}
     loads, loads_text = loads_answer(contact_set, args.loads)
     payload.update(loads, **output.whole_cost(result, t0))

@@ -14,13 +14,11 @@ import multiprocessing
 import os
 import sys
 from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from functools import partial
 
 import numpy as np
 
-from closure_nlp.base.solver_cache import cached
-from closure_nlp.base.tolerances import DEFAULT_TOLERANCES
 from closure_nlp.base.validation import as_count, is_whole
 from closure_nlp.contact.contact_set import (
     DEFAULT_F_MAX,
@@ -31,9 +29,9 @@ from closure_nlp.contact.contact_set import (
 from closure_nlp.contact.slot_arrays import slots_of_arrays
 from closure_nlp.contact.wrenches import WrenchSlots
 from closure_nlp.criterion.support_minimum import (
-    _DEFAULT_MINIMIZER,
-    SupportMinimizer,
     certified_search,
+    checked_tol,
+    minimizer_for,
     rho,
 )
 
@@ -42,9 +40,6 @@ from closure_nlp.criterion.support_minimum import (
 CHUNK = 32
 POOLS = ("threads", "processes")
 MAX_WORKERS = 256
-# The brackets rho_many may be asked for: down to what float64 sums of a few contacts still
-# resolve, up to a tenth of the set's scale (wider says little about a grasp's quality).
-TOL_RANGE = (1e-9, 0.1)
 
 
 class _Columns:
@@ -181,7 +176,7 @@ def rho_many(
         Columns ``rho``, ``bounds``, ``force_closure``, ``marginal``, ``converged``,
         ``direction`` and ``seconds``, in the order of the sets.
     """
-    tol = _tol(tol)
+    tol = checked_tol(tol)
     sets = _contact_sets(positions, inward_normals, type, mu, mu_s, f_max, torque_scale,
                          reference_point)  # fmt: skip
     workers = _workers(workers, len(sets))
@@ -206,39 +201,13 @@ def _certify_chunk(sets, tol: float) -> list:
     """Certified rho of each set to the relative bracket ``tol``: a ContactSet by
     :func:`rho`, the slots of one given as arrays (no tolerance) by the same search and
     certificate that :func:`rho` runs on them."""
-    minimizer = _minimizer(tol)
+    minimizer = minimizer_for(tol)
     return [
         certified_search(minimizer, s)
         if isinstance(s, WrenchSlots)
         else rho(s, minimizer=minimizer)
         for s in sets
     ]
-
-
-# Minimizers of the other brackets asked for, the most recently used (each holds its NLPs).
-_MINIMIZERS: dict = {}
-MAX_MINIMIZERS = 4
-
-
-def _minimizer(tol: float) -> SupportMinimizer:
-    """The shared minimizer whose certificates stop at the relative bracket ``tol``: the
-    package's own for the default, else one made once per value (its NLPs built on first use)."""
-    if tol == DEFAULT_TOLERANCES.certify:
-        return _DEFAULT_MINIMIZER
-    tolerances = replace(DEFAULT_TOLERANCES, certify=tol)
-    return cached(_MINIMIZERS, tol, lambda: SupportMinimizer(tolerances=tolerances), MAX_MINIMIZERS)
-
-
-def _tol(tol) -> float:
-    """``tol`` checked (:data:`TOL_RANGE`), the package's certificate tolerance when None."""
-    if tol is None:
-        return DEFAULT_TOLERANCES.certify
-    if isinstance(tol, bool) or not isinstance(tol, (int, float, np.integer, np.floating)):
-        raise TypeError(f"tol: expected a number, got {tol!r:.60}")
-    low, high = TOL_RANGE
-    if not low <= tol <= high:  # NaN fails too
-        raise ValueError(f"tol: expected a number in [{low:g}, {high:g}], got {tol!r}")
-    return float(tol)
 
 
 def rho_hat_many(eligibility, element_sets, *, workers: int | None = None) -> RhoHatColumns:

@@ -688,6 +688,37 @@ _DEFAULT_MINIMIZERS = {
     "auto": _DEFAULT_MINIMIZER,
     **{name: SupportMinimizer(solver=name) for name in SOLVERS if name != "auto"},
 }
+# The relative widths a caller may ask of a certified bracket (``tol`` of rho and rho_many):
+# down to what float64 sums of a few contacts still resolve, up to a tenth of the set's scale
+# (wider says little about a grasp's quality).
+TOL_RANGE = (1e-9, 0.1)
+MAX_TOL_MINIMIZERS = 4  # minimizers of other brackets kept, the most recently used
+_TOL_MINIMIZERS: dict = {}
+
+
+def checked_tol(tol) -> float:
+    """``tol`` checked against :data:`TOL_RANGE` (``TypeError`` or ``ValueError`` naming it);
+    the package's certificate tolerance when None."""
+    if tol is None:
+        return DEFAULT_TOLERANCES.certify
+    if isinstance(tol, bool) or not isinstance(tol, (int, float, np.integer, np.floating)):
+        raise TypeError(f"tol: expected a number, got {tol!r:.60}")
+    low, high = TOL_RANGE
+    if not low <= tol <= high:  # NaN fails too
+        raise ValueError(f"tol: expected a number in [{low:g}, {high:g}], got {tol!r}")
+    return float(tol)
+
+
+def minimizer_for(tol: float) -> SupportMinimizer:
+    """The shared minimizer whose certificates stop at the relative bracket ``tol`` (checked):
+    the package's own for its default, else one made once per value (its NLPs built on first
+    use)."""
+    if tol == DEFAULT_TOLERANCES.certify:
+        return _DEFAULT_MINIMIZER
+    tolerances = replace(DEFAULT_TOLERANCES, certify=tol)
+    return cached(
+        _TOL_MINIMIZERS, tol, lambda: SupportMinimizer(tolerances=tolerances), MAX_TOL_MINIMIZERS
+    )
 
 
 def rho(
@@ -698,6 +729,7 @@ def rho(
     certify: bool = True,
     tolerance=None,
     solver: str | None = None,
+    tol: float | None = None,
 ) -> RhoResult:
     """rho(0, W_c^M) of a contact set (eq 24), with certified bounds.
 
@@ -717,6 +749,10 @@ def rho(
         The local solver of the search (``minimizer``'s when omitted, else ``"auto"``, the
         compiled minimiser under the certificate): ``"ipopt"`` runs the CasADi support-minimum
         NLP, certified the same way.
+    tol : float, optional
+        Relative width of the certified bracket, ``hi - lo <= tol * max(|rho|, unit)`` with
+        ``unit`` the set's own wrench scale, in ``[1e-9, 0.1]`` (default: ``minimizer``'s
+        tolerances, 1e-6); the verdicts take the same accuracy. Not with ``minimizer``.
 
     Returns
     -------
@@ -732,6 +768,10 @@ def rho(
 
     if solver is not None and solver not in SOLVERS:
         raise ValueError(f"solver: must be one of {', '.join(SOLVERS)}, got {solver!r}")
+    if tol is not None:
+        if minimizer is not None:
+            raise ValueError("tol: give tol or a minimizer (its tolerances set the bracket)")
+        minimizer = minimizer_for(checked_tol(tol))
     if minimizer is None:
         minimizer = _DEFAULT_MINIMIZERS[solver or "auto"]
     elif solver is not None and solver != minimizer.solver:
@@ -856,7 +896,9 @@ __all__ = [
     "certificate_keys",
     "certified_rho",
     "certified_search",
+    "checked_tol",
     "frozen_arrays",
+    "minimizer_for",
     "rho",
     "search_rho",
     "signed_distance",
