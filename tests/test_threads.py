@@ -36,8 +36,9 @@ def without_time(value):
 
 
 def jobs(with_plan: bool):
-    """Four lists of calls, each thread's: rho of contact sets (one default minimizer for all),
-    rho_hat of element sets (one Eligibility for all) and, with ``with_plan``, a plan."""
+    """Four lists of calls, each thread's: rho of contact sets (one default minimizer for all,
+    and one shared minimizer of a wider bracket), rho_hat of element sets (one Eligibility for
+    all) and, with ``with_plan``, a plan."""
     contact_sets = [
         random_contact_set(np.random.default_rng(seed), types)
         for seed in range(4)
@@ -63,6 +64,7 @@ def jobs(with_plan: bool):
     sides = [(33, 67, 66, 0), (33, 67, 0, 0), (67, 33, 66, 66), (0, 66, 33, 67)]
     calls = [
         [lambda c=c: rho(c) for c in contact_sets[4 * k : 4 * k + 4]]  # the same shapes at once
+        + [lambda c=c: rho(c, tol=1e-3) for c in contact_sets[4 * k : 4 * k + 4]]
         + [lambda e=e: shared(e) for e in sets[k::4]]
         + [lambda c=c: load_factors(c, loads) for c in contact_sets[4 * k : 4 * k + 4]]
         + [lambda e=sides[k]: clamps(e), lambda e=sides[k]: on_block(clamps.slots(e), loads)]
