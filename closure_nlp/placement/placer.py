@@ -522,28 +522,10 @@ class ExchangePlacer:
             final_spacing = self._spacing(elements)
             if final_spacing:
                 final_spacing.check(self._positions(elements, best_w))
-        placed = self._placed(elements, best_w)
         if progress:
             progress("certification", 1, final.rho)
-        result = PlacementResult(
-            placed,
-            contact_set,
-            final.rho,
-            final.force_closure,
-            final.direction,
-            start.rho,
-            predicted,
-            rounds,
-            tuple(moves),
-            time.perf_counter() - t0,
-            final.bounds,
-            final.marginal,
-            final.converged,
-            robust=final.robust,
-            shift=final.shift,
-            exchange_solver=self.exchange_solver(),
-        )
-        return result
+        return self._result(elements, best_w, contact_set, final, start.rho, predicted, rounds,
+                            moves, t0)  # fmt: skip
 
     def certified_at(self, elements, weights, warm_start=None) -> PlacementResult | None:
         """The placement of one contact on each of ``elements`` at ``weights`` as it is (no
@@ -553,17 +535,22 @@ class ExchangePlacer:
             return None
         contact_set = self.contact_set(elements, weights)
         final = rho(contact_set, minimizer=self.eligibility.minimizer, warm_start=warm_start)
-        placed = self._placed(elements, weights)
+        return self._result(elements, weights, contact_set, final, final.rho, final.rho, 0, (), t0)
+
+    def _result(self, elements, weights, contact_set, final, start_rho, predicted, rounds, moves,
+                t0) -> PlacementResult:  # fmt: skip
+        """The result of the contacts at ``weights`` on ``elements`` whose certified rho is
+        ``final``, started at ``start_rho`` (timed from ``t0``)."""
         return PlacementResult(
-            placed,
+            self._placed(elements, weights),
             contact_set,
             final.rho,
             final.force_closure,
             final.direction,
-            final.rho,
-            final.rho,
-            0,
-            (),
+            start_rho,
+            predicted,
+            rounds,
+            tuple(moves),
             time.perf_counter() - t0,
             final.bounds,
             final.marginal,
