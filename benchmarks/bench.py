@@ -258,11 +258,12 @@ if spec["kind"] == "lamp":
     slots = [eligibility.slots(e) for e in spec["sets"]]
 else:
     slots = [WrenchSlots.from_contacts(contact_set_from_dict(d)) for d in spec["sets"]]
-certified_search(minimizer, slots[0])  # solvers built and kernels compiled first
+threads = {"workers": spec["workers"]} if "workers" in spec else {}  # not in old checkouts
+certified_search(minimizer, slots[0], **threads)  # solvers built and kernels compiled first
 out = []
 for s in slots:
     t = time.perf_counter()
-    r = certified_search(minimizer, s)
+    r = certified_search(minimizer, s, **threads)
     seconds = time.perf_counter() - t
     lo, hi = r.bounds
     width = (hi - lo) / max(abs(lo), tolerance_unit(s))
@@ -311,14 +312,19 @@ def bench_engine(
     cases: int = 20, seed: int = 0, baseline=None, timeout: float = 300.0, names=None
 ) -> dict:
     """Certified rho (seed search and certificate) per family, with this checkout's default
-    solver, with ``solver="ipopt"`` and, given ``baseline`` (a checkout's folder, e.g. a
+    solver in one thread and with two (``two_threads``: a long certificate's rounds dealt to
+    both), with ``solver="ipopt"`` and, given ``baseline`` (a checkout's folder, e.g. a
     ``git worktree`` of an earlier commit), with that checkout: each family in its own
     subprocess, one after the other, every solver built and kernel compiled before timing,
-    at most ``timeout`` seconds per family and checkout. Medians and ratios baseline / ours."""
+    at most ``timeout`` seconds per family and checkout. Medians and ratios run / ours."""
     here = str(Path(__file__).resolve().parents[1])
-    runs = {"ours": (here, {}), "ipopt": (here, {"solver": "ipopt"})}
+    runs = {
+        "ours": (here, {"minimizer": {}, "workers": 1}),
+        "two_threads": (here, {"minimizer": {}, "workers": 2}),
+        "ipopt": (here, {"minimizer": {"solver": "ipopt"}, "workers": 1}),
+    }
     if baseline is not None:
-        runs["baseline"] = (str(Path(baseline).resolve()), {})
+        runs["baseline"] = (str(Path(baseline).resolve()), {"minimizer": {}})
     report = {"benchmark": "engine", "cases_per_family": cases, "families": {}}
     for name, sets in engine_families(cases, seed).items():
         if names and name not in names:
@@ -328,10 +334,10 @@ def bench_engine(
         else:
             spec = {"kind": "contacts", "sets": [cs.to_dict() for cs in sets]}
         entry = {}
-        for run, (path, minimizer) in runs.items():
-            rows = _engine_family({**spec, "minimizer": minimizer}, path, timeout)
+        for run, (path, how) in runs.items():
+            rows = _engine_family({**spec, **how}, path, timeout)
             entry[run] = _engine_stats(rows, len(spec["sets"]))
-        for run in ("ipopt", "baseline"):
+        for run in ("two_threads", "ipopt", "baseline"):
             if run in entry and "certified_ms" in entry[run] and "certified_ms" in entry["ours"]:
                 ratio = (
                     entry[run]["certified_ms"]["median"] / entry["ours"]["certified_ms"]["median"]
@@ -946,7 +952,8 @@ def bench_seeds(
     on the fixture study's pistol and stepped shaft 7-FPC groups, against the study's best of
     20 seeds. ``examples``: best of ``seeds`` against the median single seed of the same runs,
     on the three examples (the bench plan setting)."""
-    from closure_nlp.planning.seeds import DEFAULT_BUDGET, DEFAULT_SEEDS, available_cores
+    from closure_nlp.base.cores import available_cores
+    from closure_nlp.planning.seeds import DEFAULT_BUDGET, DEFAULT_SEEDS
 
     root = Path(root)
     report = {"benchmark": "seeds", "seeds": seeds, "cores": available_cores()}

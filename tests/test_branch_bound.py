@@ -413,3 +413,83 @@ def test_split_cuts_the_incumbents_cell_into_shells_and_halves_the_others():
         axis[0], sign[0], clo[inner], chi[inner], metric, 1.0, *scratch
     )
     assert 0.99 * radius <= delta <= 1.01 * radius
+
+
+def _ring(m: int, kind: str = "sfce") -> ContactSet:
+    """``m`` soft fingers round a circle in one plane: a long search (a flat valley of minima)."""
+    a = 2 * np.pi * np.arange(m) / m
+    P = np.column_stack([np.cos(a), np.sin(a), np.zeros(m)])
+    return ContactSet(tuple(Contact(p, -p, kind, mu=0.5, mu_s=0.2) for p in P))
+
+
+def _dealt_statuses(monkeypatch) -> list:
+    """The status of every round that :func:`sphere_minimum` deals into two parts."""
+    from closure_nlp.criterion import sphere_branch_bound
+
+    seen, dealt = [], sphere_branch_bound._dealt_round
+
+    def spy(*args):
+        status, cells = dealt(*args)
+        seen.append(status)
+        return status, cells
+
+    monkeypatch.setattr(sphere_branch_bound, "_dealt_round", spy)
+    return seen
+
+
+def test_long_rounds_in_two_threads_give_the_serial_bits(monkeypatch):
+    from closure_nlp.criterion.support_minimum import rho
+
+    cs = dict(symmetric_sets())["cylinder sfce m=4"]
+    seen = _dealt_statuses(monkeypatch)
+    one, two = rho(cs, workers=1), rho(cs, workers=2)
+    assert seen.count(kernels.ROUND) > 10  # rounds were dealt, in both runs
+    assert len(kernels.advance.signatures) == 1  # the parts' arrays as the kernel was compiled
+    assert (one.rho, one.bounds, one.converged) == (two.rho, two.bounds, two.converged)
+    assert np.array_equal(one.direction, two.direction)
+    # The bracket is certified to 1e-6 and holds an independent estimate of min p.
+    lo, hi = one.bounds
+    assert one.converged and hi - lo <= 1e-6 * max(1.0, abs(lo))
+    p_ref, _ = reference.reference_min(reference.from_contact_set(cs), samples=300, starts=3)
+    assert -hi <= p_ref + 1e-9 * p_ref
+
+
+def test_a_dealt_search_stopped_by_its_budget_counts_the_live_cells(monkeypatch):
+    # The budget runs out in a round dealt into two parts: the lower bound must take in the
+    # cells still alive in both (their bounds lie below the incumbent minus the gap).
+    seen = _dealt_statuses(monkeypatch)
+    cs = _ring(6)
+    slots, stopped = _min_over_sphere(cs, 1500, extended_cells=1500, workers=2)
+    assert seen[-1] == kernels.BUDGET and kernels.ROUND in seen
+    gap = 1e-6 * max(1.0, abs(stopped.upper))
+    assert not stopped.converged and stopped.upper - stopped.lower > gap
+    p_ref, _ = reference.reference_min(reference.from_contact_set(cs), samples=300, starts=3)
+    assert stopped.lower <= p_ref
+
+
+def test_a_dealt_round_that_meets_a_negative_value_stops_the_search(monkeypatch):
+    from closure_nlp.criterion import sphere_branch_bound
+
+    # Every round dealt from the first. Three fingers round a ring, their normals tilted up
+    # past the friction angle: no force down, so the origin is just outside W, and only a
+    # later round's samples meet a negative support value.
+    monkeypatch.setattr(sphere_branch_bound, "ROUND_CELLS", 1)
+    monkeypatch.setattr(sphere_branch_bound, "ROUNDS_AFTER", 0)
+    seen = _dealt_statuses(monkeypatch)
+    a = 2 * np.pi * np.arange(3) / 3
+    P = np.column_stack([np.cos(a), np.sin(a), np.zeros(3)])
+    N = np.column_stack([-P[:, :2], np.full(3, 0.55)])
+    cs = ContactSet(tuple(Contact(p, n, "pcwf", mu=0.5) for p, n in zip(P, N)))
+    found = sphere_minimum(WrenchSlots.from_contacts(cs), gap=1e-6)
+    assert seen[-1] == kernels.BELOW_ZERO and seen.count(kernels.ROUND) > 3
+    assert found.upper < 0 and found.lower == -np.inf and not found.converged
+
+
+@pytest.mark.parametrize("bad", [0, 1.5, True, "2"])
+def test_workers_must_be_a_positive_count(bad):
+    from closure_nlp.criterion.support_minimum import rho
+
+    with pytest.raises(ValueError, match="workers"):
+        BranchBoundOptions(workers=bad)
+    with pytest.raises(ValueError, match="workers"):
+        rho(_ring(3), workers=bad)

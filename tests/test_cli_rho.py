@@ -150,3 +150,35 @@ def test_tol_widens_the_bracket_and_its_digits(capsys):
 def test_bad_tol_exits_2_naming_it(value, capsys):
     code, out, err = run(["rho", str(EXAMPLE), "--tol", value], capsys)
     assert code == 2 and out == "" and "--tol" in err and "Traceback" not in err
+
+
+def _without_times(line: str) -> dict:
+    answer = json.loads(line)
+    for key in ("seconds", "timing"):
+        answer.pop(key)
+    return answer
+
+
+def test_workers_change_no_answer_of_one_file_or_several(tmp_path, capsys):
+    # Four soft fingers round a ring: a long certificate, whose rounds one file's run deals to
+    # two threads with --workers 2.
+    ring = tmp_path / "ring.contacts.json"
+    ring.write_text(
+        json.dumps(
+            {
+                "contacts": [
+                    {"position": p, "inward_normal": [-x for x in p], "type": "SFCe", "mu": 0.5,
+                     "mu_s": 0.2}
+                    for p in ([1, 0, 0], [0, 1, 0], [-1, 0, 0], [0, -1, 0])
+                ]
+            }
+        )
+    )  # fmt: skip
+    for files in ([ring], [ring, EXAMPLE]):
+        answers = []
+        for workers in ("1", "2"):
+            code, out, err = run(["rho", *map(str, files), "--json", "--workers", workers], capsys)
+            assert code == 0 and err == ""
+            answers.append([_without_times(line) for line in out.splitlines()])
+        assert answers[0] == answers[1] and len(answers[0]) == len(files)
+    assert answers[0][0]["force_closure"] and answers[0][0]["converged"]

@@ -344,7 +344,9 @@ def test_screened_rounds_are_not_certified(monkeypatch):
 
     calls = []
     certified = quality.certified_rho  # the start's rho and the final one both go through it
-    monkeypatch.setattr(quality, "certified_rho", lambda *args: calls.append(1) or certified(*args))
+    monkeypatch.setattr(
+        quality, "certified_rho", lambda *a, **k: calls.append(1) or certified(*a, **k)
+    )
     eligibility = Eligibility(
         box_model(1.0), contact_specs(4, type="pcwf", mu=0.5), torque_scale=1.0
     )

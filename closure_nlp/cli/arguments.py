@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import math
 
+from closure_nlp.base.cores import MAX_WORKERS  # noqa: F401  (the commands' bound)
 from closure_nlp.base.validation import (
     MAX_SEED,
     ascii_number,
@@ -14,8 +15,6 @@ from closure_nlp.placement.options import PlacementOptions
 
 MAX_ALTERNATIVES = 1000  # further element sets a plan places: each is a full placement
 MAX_STARTS = 100  # placement start weights per run: each is a full exchange method
-
-MAX_WORKERS = 256  # a command's workers: threads, processes or local Dask workers
 
 
 def model_tolerance(args, given):

@@ -33,8 +33,8 @@ def add_rho(sub, common) -> None:
         type=arguments.bounded_int(1, arguments.MAX_WORKERS, "the number of workers"),
         default=1,
         metavar="K",
-        help="files certified at once, in threads (default 1); the answers and their order "
-        "do not depend on it",
+        help="files certified at once, in threads (default 1; one file's long certificate "
+        "runs in two of them); the answers and their order do not depend on it",
     )
     p.add_argument(
         "--tol",
@@ -50,8 +50,8 @@ def add_rho(sub, common) -> None:
 def cmd_rho(args) -> None:
     loaded = output.load_each(args.files, load_contacts)
     args.loads = read_loads(args)  # before any work
-    if args.workers == 1:
-        answers = (_answer(args, path, contact_set) for path, contact_set in loaded)
+    if args.workers == 1 or len(loaded) == 1:
+        answers = (_answer(args, path, contact_set, args.workers) for path, contact_set in loaded)
         for payload, text in answers:
             output.emit(args, payload, text)
         return
@@ -60,11 +60,11 @@ def cmd_rho(args) -> None:
             output.emit(args, payload, text)
 
 
-def _answer(args, path, contact_set) -> tuple[dict, str]:
+def _answer(args, path, contact_set, workers: int = 1) -> tuple[dict, str]:
     """One file's JSON answer and its line of text."""
     t0 = time.perf_counter()
     tolerance = arguments.model_tolerance(args, contact_set.tolerance)
-    result = rho(contact_set, tolerance=tolerance, tol=args.tol)
+    result = rho(contact_set, tolerance=tolerance, tol=args.tol, workers=workers)
     payload = {"file": path, **result.to_dict()}
     loads, loads_text = loads_answer(contact_set, args.loads)
     payload.update(loads, **output.whole_cost(result, t0))

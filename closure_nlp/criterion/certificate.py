@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
+from functools import lru_cache
 
 import numpy as np
 
@@ -68,6 +69,12 @@ class CertifyOptions:
         if not is_whole(value) or value < 1:
             raise ValueError(f"options.max_iter: must be an integer >= 1, got {value!r}")
         object.__setattr__(self, "max_iter", int(value))
+
+
+@lru_cache(maxsize=4)
+def threaded_options(workers: int) -> CertifyOptions:
+    """The default budget, the branch and bound's long rounds run in ``workers`` threads."""
+    return CertifyOptions(branch_bound=BranchBoundOptions(workers=workers))
 
 
 @dataclass(frozen=True)

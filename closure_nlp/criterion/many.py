@@ -11,7 +11,6 @@ the Python between kernel calls, at the price of sending the sets and answers be
 from __future__ import annotations
 
 import multiprocessing
-import os
 import sys
 from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 from dataclasses import dataclass
@@ -19,7 +18,8 @@ from functools import partial
 
 import numpy as np
 
-from closure_nlp.base.validation import as_count, is_whole
+from closure_nlp.base.cores import checked_workers
+from closure_nlp.base.validation import as_count
 from closure_nlp.contact.contact_set import (
     DEFAULT_F_MAX,
     DEFAULT_MU,
@@ -39,7 +39,6 @@ from closure_nlp.criterion.support_minimum import (
 # millisecond a set), small enough that the workers finish together.
 CHUNK = 32
 POOLS = ("threads", "processes")
-MAX_WORKERS = 256
 
 
 class _Columns:
@@ -240,12 +239,7 @@ def rho_hat_many(eligibility, element_sets, *, workers: int | None = None) -> Rh
 
 
 def _workers(workers, count: int) -> int:
-    if workers is None:
-        cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else None
-        workers = cores or os.cpu_count() or 1
-    elif isinstance(workers, bool) or not is_whole(workers) or not 1 <= workers <= MAX_WORKERS:
-        raise ValueError(f"workers: expected an integer in [1, {MAX_WORKERS}], got {workers!r}")
-    return max(1, min(int(workers), -(-count // CHUNK)))
+    return max(1, min(checked_workers(workers), -(-count // CHUNK)))
 
 
 def _contact_sets(positions, normals, kind, mu, mu_s, f_max, torque_scale, reference_point):

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
+from closure_nlp.base.cores import checked_workers
 from closure_nlp.base.interrupts import interruptible
 from closure_nlp.base.solver_cache import NLPSOL_OPTIONS, PerThread, cached
 from closure_nlp.base.tolerances import DEFAULT_TOLERANCES, Tolerances
@@ -730,6 +731,7 @@ def rho(
     tolerance=None,
     solver: str | None = None,
     tol: float | None = None,
+    workers: int | None = None,
 ) -> RhoResult:
     """rho(0, W_c^M) of a contact set (eq 24), with certified bounds.
 
@@ -753,6 +755,10 @@ def rho(
         Relative width of the certified bracket, ``hi - lo <= tol * max(|rho|, unit)`` with
         ``unit`` the set's own wrench scale, in ``[1e-9, 0.1]`` (default: ``minimizer``'s
         tolerances, 1e-6); the verdicts take the same accuracy. Not with ``minimizer``.
+    workers : int, optional
+        Threads for a long certificate (round parts, many contacts), at most two of them busy;
+        the answer is the same to the bit for any value. Default: the cores this process may
+        use.
 
     Returns
     -------
@@ -768,6 +774,7 @@ def rho(
 
     if solver is not None and solver not in SOLVERS:
         raise ValueError(f"solver: must be one of {', '.join(SOLVERS)}, got {solver!r}")
+    workers = checked_workers(workers)
     if tol is not None:
         if minimizer is not None:
             raise ValueError("tol: give tol or a minimizer (its tolerances set the bracket)")
@@ -777,7 +784,7 @@ def rho(
     elif solver is not None and solver != minimizer.solver:
         minimizer = minimizer.with_solver(solver)
     slots = WrenchSlots.from_contacts(contact_set)
-    result = certified_search(minimizer, slots, warm_start)
+    result = certified_search(minimizer, slots, warm_start, workers=workers)
     tolerance = contact_set.tolerance if tolerance is None else tolerance
     return with_robustness(result, slots, tolerance, minimizer.tolerances)
 
@@ -799,8 +806,11 @@ def search_rho(
     return RhoResult(value, value < 0.0, found.direction, found.support_point, found.stats)
 
 
-def certified_search(minimizer: SupportMinimizer, slots: WrenchSlots, warm_start=None) -> RhoResult:
-    """The seed search (:attr:`SupportMinimizer.seed_search`), then its certificate.
+def certified_search(
+    minimizer: SupportMinimizer, slots: WrenchSlots, warm_start=None, *, workers: int = 1
+) -> RhoResult:
+    """The seed search (:attr:`SupportMinimizer.seed_search`), then its certificate (its long
+    rounds in ``workers`` threads: :attr:`BranchBoundOptions.workers`).
 
     A bracket left unconverged (a continuum of equally weak directions, where the branch and
     bound stops at its budget) holds a reported value that is only as good as the incumbent: the
@@ -819,7 +829,7 @@ def certified_search(minimizer: SupportMinimizer, slots: WrenchSlots, warm_start
 
     seed = minimizer.seeding()
     below = -minimizer.tolerances.certify * tolerance_unit(slots)
-    result = certified_rho(slots, seed(slots, warm_start, below), minimizer)
+    result = certified_rho(slots, seed(slots, warm_start, below), minimizer, workers=workers)
     if result.converged or result.marginal or seed is minimizer:
         return result
     more = minimizer(slots, result.direction)
@@ -842,15 +852,16 @@ def certified_search(minimizer: SupportMinimizer, slots: WrenchSlots, warm_start
 
 
 def certified_rho(
-    slots: WrenchSlots, found: SupportMinimum, minimizer: SupportMinimizer
+    slots: WrenchSlots, found: SupportMinimum, minimizer: SupportMinimizer, *, workers: int = 1
 ) -> RhoResult:
     """The search's minimum made certain: bounds started at its direction (and polished by the
     minimizer's local solver), the lower value wins."""
-    from closure_nlp.criterion.certificate import certified_bounds
+    from closure_nlp.criterion.certificate import certified_bounds, threaded_options
 
     bounds = certified_bounds(
         slots,
         found.direction,
+        options=threaded_options(min(workers, 2)),  # two parts a round: more threads idle
         tolerances=minimizer.tolerances,
         polish=lambda u: minimizer.polish(slots, u),
     )

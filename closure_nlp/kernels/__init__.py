@@ -351,7 +351,7 @@ def signatures() -> dict:
     out = {("support", name): (*slots, f2) for name in ENTRY_POINTS["support"]}
     out["branch_bound", "consider"] = (*slots, f2, f2, f1, f1)
     out["branch_bound", "advance"] = (
-        *slots, *cells, *samples, types.boolean, f2, f1, f1, f2, f1, f1, f1,
+        *slots, *cells, f2, *samples, i8, f2, f1, f1, f2, f1, f1, f1,
     )  # fmt: skip
     out["nearest_point", "min_norm_point"] = (f2, f8)
     out["nearest_point", "nearest_point_bounds"] = (*slots, f2, f8, i8)

@@ -785,43 +785,64 @@ def no_samples():
     return np.empty((0, SAMPLES, 6)), np.empty((0, SAMPLES, 6)), np.empty((0, SAMPLES))
 
 
+def none_inherited(n):
+    """Inherited bounding points (:func:`advance`'s ``lin``) for ``n`` cells that have none."""
+    return np.full((n, 6), np.nan)
+
+
 # What :func:`advance` stops for.
-CONVERGED, BUDGET, BELOW_ZERO, POLISH = 0, 1, 2, 3
+CONVERGED, BUDGET, BELOW_ZERO, POLISH, ROUND = 0, 1, 2, 3, 4
+# What :func:`advance`'s cells are on entry.
+FRESH, CHILDREN, EVALUATED = 0, 1, 2
 # ``tally`` (float64): the search's state between calls of :func:`advance`.
-LOWER, CELLS, ROUNDS, ALIVE_AT_BUDGET, POLISHED_AT, POLISHES = range(6)
+LOWER, CELLS, ROUNDS, ALIVE_AT_BUDGET, POLISHED_AT, POLISHES, LIVE_LOWER = range(7)
 # ``settings`` (float64): its budget and tolerances.
 (
     GAP, MARGIN, FW_STEPS, REFINE_BELOW, MAX_CELLS, EXTENDED_CELLS, EXTENSION_ALIVE, MAX_ROUNDS,
-    STOP_BELOW_ZERO, CELLS_PER_ROUND, MAX_POLISH, FLOOR, SHELLS_BELOW, SHELLS_SHRINK,
-) = range(14)  # fmt: skip
+    STOP_BELOW_ZERO, CELLS_PER_ROUND, MAX_POLISH, FLOOR, SHELLS_BELOW, SHELLS_SHRINK, ROUND_CELLS,
+    ROUNDS_AFTER,
+) = range(16)  # fmt: skip
 
 
 @njit(**OPTIONS)
 def advance(
-    G, f, W, npc, ends, axis, sign, lo, hi, U, points, values, evaluated, metric, best,
+    G, f, W, npc, ends, axis, sign, lo, hi, lin, U, points, values, stage, metric, best,
     best_u, anchor, anchor_at, tally, settings,
 ):  # fmt: skip
     """Rounds of the branch and bound (evaluate every live cell, bound it, drop the cells
     whose bound reaches the incumbent minus the gap, :func:`split` the others) until it converges,
     spends its budget, meets ``p < 0`` (with ``settings[STOP_BELOW_ZERO]``), or its samples
     lowered the incumbent by more than the gap since the last polish and a polish is left
-    (``POLISH``: the caller runs its local solver and calls again with the same cells,
-    ``evaluated`` true). ``tally[LOWER]`` holds the least bound of the dropped cells, and once
+    (``POLISH``: the caller runs its local solver and calls again with the same cells at
+    ``stage`` EVALUATED). ``tally[LOWER]`` holds the least bound of the dropped cells, and once
     stopped unconverged, of the live ones too. Halved cells inherit their parent's bounding
-    point and are first :func:`screen`-ed by it, then by their centre's support point
-    (:func:`screen_centres`): the cells these drop cost no more samples (and do not count in
-    ``tally[CELLS]``, the budget of sampled cells).
+    point (their row of ``lin``) and are first :func:`screen`-ed by it, then by their centre's
+    support point (:func:`screen_centres`): the cells these drop cost no more samples (and do
+    not count in ``tally[CELLS]``, the budget of sampled cells).
 
-    Returns (status, axis, sign, lo, hi, U, points, values): the live cells and their
-    samples."""
+    ``stage``: FRESH (cells without inherited points: ``lin`` is room), CHILDREN (a ``ROUND``'s
+    cells, screened first) or EVALUATED. A round that leaves at least ``settings[ROUND_CELLS]``
+    children, once ``settings[ROUNDS_AFTER]`` cells have been sampled, returns them (``ROUND``,
+    ``tally[LIVE_LOWER]`` the least bound of their parents), so that the caller may deal them
+    out to workers.
+
+    Returns (status, axis, sign, lo, hi, lin, U, points, values): the live cells, their
+    inherited points and their samples."""
     gap, margin = settings[GAP], settings[MARGIN]
     max_cells, extended = settings[MAX_CELLS], settings[EXTENDED_CELLS]
-    lin = np.empty((len(axis), 6))
-    for n in range(len(axis)):
-        fill(lin[n], len(lin[n]), np.nan)  # none inherited on entry
     geo, cached = geometry(len(axis)), False
     while True:
-        if not evaluated:
+        if stage == CHILDREN:
+            live = screen(
+                axis, sign, lo, hi, metric, settings[FLOOR], lin, best[0] - gap, margin, tally,
+                geo,
+            )  # fmt: skip
+            cached = True
+            axis, sign, lo, hi = take_cells(axis, sign, lo, hi, live)
+            if len(live) == 0:
+                return CONVERGED, axis, sign, lo, hi, lin, U, points, values
+            lin = take_rows(lin, live)
+        if stage != EVALUATED:
             centre_w, centre_v = np.empty((len(axis), 6)), np.empty(len(axis))
             live = screen_centres(
                 G, f, W, npc, ends, axis, sign, lo, hi, metric, settings[FLOOR], gap, margin,
@@ -830,12 +851,9 @@ def advance(
             cached = True
             if len(live) < len(axis):
                 axis, sign, lo, hi = take_cells(axis, sign, lo, hi, live)
-                inherited = lin
-                lin = np.empty((len(live), 6))
-                for c in range(len(live)):
-                    copy_into(lin[c], inherited[live[c]])
+                lin = take_rows(lin, live)
             if len(live) == 0:
-                return CONVERGED, axis, sign, lo, hi, U, points, values
+                return CONVERGED, axis, sign, lo, hi, lin, U, points, values
             N = len(axis)
             U = np.empty((N, SAMPLES, 6))
             points = np.empty((N, SAMPLES, 6))
@@ -847,11 +865,10 @@ def advance(
             tally[CELLS] += N
             tally[ROUNDS] += 1
             if tally[POLISHES] < settings[MAX_POLISH] and best[0] < tally[POLISHED_AT] - gap:
-                return POLISH, axis, sign, lo, hi, U, points, values
-        evaluated = False
+                return POLISH, axis, sign, lo, hi, lin, U, points, values
         if settings[STOP_BELOW_ZERO] > 0 and best[0] < -margin:
             tally[LOWER] = -np.inf
-            return BELOW_ZERO, axis, sign, lo, hi, U, points, values
+            return BELOW_ZERO, axis, sign, lo, hi, lin, U, points, values
         target = best[0] - gap  # the round's: refinements may lower the incumbent meanwhile
         stop = target + GAME_HEADROOM * gap
         bound = bound_cells(
@@ -869,7 +886,7 @@ def advance(
             else:
                 tally[LOWER] = min(tally[LOWER], bound[n])
         if alive == 0:
-            return CONVERGED, axis, sign, lo, hi, U, points, values
+            return CONVERGED, axis, sign, lo, hi, lin, U, points, values
         cells = tally[CELLS]
         if cells >= max_cells and tally[ALIVE_AT_BUDGET] < 0:
             tally[ALIVE_AT_BUDGET] = alive
@@ -882,7 +899,7 @@ def advance(
             or (cells >= max_cells and not extending)
         ):
             tally[LOWER] = min(tally[LOWER], lowest_live)
-            return BUDGET, axis, sign, lo, hi, U, points, values
+            return BUDGET, axis, sign, lo, hi, lin, U, points, values
         keep = keep[:alive]
         axis, sign, lo, hi = take_cells(axis, sign, lo, hi, keep)
         radius = INNER_SHARE * np.sqrt(gap / max(abs(best[0]), gap))
@@ -894,18 +911,20 @@ def advance(
         inherited = np.empty((len(axis), 6))
         for c in range(len(axis)):
             copy_into(inherited[c], lin[keep[parent[c]]])
-        geo = geometry(len(axis))
-        live = screen(
-            axis, sign, lo, hi, metric, settings[FLOOR], inherited, best[0] - gap, margin, tally,
-            geo,
-        )  # fmt: skip
-        cached = True
-        axis, sign, lo, hi = take_cells(axis, sign, lo, hi, live)
-        if len(live) == 0:
-            return CONVERGED, axis, sign, lo, hi, U, points, values
-        lin = np.empty((len(live), 6))
-        for c in range(len(live)):
-            copy_into(lin[c], inherited[live[c]])
+        lin, stage = inherited, CHILDREN
+        geo, cached = geometry(len(axis)), False
+        if len(axis) >= settings[ROUND_CELLS] and tally[CELLS] >= settings[ROUNDS_AFTER]:
+            tally[LIVE_LOWER] = lowest_live
+            return ROUND, axis, sign, lo, hi, lin, U, points, values
+
+
+@njit(**OPTIONS)
+def take_rows(rows, keep):
+    """``rows[keep]`` of a 2-d array, as a loop (see :func:`take_cells`)."""
+    out = np.empty((len(keep), rows.shape[1]))
+    for c in range(len(keep)):
+        copy_into(out[c], rows[keep[c]])
+    return out
 
 
 @njit(**OPTIONS)

@@ -25,6 +25,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from closure_nlp.base.cores import available_cores
 from closure_nlp.base.errors import MethodError
 from closure_nlp.base.interrupts import leave_to_parent
 from closure_nlp.base.progress import Progress
@@ -266,14 +267,6 @@ def check_seed_options(seeds, workers, budget) -> tuple[int, int | None, float |
             raise ValueError(f"budget: expected a positive number of seconds, got {budget!r}")
         budget = float(budget)
     return seeds, workers, budget
-
-
-def available_cores() -> int:
-    """The cores this process may run on."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
 
 
 def plan_seeds(
@@ -814,7 +807,6 @@ __all__ = [
     "SeedRun",
     "SeedSpread",
     "WorkerLost",
-    "available_cores",
     "best_index",
     "check_seed_options",
     "choose",
