@@ -242,3 +242,33 @@ def test_the_one_pass_slots_are_the_per_set_slots_to_the_bit():
     assert slots_of_arrays(P, huge, kinds, mu, mu_s, f_max, scales, points) is None
     columns = rho_many(P[:2], huge[:2], mu=0.5, workers=1)
     assert columns.rho[0] == rho(ContactSet.from_arrays(P[0], huge[0], mu=0.5)).rho
+
+
+def test_rho_hat_many_takes_a_wider_bracket():
+    """``tol`` as rho_many's: each element set's bracket within ``tol`` of its scale, holding
+    the default answer, its verdict never stronger; the same as one call with that tol."""
+    from pathlib import Path
+
+    lamp = load_model(Path(__file__).resolve().parents[1] / "models" / "lamp.model.json")
+    hand = Eligibility(lamp, contact_specs(4, type="pcwf", mu=0.2, model=lamp))
+    rng = np.random.default_rng(5)
+    sets = [rng.integers(0, len(lamp), 4).tolist() for _ in range(16)]
+    fine = rho_hat_many(hand, sets, workers=1)
+    wide = rho_hat_many(hand, sets, workers=2, tol=1e-2)
+    assert wide.converged.all() and fine.eligible.any()
+    for k, ids in enumerate(sets):
+        unit = tolerance_unit(hand.slots(hand.check_elements(ids)))
+        lo, hi = wide.bounds[k]
+        fine_lo, fine_hi = fine.bounds[k]
+        assert hi - lo <= 1e-2 * max(abs(lo), abs(hi), unit) * (1 + 1e-9)
+        assert max(lo, fine_lo) <= min(hi, fine_hi) + 1e-12 * unit
+        if wide.eligible[k]:
+            assert fine.eligible[k] and hi < -1e-2 * unit
+        one = hand(ids, tol=1e-2)
+        assert one.bounds == tuple(wide.bounds[k]) and one.rho_hat == wide.rho_hat[k]
+    with pytest.raises(ValueError, match="tol"):
+        rho_hat_many(hand, sets[:1], tol=0.5)
+    with pytest.raises(TypeError, match="tol"):
+        rho_hat_many(hand, sets[:1], tol="1e-3")
+    with pytest.raises(ValueError, match="tol"):
+        hand(sets[0], certify=False, tol=1e-3)

@@ -209,7 +209,9 @@ def _certify_chunk(sets, tol: float) -> list:
     ]
 
 
-def rho_hat_many(eligibility, element_sets, *, workers: int | None = None) -> RhoHatColumns:
+def rho_hat_many(
+    eligibility, element_sets, *, workers: int | None = None, tol: float | None = None
+) -> RhoHatColumns:
     """Certified rho_hat of many element sets of one model, in threads.
 
     Parameters
@@ -221,21 +223,26 @@ def rho_hat_many(eligibility, element_sets, *, workers: int | None = None) -> Rh
         Element ids, one per contact of each set.
     workers : int, optional
         Sets certified at once (default: one per core); the answers do not depend on it.
+    tol : float, optional
+        Relative width of every certified bracket, as :func:`rho_many`'s (default: the
+        eligibility's minimizer's, 1e-6); the verdicts take the same accuracy.
 
     Returns
     -------
     RhoHatColumns
     """
+    tol = None if tol is None else checked_tol(tol)
     sets = [
         eligibility.check_elements(ids, f"element_sets[{k}]") for k, ids in enumerate(element_sets)
     ]
     if not sets:
         raise ValueError("element_sets: at least one set is needed, got none")
     workers = _workers(workers, len(sets))
+    certify = partial(eligibility, tol=tol)
     if workers == 1:
-        return RhoHatColumns.from_results([eligibility(ids) for ids in sets])
+        return RhoHatColumns.from_results([certify(ids) for ids in sets])
     with ThreadPoolExecutor(workers) as executor:
-        return RhoHatColumns.from_results(list(executor.map(eligibility, sets)))
+        return RhoHatColumns.from_results(list(executor.map(certify, sets)))
 
 
 def _workers(workers, count: int) -> int:

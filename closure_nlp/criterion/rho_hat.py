@@ -37,8 +37,10 @@ from closure_nlp.criterion.support_minimum import (
     certificate_of,
     certified_rho,
     certified_search,
+    checked_tol,
     signed_distance,
     timing_keys,
+    tol_variant,
 )
 from closure_nlp.model.elements import Model
 from closure_nlp.model.fixed_contacts import fixed_contacts
@@ -159,6 +161,7 @@ class Eligibility:
         auto = isinstance(torque_scale, str) and torque_scale == AUTO
         self.torque_scale = auto_torque_scale(model) if auto else as_torque_scale(torque_scale)
         self.minimizer = minimizer or SupportMinimizer()
+        self._tol_minimizers: dict = {}  # the minimizer's variants of other brackets
         self._counts: PerThread[Counter] = PerThread(Counter)
         if tolerance is None and model.tolerance:
             tolerance = model.tolerance
@@ -238,6 +241,7 @@ class Eligibility:
         partial: bool = False,
         certify: bool = True,
         stop_above: float | None = None,
+        tol: float | None = None,
     ) -> EligibilityResult:
         """rho_hat of ``elements`` (m ids; with ``partial``, the first ``k <= m`` contacts).
 
@@ -250,16 +254,25 @@ class Eligibility:
         rho_hat is below it; the search returns as soon as a direction shows a value at or
         above it. A result at or above ``stop_above`` is then only a value never above the full
         search's (which goes on from there and can only raise it); one below is the full value.
+
+        ``tol`` (only with ``certify``): the relative width of the certified bracket, as
+        :func:`~closure_nlp.criterion.support_minimum.rho`'s (default: the minimizer's, 1e-6);
+        the verdicts take the same accuracy.
         """
         certify = as_flag(certify, "certify")
         if certify and stop_above is not None:
             raise ValueError("stop_above: a certified result has no early stop")
+        if tol is not None and not certify:
+            raise ValueError("tol: only a certified result has a bracket")
+        minimizer = self.minimizer
+        if tol is not None:
+            minimizer = tol_variant(minimizer, checked_tol(tol), self._tol_minimizers)
         elements = self.check_elements(elements, partial=partial)
         slots = self.slots(elements)
         self._counts.get()["evaluations"] += 1
         if certify:
-            found = certified_search(self.minimizer, slots, warm_start)
-            return self._result(elements, self._robust(elements, found, slots))
+            found = certified_search(minimizer, slots, warm_start)
+            return self._result(elements, self._robust(elements, found, slots, minimizer))
         stop = None if stop_above is None else -float(stop_above)
         found = self.minimizer(slots, warm_start, stop)
         value = signed_distance(found, slots, self.minimizer.tolerances)
@@ -280,11 +293,12 @@ class Eligibility:
             elements, self._robust(elements, certified_rho(slots, found, self.minimizer), slots)
         )
 
-    def _robust(self, elements, result, slots):
+    def _robust(self, elements, result, slots, minimizer=None):
         tolerance = self.contact_tolerance(elements)
         if not isinstance(tolerance, ModelTolerance):  # per contact: in the slots' order
             tolerance = tuple(tolerance[i] for i in self._slot_order(elements))
-        return with_robustness(result, slots, tolerance, self.minimizer.tolerances)
+        tolerances = (minimizer or self.minimizer).tolerances
+        return with_robustness(result, slots, tolerance, tolerances)
 
     @staticmethod
     def _result(elements, r) -> EligibilityResult:

@@ -532,8 +532,16 @@ class SupportMinimizer:
 
     def with_solver(self, solver: str) -> SupportMinimizer:
         """The same options and NLPs (the cache is shared) with another local solver."""
+        return self._variant(self.tolerances, solver)
+
+    def with_tol(self, tol: float) -> SupportMinimizer:
+        """The same options and NLPs whose certificates stop at the relative bracket ``tol``
+        (:func:`checked_tol`)."""
+        return self._variant(replace(self.tolerances, certify=checked_tol(tol)), self.solver)
+
+    def _variant(self, tolerances: Tolerances, solver: str) -> SupportMinimizer:
         other = SupportMinimizer(
-            self.tolerances, self.search, self.ipopt_options, self.seed_search, solver
+            tolerances, self.search, self.ipopt_options, self.seed_search, solver
         )
         other._caches = self._caches
         return other
@@ -714,12 +722,16 @@ def minimizer_for(tol: float) -> SupportMinimizer:
     """The shared minimizer whose certificates stop at the relative bracket ``tol`` (checked):
     the package's own for its default, else one made once per value (its NLPs built on first
     use)."""
-    if tol == DEFAULT_TOLERANCES.certify:
-        return _DEFAULT_MINIMIZER
-    tolerances = replace(DEFAULT_TOLERANCES, certify=tol)
-    return cached(
-        _TOL_MINIMIZERS, tol, lambda: SupportMinimizer(tolerances=tolerances), MAX_TOL_MINIMIZERS
-    )
+    return tol_variant(_DEFAULT_MINIMIZER, tol, _TOL_MINIMIZERS)
+
+
+def tol_variant(minimizer: SupportMinimizer, tol: float, cache: dict) -> SupportMinimizer:
+    """``minimizer`` itself when its certificates stop at ``tol``, else its variant that does
+    (:meth:`SupportMinimizer.with_tol`), kept in ``cache`` (the most recently used
+    :data:`MAX_TOL_MINIMIZERS`)."""
+    if tol == minimizer.tolerances.certify:
+        return minimizer
+    return cached(cache, tol, lambda: minimizer.with_tol(tol), MAX_TOL_MINIMIZERS)
 
 
 def rho(
@@ -910,6 +922,7 @@ __all__ = [
     "checked_tol",
     "frozen_arrays",
     "minimizer_for",
+    "tol_variant",
     "rho",
     "search_rho",
     "signed_distance",
