@@ -271,6 +271,7 @@ def _point_at_origin(slots: WrenchSlots) -> float | None:
     if c is None:
         return None
     from scipy.optimize import linprog  # here: its import costs a command's start 0.2-0.5 s
+
     K, m = len(c), slots.m
     slot = np.repeat(np.arange(m), slots.rows_per_slot)
     per_slot = np.zeros((m, K))
