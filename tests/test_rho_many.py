@@ -272,3 +272,15 @@ def test_rho_hat_many_takes_a_wider_bracket():
         rho_hat_many(hand, sets[:1], tol="1e-3")
     with pytest.raises(ValueError, match="tol"):
         hand(sets[0], certify=False, tol=1e-3)
+
+
+def test_a_lone_long_set_gets_both_threads_and_the_same_bits():
+    """Fewer sets than one chunk run in the caller's thread, a long certificate's rounds in
+    two threads: the answer of one thread, bit for bit."""
+    a = np.pi / 2 * np.arange(4)
+    P = np.column_stack([np.cos(a), np.sin(a), np.zeros(4)])[None]  # a ring of 4 soft fingers
+    both = rho_many(P, -P, type="sfce", mu=0.5, mu_s=0.2, workers=2)
+    one = rho_many(P, -P, type="sfce", mu=0.5, mu_s=0.2, workers=1)
+    for name in ("rho", "bounds", "force_closure", "marginal", "converged", "direction"):
+        assert np.array_equal(getattr(both, name), getattr(one, name)), name
+    assert one.force_closure[0] and one.converged[0]

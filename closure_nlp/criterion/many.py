@@ -158,7 +158,9 @@ def rho_many(
         The point torques are taken about (None: the origin).
     workers : int, optional
         How many sets are certified at once (default: one per core); 1 runs them in this
-        thread. The answers do not depend on it.
+        thread. Too few sets to share out (one chunk of 32) run in this thread, each long
+        certificate's rounds in two threads (:func:`rho`'s ``workers``). The answers do not
+        depend on it.
     pool : {"threads", "processes"}
         How the workers run: threads of this process, or processes forked from it (where the
         system forks; threads otherwise).
@@ -178,12 +180,13 @@ def rho_many(
     tol = checked_tol(tol)
     sets = _contact_sets(positions, inward_normals, type, mu, mu_s, f_max, torque_scale,
                          reference_point)  # fmt: skip
-    workers = _workers(workers, len(sets))
+    cores = checked_workers(workers)
+    workers = _workers(cores, len(sets))
     if pool not in POOLS:
         raise ValueError(f"pool: expected one of {', '.join(POOLS)}, got {pool!r}")
     certify = partial(_certify_chunk, tol=tol)
     if workers == 1:
-        return RhoColumns.from_results(certify(sets))
+        return RhoColumns.from_results(certify(sets, threads=cores))
     chunks = [sets[k : k + CHUNK] for k in range(0, len(sets), CHUNK)]
     if pool == "processes" and "fork" in multiprocessing.get_all_start_methods():
         certify(sets[:1])  # kernels loaded before the fork: the workers inherit them
@@ -196,15 +199,15 @@ def rho_many(
     return RhoColumns.from_results([r for part in parts for r in part])
 
 
-def _certify_chunk(sets, tol: float) -> list:
+def _certify_chunk(sets, tol: float, threads: int = 1) -> list:
     """Certified rho of each set to the relative bracket ``tol``: a ContactSet by
     :func:`rho`, the slots of one given as arrays (no tolerance) by the same search and
-    certificate that :func:`rho` runs on them."""
+    certificate that :func:`rho` runs on them, a long certificate's rounds in ``threads``."""
     minimizer = minimizer_for(tol)
     return [
-        certified_search(minimizer, s)
+        certified_search(minimizer, s, workers=threads)
         if isinstance(s, WrenchSlots)
-        else rho(s, minimizer=minimizer)
+        else rho(s, minimizer=minimizer, workers=threads)
         for s in sets
     ]
 
