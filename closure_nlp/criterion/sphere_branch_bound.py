@@ -268,6 +268,7 @@ def sphere_minimum(
     search = _Search(packed, polish)
     if incumbent is not None:
         search.consider(incumbent, "incumbent")
+    search.tally[kernels.POLISHED_AT] = search.best[0]  # a polish is due below the start
     settings = np.array(
         [
             gap - slack,
@@ -339,8 +340,6 @@ class _Search:
         """Rounds from cells (axis, sign, lo, hi, lin) at ``stage`` (FRESH or CHILDREN) until
         the search ends or returns a round's children (``(status, cells)``), with the polishes
         it asks for."""
-        if np.isinf(self.tally[kernels.POLISHED_AT]):
-            self.tally[kernels.POLISHED_AT] = self.best[0]
         cells = (*cells, *kernels.no_samples())
         while True:
             status, *cells = kernels.advance(
