@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from scipy.optimize import linprog
 
+from benchmarks.bench import ring
 from closure_nlp.contact.contact_set import Contact, ContactSet, ContactType, contact_set_from_dict
 from closure_nlp.contact.random_sets import random_contact_set
 from closure_nlp.contact.wrenches import WrenchSlots
@@ -415,13 +416,6 @@ def test_split_cuts_the_incumbents_cell_into_shells_and_halves_the_others():
     assert 0.99 * radius <= delta <= 1.01 * radius
 
 
-def _ring(m: int, kind: str = "sfce") -> ContactSet:
-    """``m`` soft fingers round a circle in one plane: a long search (a flat valley of minima)."""
-    a = 2 * np.pi * np.arange(m) / m
-    P = np.column_stack([np.cos(a), np.sin(a), np.zeros(m)])
-    return ContactSet(tuple(Contact(p, -p, kind, mu=0.5, mu_s=0.2) for p in P))
-
-
 def _dealt_statuses(monkeypatch) -> list:
     """The status of every round that :func:`sphere_minimum` deals into two parts."""
     from closure_nlp.criterion import sphere_branch_bound
@@ -456,11 +450,26 @@ def test_long_rounds_in_two_threads_give_the_serial_bits(monkeypatch):
 
 def test_a_dealt_search_stopped_by_its_budget_counts_the_live_cells(monkeypatch):
     # The budget runs out in a round dealt into two parts: the lower bound must take in the
-    # cells still alive in both (their bounds lie below the incumbent minus the gap).
-    seen = _dealt_statuses(monkeypatch)
-    cs = _ring(6)
+    # cells still alive in both (their bounds lie below the incumbent minus the gap), each
+    # part's least bound as that part recorded it.
+    from closure_nlp.criterion import sphere_branch_bound
+
+    seen, parts, run = _dealt_statuses(monkeypatch), [], sphere_branch_bound._Search.run
+
+    def recorded(search, cells, stage, frame, settings):
+        status, live = run(search, cells, stage, frame, settings)
+        if settings[kernels.ROUND_CELLS] == 0:  # a part of a dealt round
+            low = search.tally[kernels.LOWER]
+            dealt_on = status == kernels.ROUND  # its live cells' least parent bound
+            parts.append(min(low, search.tally[kernels.LIVE_LOWER]) if dealt_on else low)
+        return status, live
+
+    monkeypatch.setattr(sphere_branch_bound._Search, "run", recorded)
+    cs = ring("sfce", 6)  # a long search: a flat valley of minima
     slots, stopped = _min_over_sphere(cs, 1500, extended_cells=1500, workers=2)
     assert seen[-1] == kernels.BUDGET and kernels.ROUND in seen
+    least = min(parts[-2:])  # the last round's two parts
+    assert least - 1e-12 <= stopped.lower <= least  # less only by the symmetry's slack
     gap = 1e-6 * max(1.0, abs(stopped.upper))
     assert not stopped.converged and stopped.upper - stopped.lower > gap
     p_ref, _ = reference.reference_min(reference.from_contact_set(cs), samples=300, starts=3)
@@ -492,4 +501,4 @@ def test_workers_must_be_a_positive_count(bad):
     with pytest.raises(ValueError, match="workers"):
         BranchBoundOptions(workers=bad)
     with pytest.raises(ValueError, match="workers"):
-        rho(_ring(3), workers=bad)
+        rho(ring("sfce", 3), workers=bad)

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 
+from benchmarks.bench import ring as ring_set
 from closure_nlp import load_contact_set
 from closure_nlp.cli.main import main
 from closure_nlp.contact.wrenches import WrenchSlots
@@ -163,17 +164,7 @@ def test_workers_change_no_answer_of_one_file_or_several(tmp_path, capsys):
     # Four soft fingers round a ring: a long certificate, whose rounds one file's run deals to
     # two threads with --workers 2.
     ring = tmp_path / "ring.contacts.json"
-    ring.write_text(
-        json.dumps(
-            {
-                "contacts": [
-                    {"position": p, "inward_normal": [-x for x in p], "type": "SFCe", "mu": 0.5,
-                     "mu_s": 0.2}
-                    for p in ([1, 0, 0], [0, 1, 0], [-1, 0, 0], [0, -1, 0])
-                ]
-            }
-        )
-    )  # fmt: skip
+    ring.write_text(json.dumps(ring_set("sfce", 4).to_dict()))
     for files in ([ring], [ring, EXAMPLE]):
         answers = []
         for workers in ("1", "2"):

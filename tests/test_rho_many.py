@@ -266,6 +266,9 @@ def test_rho_hat_many_takes_a_wider_bracket():
             assert fine.eligible[k] and hi < -1e-2 * unit
         one = hand(ids, tol=1e-2)
         assert one.bounds == tuple(wide.bounds[k]) and one.rho_hat == wide.rho_hat[k]
+    # the wider bracket is what was asked for: on eligible sets it stops sooner
+    eligible = fine.eligible
+    assert np.median(np.diff(wide.bounds)[eligible]) > np.median(np.diff(fine.bounds)[eligible])
     with pytest.raises(ValueError, match="tol"):
         rho_hat_many(hand, sets[:1], tol=0.5)
     with pytest.raises(TypeError, match="tol"):
